@@ -1,0 +1,26 @@
+// Ingest: turn a frame into the f32 grey image (0..255 scale) every other
+// stage reads. Three entry points, one per kind of input.
+// Kept in sync with `IngestUniform` in src/early/ingest.rs.
+
+struct Params {
+    width: u32,
+    height: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read_write> dst: array<f32>;
+
+// 8-bit grey bytes, packed four to a u32 (little-endian), row-major.
+@group(0) @binding(2) var<storage, read> packed: array<u32>;
+
+@compute @workgroup_size(16, 16)
+fn from_bytes(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= params.width || id.y >= params.height) {
+        return;
+    }
+    let i = id.y * params.width + id.x;
+    let byte = (packed[i / 4u] >> (8u * (i % 4u))) & 0xffu;
+    dst[i] = f32(byte);
+}

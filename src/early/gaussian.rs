@@ -1,0 +1,207 @@
+//! Separable Gaussian smoothing (000 eq. 1, the G* of each frame).
+//!
+//! Kernel: radius `r = ceil(3σ)` (at least 1), weights
+//! `w_k = exp(−k²/2σ²)` for `k = −r..=r`, computed in f64 and normalised to
+//! sum 1, then rounded to f32 so both twins use identical weights. Borders
+//! clamp to the edge. σ must lie in `(0, MAX_SIGMA]`.
+
+use bytemuck::{Pod, Zeroable};
+use rayon::prelude::*;
+
+use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::image::FloatImage;
+use crate::{Error, Result};
+
+/// The shader of this stage.
+pub(crate) const SHADER: ShaderDef = ShaderDef { name: "gaussian", source: include_str!("../../shaders/gaussian.wgsl") };
+
+/// Most half-kernel weights the shader's uniform block holds.
+const MAX_TAPS: usize = 64;
+/// Largest σ accepted (radius `ceil(3σ)` must stay below [`MAX_TAPS`]).
+pub const MAX_SIGMA: f32 = 21.0;
+/// Images with at least this many pixels are smoothed on several threads.
+pub(crate) const PARALLEL_PIXELS: usize = 1 << 16;
+
+/// Parameters of Gaussian smoothing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GaussianParams {
+    /// Standard deviation in pixels; 000 does not give one, pipetrack's default is 1.0
+    /// (a 7-tap kernel, close to the 5×5 filters of the PIPE era).
+    pub sigma: f32,
+}
+
+impl Default for GaussianParams {
+    fn default() -> Self {
+        Self { sigma: 1.0 }
+    }
+}
+
+/// The half kernel `w_0..=w_r` of a Gaussian with standard deviation `sigma`.
+pub fn half_kernel(sigma: f32) -> Result<Vec<f32>> {
+    if !(sigma > 0.0 && sigma <= MAX_SIGMA) {
+        return Err(Error::Parameter(format!("Gaussian sigma {sigma} must be in (0, {MAX_SIGMA}]")));
+    }
+    let radius = ((3.0 * sigma as f64).ceil() as usize).max(1);
+    let s2 = 2.0 * (sigma as f64) * (sigma as f64);
+    let w: Vec<f64> = (0..=radius).map(|k| (-((k * k) as f64) / s2).exp()).collect();
+    let total = w[0] + 2.0 * w[1..].iter().sum::<f64>();
+    Ok(w.iter().map(|v| (v / total) as f32).collect())
+}
+
+/// Uniform block of `gaussian.wgsl`; kept in sync with its `Params`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GaussianUniform {
+    width: u32,
+    height: u32,
+    radius: u32,
+    _pad: u32,
+    weights: [f32; MAX_TAPS],
+}
+
+impl GaussianUniform {
+    fn new(width: usize, height: usize, half: &[f32]) -> Self {
+        let mut weights = [0.0; MAX_TAPS];
+        weights[..half.len()].copy_from_slice(half);
+        Self { width: width as u32, height: height as u32, radius: (half.len() - 1) as u32, _pad: 0, weights }
+    }
+}
+
+/// One 1-D pass along a row, clamp-to-edge; same arithmetic order as the shader.
+fn blur_row(src: &[f32], dst: &mut [f32], half: &[f32]) {
+    let n = src.len();
+    let r = half.len() - 1;
+    let last = n as isize - 1;
+    let edge = |x: usize, dst: &mut [f32]| {
+        let mut sum = half[0] * src[x];
+        for (k, &w) in half.iter().enumerate().skip(1) {
+            let l = (x as isize - k as isize).clamp(0, last) as usize;
+            let rr = (x as isize + k as isize).clamp(0, last) as usize;
+            sum += w * (src[l] + src[rr]);
+        }
+        dst[x] = sum;
+    };
+    if n <= 2 * r {
+        (0..n).for_each(|x| edge(x, dst));
+        return;
+    }
+    (0..r).for_each(|x| edge(x, dst));
+    for x in r..n - r {
+        let mut sum = half[0] * src[x];
+        for (k, &w) in half.iter().enumerate().skip(1) {
+            sum += w * (src[x - k] + src[x + k]);
+        }
+        dst[x] = sum;
+    }
+    (n - r..n).for_each(|x| edge(x, dst));
+}
+
+/// One output row of the vertical pass: `dst = w0·row(y) + Σ w_k (row(y−k) + row(y+k))`.
+fn blur_col_row(src: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], half: &[f32]) {
+    let last = height as isize - 1;
+    let row = |yy: isize| {
+        let yy = yy.clamp(0, last) as usize;
+        &src[yy * width..(yy + 1) * width]
+    };
+    let centre = row(y as isize);
+    for (d, &c) in dst.iter_mut().zip(centre) {
+        *d = half[0] * c;
+    }
+    for (k, &w) in half.iter().enumerate().skip(1) {
+        let up = row(y as isize - k as isize);
+        let down = row(y as isize + k as isize);
+        for ((d, &u), &v) in dst.iter_mut().zip(up).zip(down) {
+            *d += w * (u + v);
+        }
+    }
+}
+
+/// CPU twin: smooth `src` into `dst` (resized to match), using `tmp` as the
+/// intermediate of the row pass. No allocation once the buffers have grown.
+pub fn smooth_cpu(src: &FloatImage, params: &GaussianParams, tmp: &mut FloatImage, dst: &mut FloatImage) -> Result<()> {
+    let half = half_kernel(params.sigma)?;
+    let (w, h) = src.size();
+    tmp.resize(w, h);
+    dst.resize(w, h);
+    if w == 0 || h == 0 {
+        return Ok(());
+    }
+    let parallel = w * h >= PARALLEL_PIXELS;
+    if parallel {
+        src.data().par_chunks(w).zip(tmp.data_mut().par_chunks_mut(w)).for_each(|(s, d)| blur_row(s, d, &half));
+    } else {
+        src.data().chunks(w).zip(tmp.data_mut().chunks_mut(w)).for_each(|(s, d)| blur_row(s, d, &half));
+    }
+    let t = tmp.data();
+    if parallel {
+        dst.data_mut().par_chunks_mut(w).enumerate().for_each(|(y, d)| blur_col_row(t, w, h, y, d, &half));
+    } else {
+        dst.data_mut().chunks_mut(w).enumerate().for_each(|(y, d)| blur_col_row(t, w, h, y, d, &half));
+    }
+    Ok(())
+}
+
+/// CPU twin, allocating its outputs: the smoothed image.
+pub fn smooth(src: &FloatImage, params: &GaussianParams) -> Result<FloatImage> {
+    let mut tmp = FloatImage::new(0, 0);
+    let mut dst = FloatImage::new(0, 0);
+    smooth_cpu(src, params, &mut tmp, &mut dst)?;
+    Ok(dst)
+}
+
+/// Record the two passes `src → tmp → dst` (all the same size).
+pub(crate) fn encode(rec: &mut Recorder<'_>, src: &GpuImage, tmp: &GpuImage, dst: &GpuImage, params: &GaussianParams) -> Result<()> {
+    let half = half_kernel(params.sigma)?;
+    let (w, h) = (src.width(), src.height());
+    let u = GaussianUniform::new(w, h, &half);
+    let groups = workgroups_2d(w, h);
+    rec.dispatch(&SHADER, "blur_rows", &u, &[&src.buffer, &tmp.buffer], groups)?;
+    rec.dispatch(&SHADER, "blur_cols", &u, &[&tmp.buffer, &dst.buffer], groups)
+}
+
+/// GPU: smooth a CPU image and read the result back (tests and benches).
+pub fn smooth_gpu(ctx: &GpuContext, src: &FloatImage, params: &GaussianParams) -> Result<FloatImage> {
+    let (w, h) = src.size();
+    let input = GpuImage::from_image(ctx, src, "gaussian.src");
+    let tmp = GpuImage::new(ctx, w, h, "gaussian.tmp");
+    let out = GpuImage::new(ctx, w, h, "gaussian.dst");
+    run_once(ctx, |rec| encode(rec, &input, &tmp, &out, params))?;
+    out.download(ctx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kernel_sums_to_one_and_radius_is_ceil_three_sigma() {
+        let h = half_kernel(1.2).unwrap();
+        assert_eq!(h.len(), 5); // ceil(3.6) = 4
+        let total: f32 = h[0] + 2.0 * h[1..].iter().sum::<f32>();
+        assert!((total - 1.0).abs() < 1e-6);
+        assert!(half_kernel(0.0).is_err());
+        assert!(half_kernel(f32::NAN).is_err());
+    }
+
+    #[test]
+    fn constant_image_stays_constant_and_impulse_spreads_as_kernel() {
+        let flat = FloatImage::from_fn(9, 7, |_, _| 100.0);
+        let s = smooth(&flat, &GaussianParams { sigma: 1.0 }).unwrap();
+        assert!(s.data().iter().all(|&v| (v - 100.0).abs() < 1e-3));
+
+        let imp = FloatImage::from_fn(15, 15, |x, y| if (x, y) == (7, 7) { 1.0 } else { 0.0 });
+        let s = smooth(&imp, &GaussianParams { sigma: 1.0 }).unwrap();
+        let h = half_kernel(1.0).unwrap();
+        // Separable: value at (7+i, 7+j) = w_i · w_j.
+        assert!((s.get(7, 7) - h[0] * h[0]).abs() < 1e-7);
+        assert!((s.get(9, 6) - h[2] * h[1]).abs() < 1e-7);
+        assert_eq!(s.get(11, 7), 0.0); // beyond radius 3
+    }
+
+    #[test]
+    fn clamp_border_on_a_one_pixel_image() {
+        let one = FloatImage::from_fn(1, 1, |_, _| 42.0);
+        let s = smooth(&one, &GaussianParams { sigma: 2.0 }).unwrap();
+        assert!((s.get(0, 0) - 42.0).abs() < 1e-4);
+    }
+}

@@ -1,0 +1,83 @@
+//! Early vision: every stage exists twice, as a WGSL shader in `shaders/`
+//! and as a CPU twin here, with the same parameters, the same clamp-to-edge
+//! border policy and the same output layout. Each module holds one stage:
+//! its parameters, its CPU twin, its GPU `encode`, and a standalone
+//! `*_gpu` function for tests and benches.
+
+pub mod compaction;
+pub mod cpf;
+pub mod frame_sum;
+pub mod gaussian;
+pub mod ingest;
+pub mod log;
+pub mod sobel;
+pub mod temporal_diff;
+pub mod zero_crossing;
+
+/// A rectangle of interest in pixel coordinates: columns `x0..x1`, rows
+/// `y0..y1` (half-open). Empty when `x0 >= x1` or `y0 >= y1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Window {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl Window {
+    /// The whole `width`×`height` image.
+    #[must_use]
+    pub fn full(width: usize, height: usize) -> Self {
+        Self { x0: 0, y0: 0, x1: width as u32, y1: height as u32 }
+    }
+
+    /// This window clipped to a `width`×`height` image.
+    #[must_use]
+    pub fn clipped(&self, width: usize, height: usize) -> Self {
+        let (w, h) = (width as u32, height as u32);
+        Self { x0: self.x0.min(w), y0: self.y0.min(h), x1: self.x1.min(w), y1: self.y1.min(h) }
+    }
+
+    /// Width in pixels (0 when empty).
+    #[must_use]
+    pub fn width(&self) -> u32 {
+        self.x1.saturating_sub(self.x0)
+    }
+
+    /// Height in pixels (0 when empty).
+    #[must_use]
+    pub fn height(&self) -> u32 {
+        self.y1.saturating_sub(self.y0)
+    }
+
+    /// Number of pixels inside.
+    #[must_use]
+    pub fn area(&self) -> usize {
+        self.width() as usize * self.height() as usize
+    }
+
+    /// True when the window holds no pixel.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.area() == 0
+    }
+}
+
+/// One listed pixel: position, orientation θ (radians) and magnitude, as
+/// produced by compaction. Layout matches the shader's `Feature` struct.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Feature {
+    /// Column.
+    pub x: u32,
+    /// Row.
+    pub y: u32,
+    /// Orientation in radians (which orientation depends on the request).
+    pub theta: f32,
+    /// Magnitude (gradient or crossing strength).
+    pub magnitude: f32,
+}

@@ -1,0 +1,188 @@
+//! The GPU context: device, queue and the cache of compute pipelines.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use crate::{Error, Result};
+
+/// One WGSL shader file of a stage: its name (the file stem, also the
+/// pipeline label `pipetrack.<name>`) and its source.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ShaderDef {
+    /// File stem in `shaders/`, e.g. `"sobel"`.
+    pub name: &'static str,
+    /// The WGSL source (`include_str!`).
+    pub source: &'static str,
+}
+
+/// Storage buffers one pipetrack shader may bind at most.
+const NEEDED_STORAGE_BUFFERS: u32 = 8;
+
+/// A wgpu device and queue with pipetrack's pipelines built on it.
+///
+/// Create one with [`GpuContext::new`] (pipetrack finds a Vulkan adapter) or
+/// [`GpuContext::from_device`] (you hand over your own device and queue).
+/// Pipelines are compiled once, on first use or by [`GpuContext::warm_up`],
+/// and cached for the life of the context. Cloning is cheap (shared state).
+#[derive(Clone)]
+pub struct GpuContext {
+    pub(crate) device: wgpu::Device,
+    pub(crate) queue: wgpu::Queue,
+    adapter_name: String,
+    pipelines: Arc<Mutex<HashMap<(&'static str, &'static str), wgpu::ComputePipeline>>>,
+    modules: Arc<Mutex<HashMap<&'static str, wgpu::ShaderModule>>>,
+}
+
+impl std::fmt::Debug for GpuContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuContext").field("adapter", &self.adapter_name).finish()
+    }
+}
+
+impl GpuContext {
+    /// Find a Vulkan adapter (honouring `WGPU_ADAPTER_NAME` and
+    /// `WGPU_POWER_PREF` from the environment) and create a device on it.
+    pub fn new() -> Result<Self> {
+        pollster::block_on(Self::new_async())
+    }
+
+    async fn new_async() -> Result<Self> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        desc.backends = wgpu::Backends::VULKAN;
+        let instance = wgpu::Instance::new(desc);
+        let adapter = match wgpu::util::initialize_adapter_from_env(&instance, None).await {
+            Ok(a) => a,
+            Err(_) => instance
+                .request_adapter(&wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::from_env()
+                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
+                    ..Default::default()
+                })
+                .await
+                .map_err(|e| Error::NoAdapter(e.to_string()))?,
+        };
+        let info = adapter.get_info();
+        let mut limits = wgpu::Limits::downlevel_defaults();
+        let available = adapter.limits();
+        limits.max_storage_buffers_per_shader_stage = NEEDED_STORAGE_BUFFERS;
+        limits.max_storage_buffer_binding_size = available.max_storage_buffer_binding_size;
+        limits.max_buffer_size = available.max_buffer_size;
+        limits.max_compute_workgroup_storage_size = available.max_compute_workgroup_storage_size.min(32 * 1024);
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("pipetrack"),
+                required_features: wgpu::Features::empty(),
+                required_limits: limits,
+                ..Default::default()
+            })
+            .await?;
+        Ok(Self::wrap(device, queue, format!("{} ({:?}, {})", info.name, info.backend, info.driver)))
+    }
+
+    /// Use the caller's own device and queue (for embedding pipetrack in a
+    /// wgpu program). The device must allow 8 storage buffers per stage.
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Result<Self> {
+        let limits = device.limits();
+        if limits.max_storage_buffers_per_shader_stage < NEEDED_STORAGE_BUFFERS {
+            return Err(Error::Unsuitable(format!(
+                "max_storage_buffers_per_shader_stage is {}, pipetrack needs {NEEDED_STORAGE_BUFFERS}",
+                limits.max_storage_buffers_per_shader_stage
+            )));
+        }
+        let name = format!("{:?} (caller's device)", device.adapter_info().name);
+        Ok(Self::wrap(device, queue, name))
+    }
+
+    fn wrap(device: wgpu::Device, queue: wgpu::Queue, adapter_name: String) -> Self {
+        Self {
+            device,
+            queue,
+            adapter_name,
+            pipelines: Arc::default(),
+            modules: Arc::default(),
+        }
+    }
+
+    /// The adapter's name, backend and driver, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, llvmpipe)`.
+    #[must_use]
+    pub fn adapter_name(&self) -> &str {
+        &self.adapter_name
+    }
+
+    /// The wgpu device.
+    #[must_use]
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    /// The wgpu queue.
+    #[must_use]
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
+    /// The compute pipeline for `entry` in `shader`, compiled on first use and cached.
+    pub(crate) fn pipeline(&self, shader: &ShaderDef, entry: &'static str) -> wgpu::ComputePipeline {
+        let mut pipelines = self.pipelines.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(p) = pipelines.get(&(shader.name, entry)) {
+            return p.clone();
+        }
+        let module = {
+            let mut modules = self.modules.lock().unwrap_or_else(|p| p.into_inner());
+            modules
+                .entry(shader.name)
+                .or_insert_with(|| {
+                    self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                        label: Some(shader.name),
+                        source: wgpu::ShaderSource::Wgsl(shader.source.into()),
+                    })
+                })
+                .clone()
+        };
+        let label = format!("pipetrack.{}.{}", shader.name, entry);
+        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(&label),
+            layout: None,
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            cache: None,
+        });
+        pipelines.insert((shader.name, entry), pipeline.clone());
+        pipeline
+    }
+
+    /// Compile the given `(shader, entry)` pipelines now rather than on first use.
+    pub(crate) fn warm_up(&self, list: &[(ShaderDef, &'static str)]) {
+        for (s, e) in list {
+            let _ = self.pipeline(s, e);
+        }
+    }
+
+    /// Block until all submitted work is done (bounded by a timeout).
+    pub(crate) fn wait(&self) -> Result<()> {
+        self.device.poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(super::POLL_TIMEOUT) })?;
+        Ok(())
+    }
+
+    /// Map `buffer` for reading (the whole of `range`), wait, and copy its bytes out.
+    pub(crate) fn read_buffer(&self, buffer: &wgpu::Buffer, range: std::ops::Range<u64>) -> Result<Vec<u8>> {
+        if range.is_empty() {
+            return Ok(Vec::new());
+        }
+        let (tx, rx) = std::sync::mpsc::channel();
+        buffer.map_async(wgpu::MapMode::Read, range.clone(), move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait()?;
+        rx.recv().map_err(|_| Error::Gpu("map callback dropped".into()))??;
+        let bytes = {
+            let view = buffer
+                .get_mapped_range(range)
+                .map_err(|e| Error::Gpu(format!("mapped range: {e}")))?;
+            view.to_vec()
+        };
+        buffer.unmap();
+        Ok(bytes)
+    }
+}

@@ -1,0 +1,250 @@
+//! Recording many stage dispatches into one command encoder, and the
+//! device-resident image type they read and write.
+
+use wgpu::util::DeviceExt;
+
+use super::GpuContext;
+use super::context::ShaderDef;
+use crate::image::Image;
+use crate::{Error, Result};
+
+/// Uniform parameter blocks are placed at this stride (wgpu's minimum
+/// uniform offset alignment).
+const UNIFORM_STRIDE: u64 = 256;
+/// Most dispatches one [`Recorder`] holds (its uniform buffer is this × 256 bytes).
+pub(crate) const MAX_DISPATCHES: u64 = 128;
+
+/// A `width`×`height` image of 32-bit values (f32 or u32) living on the GPU
+/// in a storage buffer, row-major like [`Image`].
+#[derive(Debug)]
+pub struct GpuImage {
+    pub(crate) buffer: wgpu::Buffer,
+    width: usize,
+    height: usize,
+}
+
+impl GpuImage {
+    /// Allocate an uninitialised image of `width`×`height` 32-bit values.
+    #[must_use]
+    pub fn new(ctx: &GpuContext, width: usize, height: usize, label: &str) -> Self {
+        let bytes = (width * height).max(1) as u64 * 4;
+        let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Self { buffer, width, height }
+    }
+
+    /// Upload a CPU image of 32-bit values.
+    #[must_use]
+    pub fn from_image<T: bytemuck::Pod + Default>(ctx: &GpuContext, image: &Image<T>, label: &str) -> Self {
+        let (width, height) = image.size();
+        let mut contents: Vec<u8> = bytemuck::cast_slice(image.data()).to_vec();
+        if contents.is_empty() {
+            contents = vec![0; 4];
+        }
+        let buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: &contents,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        });
+        Self { buffer, width, height }
+    }
+
+    /// Overwrite the contents from a CPU image of the same size.
+    pub fn write<T: bytemuck::Pod + Default>(&self, ctx: &GpuContext, image: &Image<T>) -> Result<()> {
+        if image.size() != (self.width, self.height) {
+            return Err(Error::Size(format!(
+                "writing {}x{} into a {}x{} GPU image",
+                image.width(),
+                image.height(),
+                self.width,
+                self.height
+            )));
+        }
+        if !image.data().is_empty() {
+            ctx.queue.write_buffer(&self.buffer, 0, bytemuck::cast_slice(image.data()));
+        }
+        Ok(())
+    }
+
+    /// Copy the image back to the CPU (waits for the GPU). For tests and
+    /// benches; the frame path reads back only compact lists.
+    pub fn download<T: bytemuck::Pod + Default>(&self, ctx: &GpuContext) -> Result<Image<T>> {
+        let n = self.width * self.height;
+        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("pipetrack.download"),
+            size: (n.max(1) * 4) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pipetrack.download") });
+        enc.copy_buffer_to_buffer(&self.buffer, 0, &staging, 0, (n.max(1) * 4) as u64);
+        ctx.queue.submit([enc.finish()]);
+        let bytes = ctx.read_buffer(&staging, 0..(n * 4) as u64)?;
+        let data: Vec<T> = bytemuck::pod_collect_to_vec(&bytes);
+        Image::from_vec(self.width, self.height, data)
+    }
+
+    /// Width in pixels.
+    #[must_use]
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height in pixels.
+    #[must_use]
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The storage buffer holding the pixels.
+    #[must_use]
+    pub fn buffer(&self) -> &wgpu::Buffer {
+        &self.buffer
+    }
+}
+
+/// Workgroup counts covering a `width`×`height` image with 16×16 tiles.
+#[must_use]
+pub(crate) fn workgroups_2d(width: usize, height: usize) -> [u32; 3] {
+    let t = super::TILE as usize;
+    [width.div_ceil(t) as u32, height.div_ceil(t) as u32, 1]
+}
+
+/// Records stage dispatches into one encoder; [`Recorder::submit`] writes all
+/// their uniform blocks at once and submits a single command buffer.
+///
+/// Binding convention shared by every shader: `@binding(0)` is the stage's
+/// uniform `Params`, `@binding(1..)` are storage buffers in the order the
+/// stage's `encode` passes them.
+pub(crate) struct Recorder<'a> {
+    ctx: &'a GpuContext,
+    encoder: wgpu::CommandEncoder,
+    uniform_buffer: &'a wgpu::Buffer,
+    uniforms: Vec<u8>,
+    dispatches: u32,
+}
+
+/// A uniform buffer big enough for one [`Recorder`]'s parameter blocks; keep
+/// one per frame slot and reuse it.
+pub(crate) fn uniform_arena(ctx: &GpuContext) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("pipetrack.uniforms"),
+        size: UNIFORM_STRIDE * MAX_DISPATCHES,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+impl<'a> Recorder<'a> {
+    /// Start recording; `uniform_buffer` comes from [`uniform_arena`] and must
+    /// not be in use by another recorder that has not yet been submitted.
+    pub(crate) fn new(ctx: &'a GpuContext, uniform_buffer: &'a wgpu::Buffer) -> Self {
+        let encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pipetrack.frame") });
+        Self { ctx, encoder, uniform_buffer, uniforms: Vec::new(), dispatches: 0 }
+    }
+
+    /// The context this recorder records for.
+    pub(crate) fn ctx(&self) -> &'a GpuContext {
+        self.ctx
+    }
+
+    /// Number of compute dispatches recorded so far.
+    pub(crate) fn dispatch_count(&self) -> u32 {
+        self.dispatches
+    }
+
+    /// Record one dispatch of `entry` in `shader` with uniform `params` and
+    /// storage `buffers` bound at 1, 2, …; empty grids are skipped.
+    pub(crate) fn dispatch<P: bytemuck::Pod>(
+        &mut self,
+        shader: &ShaderDef,
+        entry: &'static str,
+        params: &P,
+        buffers: &[&wgpu::Buffer],
+        groups: [u32; 3],
+    ) -> Result<()> {
+        let resources: Vec<wgpu::BindingResource<'_>> = buffers.iter().map(|b| b.as_entire_binding()).collect();
+        self.dispatch_with(shader, entry, params, &resources, groups)
+    }
+
+    /// Like [`Recorder::dispatch`], with any binding resources (textures too) at 1, 2, ….
+    pub(crate) fn dispatch_with<P: bytemuck::Pod>(
+        &mut self,
+        shader: &ShaderDef,
+        entry: &'static str,
+        params: &P,
+        resources: &[wgpu::BindingResource<'_>],
+        groups: [u32; 3],
+    ) -> Result<()> {
+        if groups.contains(&0) {
+            return Ok(());
+        }
+        let offset = self.uniforms.len() as u64;
+        if offset / UNIFORM_STRIDE >= MAX_DISPATCHES {
+            return Err(Error::Gpu(format!("more than {MAX_DISPATCHES} dispatches in one submission")));
+        }
+        let bytes = bytemuck::bytes_of(params);
+        self.uniforms.extend_from_slice(bytes);
+        self.uniforms.resize((offset + UNIFORM_STRIDE) as usize, 0);
+        let size = (bytes.len() as u64).next_multiple_of(16);
+
+        let pipeline = self.ctx.pipeline(shader, entry);
+        let mut entries = vec![wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: self.uniform_buffer,
+                offset,
+                size: wgpu::BufferSize::new(size),
+            }),
+        }];
+        for (i, r) in resources.iter().enumerate() {
+            entries.push(wgpu::BindGroupEntry { binding: i as u32 + 1, resource: r.clone() });
+        }
+        let bind_group = self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(shader.name),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        let mut pass = self.encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(shader.name), timestamp_writes: None });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+        drop(pass);
+        self.dispatches += 1;
+        Ok(())
+    }
+
+    /// Record a buffer-to-buffer copy.
+    pub(crate) fn copy(&mut self, src: &wgpu::Buffer, src_offset: u64, dst: &wgpu::Buffer, dst_offset: u64, size: u64) {
+        if size > 0 {
+            self.encoder.copy_buffer_to_buffer(src, src_offset, dst, dst_offset, size);
+        }
+    }
+
+    /// The underlying encoder, for copies from textures and other commands.
+    pub(crate) fn encoder(&mut self) -> &mut wgpu::CommandEncoder {
+        &mut self.encoder
+    }
+
+    /// Write the uniform blocks and submit everything recorded as one command buffer.
+    pub(crate) fn submit(self) -> wgpu::SubmissionIndex {
+        if !self.uniforms.is_empty() {
+            self.ctx.queue.write_buffer(self.uniform_buffer, 0, &self.uniforms);
+        }
+        self.ctx.queue.submit([self.encoder.finish()])
+    }
+}
+
+/// Run `record` on a fresh recorder and wait for the GPU: the standalone path
+/// used by per-stage functions in tests and benches.
+pub(crate) fn run_once(ctx: &GpuContext, record: impl FnOnce(&mut Recorder<'_>) -> Result<()>) -> Result<()> {
+    let arena = uniform_arena(ctx);
+    let mut rec = Recorder::new(ctx, &arena);
+    record(&mut rec)?;
+    rec.submit();
+    ctx.wait()
+}

@@ -1,0 +1,148 @@
+//! Image buffers that know their size.
+
+use crate::{Error, Result};
+
+/// A row-major single-channel image of `T` (pixel `(x, y)` at `data[y * width + x]`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image<T> {
+    width: usize,
+    height: usize,
+    data: Vec<T>,
+}
+
+impl<T: Copy + Default> Image<T> {
+    /// A `width`×`height` image filled with `T::default()`.
+    #[must_use]
+    pub fn new(width: usize, height: usize) -> Self {
+        Self { width, height, data: vec![T::default(); width * height] }
+    }
+
+    /// Wrap `data` (row-major) as a `width`×`height` image.
+    pub fn from_vec(width: usize, height: usize, data: Vec<T>) -> Result<Self> {
+        if data.len() != width * height {
+            return Err(Error::Size(format!(
+                "{} values for a {width}x{height} image",
+                data.len()
+            )));
+        }
+        Ok(Self { width, height, data })
+    }
+
+    /// Build an image by evaluating `f(x, y)` at every pixel.
+    #[must_use]
+    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> T) -> Self {
+        let mut data = Vec::with_capacity(width * height);
+        for y in 0..height {
+            for x in 0..width {
+                data.push(f(x, y));
+            }
+        }
+        Self { width, height, data }
+    }
+
+    /// Width in pixels.
+    #[must_use]
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height in pixels.
+    #[must_use]
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// `(width, height)`.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// The pixels, row-major.
+    #[must_use]
+    pub fn data(&self) -> &[T] {
+        &self.data
+    }
+
+    /// The pixels, row-major, mutable.
+    pub fn data_mut(&mut self) -> &mut [T] {
+        &mut self.data
+    }
+
+    /// Consume the image, returning its pixels.
+    #[must_use]
+    pub fn into_vec(self) -> Vec<T> {
+        self.data
+    }
+
+    /// Pixel `(x, y)`; panics when out of bounds (internal use with checked indices).
+    #[must_use]
+    pub fn get(&self, x: usize, y: usize) -> T {
+        self.data[y * self.width + x]
+    }
+
+    /// Pixel at `(x, y)` with coordinates clamped to the image (clamp-to-edge border).
+    #[must_use]
+    pub fn get_clamped(&self, x: isize, y: isize) -> T {
+        let x = x.clamp(0, self.width as isize - 1) as usize;
+        let y = y.clamp(0, self.height as isize - 1) as usize;
+        self.data[y * self.width + x]
+    }
+
+    /// Set pixel `(x, y)`.
+    pub fn set(&mut self, x: usize, y: usize, v: T) {
+        self.data[y * self.width + x] = v;
+    }
+
+    /// Row `y` as a slice.
+    #[must_use]
+    pub fn row(&self, y: usize) -> &[T] {
+        &self.data[y * self.width..(y + 1) * self.width]
+    }
+
+    /// Resize to `width`×`height`, reusing the allocation (contents unspecified).
+    pub fn resize(&mut self, width: usize, height: usize) {
+        self.width = width;
+        self.height = height;
+        self.data.resize(width * height, T::default());
+    }
+
+    /// Error unless `other` has the same size as `self`.
+    pub fn check_same_size<U>(&self, other: &Image<U>, what: &str) -> Result<()> {
+        if (self.width, self.height) != (other.width, other.height) {
+            return Err(Error::Size(format!(
+                "{what}: {}x{} vs {}x{}",
+                self.width, self.height, other.width, other.height
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl<U> Image<U> {
+    /// Width and height of any image, for size checks across pixel types.
+    #[must_use]
+    pub fn dims(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+}
+
+/// An 8-bit grey frame.
+pub type GrayImage = Image<u8>;
+/// A 32-bit float image (intensities stay in the 0..255 scale of the input).
+pub type FloatImage = Image<f32>;
+
+impl GrayImage {
+    /// Convert to f32 (0..255 scale), the CPU twin of the `ingest` shader.
+    #[must_use]
+    pub fn to_f32(&self) -> FloatImage {
+        Image { width: self.width, height: self.height, data: self.data.iter().map(|&v| v as f32).collect() }
+    }
+}
+
+/// Luma of an 8-bit RGB pixel with the BT.601 weights, in the 0..255 scale.
+/// The `ingest_texture` shader uses the same weights in the same order.
+#[must_use]
+pub fn luma(r: u8, g: u8, b: u8) -> f32 {
+    0.299 * r as f32 + 0.587 * g as f32 + 0.114 * b as f32
+}

@@ -1,0 +1,16 @@
+//! pipetrack: model-based visual tracking with early vision on the GPU
+//! (WGSL compute shaders through wgpu) and a CPU twin of every stage.
+//!
+//! The early-vision stages live in [`early`], the GPU plumbing in [`gpu`],
+//! and the two interchangeable backends in [`backend`].
+#![deny(missing_docs)]
+
+pub mod early;
+pub mod error;
+pub mod gpu;
+pub mod image;
+pub mod testimage;
+
+pub use error::{Error, Result};
+pub use gpu::{GpuContext, GpuImage};
+pub use image::{FloatImage, GrayImage, Image};

@@ -1,0 +1,149 @@
+//! Shared by the integration tests: one GPU context for the whole test
+//! binary, and comparison helpers that explain their failures.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::sync::{LazyLock, Mutex, MutexGuard};
+
+use pipetrack::GpuContext;
+use pipetrack::image::Image;
+
+static GPU: LazyLock<Option<GpuContext>> = LazyLock::new(|| match GpuContext::new() {
+    Ok(ctx) => {
+        eprintln!("GPU tests run on: {}", ctx.adapter_name());
+        Some(ctx)
+    }
+    Err(e) => {
+        if std::env::var("PIPETRACK_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+            panic!("PIPETRACK_REQUIRE_GPU=1 but no GPU adapter: {e}");
+        }
+        None
+    }
+});
+
+/// GPU tests take this lock so they do not race on lavapipe.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// The shared context and a lock serialising GPU tests, or `None` (printing
+/// loudly that the test skipped) when there is no adapter and
+/// `PIPETRACK_REQUIRE_GPU` is not `1`.
+pub fn gpu(test: &str) -> Option<(&'static GpuContext, MutexGuard<'static, ()>)> {
+    let guard = SERIAL.lock().unwrap_or_else(|p| p.into_inner());
+    match GPU.as_ref() {
+        Some(ctx) => Some((ctx, guard)),
+        None => {
+            eprintln!("SKIPPED {test}: no GPU adapter (set PIPETRACK_REQUIRE_GPU=1 to make this a failure)");
+            None
+        }
+    }
+}
+
+/// The sizes every parity test covers: VGA, an odd size, and tiny ones.
+pub const PARITY_SIZES: &[(usize, usize)] = &[(640, 480), (257, 243), (1, 1), (2, 3)];
+
+fn parity_dir() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("parity");
+    let _ = std::fs::create_dir_all(&dir);
+    dir
+}
+
+/// Write a float image as a PNG, linearly scaled to its min..max.
+fn write_png(path: &PathBuf, img: &Image<f32>) {
+    let (w, h) = img.size();
+    if w == 0 || h == 0 {
+        return;
+    }
+    let lo = img.data().iter().cloned().fold(f32::INFINITY, f32::min);
+    let hi = img.data().iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+    let scale = if hi > lo { 255.0 / (hi - lo) } else { 0.0 };
+    let bytes: Vec<u8> = img.data().iter().map(|v| ((v - lo) * scale).clamp(0.0, 255.0) as u8).collect();
+    let _ = image::save_buffer(path, &bytes, w as u32, h as u32, image::ColorType::L8);
+}
+
+/// Assert `|gpu − cpu| ≤ atol + rtol·|cpu|` everywhere (NaN never passes).
+/// On failure: the first ten differences with coordinates, and
+/// cpu/gpu/diff PNGs under `target/tmp/parity/`.
+pub fn assert_close(name: &str, cpu: &Image<f32>, gpu: &Image<f32>, atol: f32, rtol: f32) {
+    assert_eq!(cpu.size(), gpu.size(), "{name}: sizes differ");
+    let w = cpu.width();
+    let bad: Vec<(usize, f32, f32)> = cpu
+        .data()
+        .iter()
+        .zip(gpu.data())
+        .enumerate()
+        .filter(|(_, (c, g))| !((*g - *c).abs() <= atol + rtol * c.abs()))
+        .map(|(i, (c, g))| (i, *c, *g))
+        .collect();
+    if !bad.is_empty() {
+        report(name, cpu, gpu, &bad, w);
+    }
+}
+
+/// Like [`assert_close`] for angles: differences are taken modulo `period`
+/// (2π for directions, π for undirected edge orientations), and pixels where
+/// `weight` (the gradient magnitude) is below `min_weight` are not compared,
+/// since their angle is ill-defined.
+pub fn assert_angles_close(name: &str, cpu: &Image<f32>, gpu: &Image<f32>, weight: &Image<f32>, min_weight: f32, period: f32, atol: f32) {
+    assert_eq!(cpu.size(), gpu.size(), "{name}: sizes differ");
+    let w = cpu.width();
+    let bad: Vec<(usize, f32, f32)> = cpu
+        .data()
+        .iter()
+        .zip(gpu.data())
+        .zip(weight.data())
+        .enumerate()
+        .filter(|(_, ((c, g), m))| {
+            if **m < min_weight {
+                return false;
+            }
+            let d = (*g - *c).rem_euclid(period);
+            !(d.min(period - d) <= atol)
+        })
+        .map(|(i, ((c, g), _))| (i, *c, *g))
+        .collect();
+    if !bad.is_empty() {
+        report(name, cpu, gpu, &bad, w);
+    }
+}
+
+/// Exact comparison of two images of any comparable pixel type.
+pub fn assert_equal<T: PartialEq + Copy + std::fmt::Debug + Default>(name: &str, cpu: &Image<T>, gpu: &Image<T>) {
+    assert_eq!(cpu.size(), gpu.size(), "{name}: sizes differ");
+    let w = cpu.width().max(1);
+    let bad: Vec<String> = cpu
+        .data()
+        .iter()
+        .zip(gpu.data())
+        .enumerate()
+        .filter(|(_, (c, g))| c != g)
+        .take(10)
+        .map(|(i, (c, g))| format!("  ({}, {}): cpu {c:?} gpu {g:?}", i % w, i / w))
+        .collect();
+    assert!(bad.is_empty(), "{name}: images differ; first differences:\n{}", bad.join("\n"));
+}
+
+fn report(name: &str, cpu: &Image<f32>, gpu: &Image<f32>, bad: &[(usize, f32, f32)], w: usize) {
+    let dir = parity_dir();
+    let stem = name.replace(['/', ' '], "_");
+    write_png(&dir.join(format!("{stem}_cpu.png")), cpu);
+    write_png(&dir.join(format!("{stem}_gpu.png")), gpu);
+    let diff = Image::from_vec(
+        cpu.width(),
+        cpu.height(),
+        cpu.data().iter().zip(gpu.data()).map(|(c, g)| (g - c).abs()).collect(),
+    )
+    .expect("same size");
+    write_png(&dir.join(format!("{stem}_diff.png")), &diff);
+    let lines: Vec<String> = bad
+        .iter()
+        .take(10)
+        .map(|(i, c, g)| format!("  ({}, {}): cpu {c} gpu {g} diff {}", i % w, i / w, g - c))
+        .collect();
+    panic!(
+        "{name}: {} of {} pixels out of tolerance; first ones:\n{}\nimages in {}",
+        bad.len(),
+        cpu.data().len(),
+        lines.join("\n"),
+        dir.display()
+    );
+}
