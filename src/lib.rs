@@ -7,6 +7,7 @@
 
 pub mod early;
 pub mod error;
+pub mod formats;
 pub mod gpu;
 pub mod image;
 pub mod testimage;
