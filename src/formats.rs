@@ -8,7 +8,6 @@ use serde::{Deserialize, Serialize};
 /// Pinhole intrinsics and image size (`camera.json`):
 /// u = fx·X/Z + cx, v = fy·Y/Z + cy; pixel (0,0) is the centre of the top-left pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Camera {
     /// Image width in pixels.
     pub width: u32,
@@ -27,7 +26,6 @@ pub struct Camera {
 /// A rotational joint of an articulated model: moves its listed vertices to
 /// `origin + R(axis, q)·(X − origin)`; vertices are given at q = 0.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Joint {
     /// Name of the joint.
     pub name: String,
@@ -45,7 +43,6 @@ pub struct Joint {
 
 /// The object (`model.json`, or converted from ViSP's `.cao`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Model {
     /// Name of the object.
     pub name: String,
@@ -71,7 +68,6 @@ fn default_units() -> String {
 /// Camera-from-object pose: X_cam = R·X_obj + t, R as an axis-angle
 /// (Rodrigues) vector in radians, t in metres.
 #[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Pose {
     /// Axis-angle rotation vector, radians.
     pub rotation: [f64; 3],
@@ -81,7 +77,6 @@ pub struct Pose {
 
 /// The state at frame 0 (`init.json`).
 #[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct InitState {
     /// Pose at frame 0 (3-D trackers).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -96,7 +91,6 @@ pub struct InitState {
 
 /// One line of `truth.jsonl`: the fields of [`InitState`] plus frame and visibility.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct TruthFrame {
     /// Frame index.
     pub frame: usize,
