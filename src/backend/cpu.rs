@@ -1,0 +1,135 @@
+//! The CPU backend: the CPU twins of every stage, with buffers reused from
+//! frame to frame so the per-frame loop does not allocate images.
+
+use super::{EarlyVision, FrameFeatures, FrameRequest};
+use crate::early::compaction::compact_cpu;
+use crate::early::cpf::{self, CpfPyramids, EdgePyramids};
+use crate::early::gaussian::smooth_cpu;
+use crate::early::ingest::ingest_gray_into;
+use crate::early::log::log_cpu;
+use crate::early::sobel::{SobelOutput, sobel_cpu};
+use crate::early::zero_crossing::{Edgels, zero_crossings_cpu};
+use crate::early::{frame_sum, temporal_diff};
+use crate::image::{FloatImage, GrayImage};
+use crate::Result;
+
+/// Early vision on the CPU (rayon threads across rows for large frames).
+#[derive(Debug)]
+pub struct CpuBackend {
+    luma: FloatImage,
+    tmp: FloatImage,
+    tmp2: FloatImage,
+    smoothed: FloatImage,
+    previous: Option<FloatImage>,
+    motion_mask: FloatImage,
+    sum: FloatImage,
+    sobel_sum: SobelOutput,
+    sobel_edges: SobelOutput,
+    log: FloatImage,
+    edgels: Edgels,
+    cpf: CpfPyramids,
+    edge_pyramids: EdgePyramids,
+}
+
+impl Default for CpuBackend {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl CpuBackend {
+    /// A CPU backend with empty buffers (they grow on the first frame).
+    #[must_use]
+    pub fn new() -> Self {
+        Self {
+            luma: FloatImage::new(0, 0),
+            tmp: FloatImage::new(0, 0),
+            tmp2: FloatImage::new(0, 0),
+            smoothed: FloatImage::new(0, 0),
+            previous: None,
+            motion_mask: FloatImage::new(0, 0),
+            sum: FloatImage::new(0, 0),
+            sobel_sum: SobelOutput::new(0, 0),
+            sobel_edges: SobelOutput::new(0, 0),
+            log: FloatImage::new(0, 0),
+            edgels: Edgels::new(0, 0),
+            cpf: CpfPyramids::default(),
+            edge_pyramids: EdgePyramids::default(),
+        }
+    }
+}
+
+impl EarlyVision for CpuBackend {
+    fn name(&self) -> String {
+        format!("CPU ({} threads)", rayon::current_num_threads())
+    }
+
+    fn reset(&mut self) {
+        self.previous = None;
+    }
+
+    fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {
+        let mut out = FrameFeatures::default();
+        if self.previous.as_ref().is_some_and(|p| p.size() != frame.size()) {
+            self.previous = None;
+        }
+        ingest_gray_into(frame, &mut self.luma);
+        if request.needs_smoothing() {
+            smooth_cpu(&self.luma, &request.smoothing, &mut self.tmp, &mut self.smoothed)?;
+        }
+
+        if let Some(m) = &request.motion {
+            let mut list = Vec::new();
+            if let Some(prev) = &self.previous {
+                // 000 eq. 1: G*_t − G*_{t+1}, thresholded; eq. 2 on the sum of both.
+                temporal_diff::temporal_diff_cpu(prev, &self.smoothed, &m.diff, &mut self.motion_mask)?;
+                frame_sum::frame_sum_cpu(prev, &self.smoothed, &mut self.sum)?;
+                sobel_cpu(&self.sum, &mut self.sobel_sum);
+                compact_cpu(
+                    &self.motion_mask,
+                    &self.sobel_sum.theta,
+                    &self.sobel_sum.magnitude,
+                    &m.list.compaction(0.5),
+                    &mut list,
+                )?;
+            }
+            out.motion = Some(list);
+        }
+
+        if let Some(e) = &request.edges {
+            let src = if e.smoothed { &self.smoothed } else { &self.luma };
+            sobel_cpu(src, &mut self.sobel_edges);
+            let mut list = Vec::new();
+            let s = &self.sobel_edges;
+            compact_cpu(&s.magnitude, &s.direction, &s.magnitude, &e.list.compaction(e.threshold), &mut list)?;
+            out.edges = Some(list);
+        }
+
+        if let Some(z) = &request.zero_crossings {
+            log_cpu(&self.luma, &z.log, &mut self.tmp, &mut self.tmp2, &mut self.log)?;
+            zero_crossings_cpu(&self.log, &z.crossings, &mut self.edgels);
+            let mut list = Vec::new();
+            let ed = &self.edgels;
+            compact_cpu(&ed.strength, &ed.direction, &ed.strength, &z.list.compaction(0.0), &mut list)?;
+            out.zero_crossings = Some(list);
+        }
+
+        if request.pyramids {
+            cpf::cpf_cpu(&self.luma, &mut self.cpf);
+            if request.edges.is_none() || request.edges.is_some_and(|e| e.smoothed) {
+                sobel_cpu(&self.luma, &mut self.sobel_edges);
+            }
+            cpf::edge_pyramids_cpu(&self.sobel_edges.gx, &self.sobel_edges.gy, &mut self.edge_pyramids)?;
+            out.pyramids = Some((self.cpf.clone(), self.edge_pyramids.clone()));
+        }
+
+        if request.motion.is_some() {
+            // Keep this frame's smoothed image as the next frame's "previous".
+            match &mut self.previous {
+                Some(p) => std::mem::swap(p, &mut self.smoothed),
+                None => self.previous = Some(self.smoothed.clone()),
+            }
+        }
+        Ok(out)
+    }
+}

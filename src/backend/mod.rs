@@ -1,0 +1,170 @@
+//! The two interchangeable early-vision backends.
+//!
+//! A tracker states what it needs for the next frame in one [`FrameRequest`]
+//! (which lists, inside which window, with which caps); a backend computes
+//! only those stages and hands back compact [`FrameFeatures`]. The
+//! [`CpuBackend`] runs the CPU twins; the [`GpuBackend`] records every pass of
+//! a frame into one command encoder, submits once and reads back only the
+//! lists.
+
+mod cpu;
+mod gpu;
+
+pub use cpu::CpuBackend;
+pub use gpu::{GpuBackend, Ticket};
+
+use crate::early::compaction::CompactionParams;
+use crate::early::cpf::{CpfPyramids, EdgePyramids};
+use crate::early::gaussian::GaussianParams;
+use crate::early::log::LogParams;
+use crate::early::temporal_diff::TemporalDiffParams;
+use crate::early::zero_crossing::ZeroCrossingParams;
+use crate::early::{Feature, Window};
+use crate::image::GrayImage;
+use crate::Result;
+
+/// Where a list's pixels are kept: window, cap and subsample seed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ListSpec {
+    /// Window of interest (clipped to the frame).
+    pub window: Window,
+    /// Keep at most this many pixels (a seeded stratified random subsample).
+    pub cap: Option<u32>,
+    /// Seed of the subsample.
+    pub seed: u32,
+}
+
+impl ListSpec {
+    /// The whole `width`×`height` frame, uncapped.
+    #[must_use]
+    pub fn full(width: usize, height: usize) -> Self {
+        Self { window: Window::full(width, height), cap: None, seed: 0 }
+    }
+
+    pub(crate) fn compaction(&self, threshold: f32) -> CompactionParams {
+        CompactionParams { window: self.window, threshold, cap: self.cap, seed: self.seed }
+    }
+}
+
+/// Motion pixels of 000: the temporal difference of this frame's and the
+/// previous frame's smoothed images, thresholded (eq. 1), listed with the edge
+/// orientation θ (eq. 2) and gradient magnitude of the Sobel operator applied
+/// to the sum of the two smoothed frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotionRequest {
+    /// Threshold of the temporal difference.
+    pub diff: TemporalDiffParams,
+    /// Window, cap, seed.
+    pub list: ListSpec,
+}
+
+/// Edge pixels of 002 §2.3: Sobel magnitude above a threshold, listed with
+/// the gradient direction and magnitude.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EdgeRequest {
+    /// Magnitude threshold (Sobel units: 4× grey-level step for an ideal edge).
+    pub threshold: f32,
+    /// Apply Sobel to the smoothed frame (true) or the raw frame (false, as 002).
+    pub smoothed: bool,
+    /// Window, cap, seed.
+    pub list: ListSpec,
+}
+
+/// Zero crossings of the Laplacian of Gaussian (001), listed with the
+/// direction and strength of the gradient across each crossing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ZeroCrossingRequest {
+    /// LoG parameters (σ = 1.2 by default).
+    pub log: LogParams,
+    /// Crossing parameters.
+    pub crossings: ZeroCrossingParams,
+    /// Window, cap, seed.
+    pub list: ListSpec,
+}
+
+/// Everything a tracker asks of early vision for one frame.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct FrameRequest {
+    /// Smoothing applied to each frame (needed by `motion`, and by `edges`
+    /// when `smoothed`); defaults to σ = 1.
+    pub smoothing: GaussianParams,
+    /// Motion pixels (000).
+    pub motion: Option<MotionRequest>,
+    /// Edge pixels (002).
+    pub edges: Option<EdgeRequest>,
+    /// LoG zero crossings (001).
+    pub zero_crossings: Option<ZeroCrossingRequest>,
+    /// Critical-point and edge hierarchies of the frame (004).
+    pub pyramids: bool,
+}
+
+impl FrameRequest {
+    /// The full chain, every list over the whole frame: what the benchmarks run.
+    #[must_use]
+    pub fn full_chain(width: usize, height: usize) -> Self {
+        let list = ListSpec::full(width, height);
+        Self {
+            smoothing: GaussianParams::default(),
+            motion: Some(MotionRequest { diff: TemporalDiffParams::default(), list }),
+            edges: Some(EdgeRequest { threshold: 60.0, smoothed: false, list }),
+            zero_crossings: Some(ZeroCrossingRequest {
+                log: LogParams::default(),
+                crossings: ZeroCrossingParams::default(),
+                list,
+            }),
+            pyramids: true,
+        }
+    }
+
+    /// Whether any stage needs the smoothed frame.
+    pub(crate) fn needs_smoothing(&self) -> bool {
+        self.motion.is_some() || self.edges.is_some_and(|e| e.smoothed)
+    }
+}
+
+/// What a backend hands back for one frame: only the lists asked for.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct FrameFeatures {
+    /// Motion pixels; empty on the first frame of a sequence (no previous frame).
+    pub motion: Option<Vec<Feature>>,
+    /// Edge pixels.
+    pub edges: Option<Vec<Feature>>,
+    /// LoG zero crossings.
+    pub zero_crossings: Option<Vec<Feature>>,
+    /// CPF hierarchies and averaged edge hierarchies.
+    pub pyramids: Option<(CpfPyramids, EdgePyramids)>,
+}
+
+/// An early-vision backend: CPU twins or GPU shaders, same answers.
+pub trait EarlyVision {
+    /// A human-readable name: the adapter for the GPU, thread count for the CPU.
+    fn name(&self) -> String;
+
+    /// Compute what `request` asks for on `frame`, the next frame of the
+    /// current sequence (the motion stage differences it against the previous one).
+    fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures>;
+
+    /// Forget the previous frame: the next frame starts a new sequence.
+    fn reset(&mut self);
+}
+
+/// Which backend to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BackendKind {
+    /// WGSL shaders through wgpu.
+    Gpu,
+    /// CPU twins.
+    Cpu,
+}
+
+/// Make a backend; asking for the GPU without an adapter falls back to the
+/// CPU and returns the reason as the second value (callers print it once).
+pub fn make_backend(kind: BackendKind) -> (Box<dyn EarlyVision>, Option<String>) {
+    match kind {
+        BackendKind::Cpu => (Box::new(CpuBackend::new()), None),
+        BackendKind::Gpu => match crate::GpuContext::new() {
+            Ok(ctx) => (Box::new(GpuBackend::new(ctx)), None),
+            Err(e) => (Box::new(CpuBackend::new()), Some(format!("{e}; running the CPU backend"))),
+        },
+    }
+}
