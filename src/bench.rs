@@ -1,0 +1,272 @@
+//! Benchmark runners shared by `cargo bench` and `pipetrack bench`: every
+//! stage and the whole chain, prepared once on resident data, then timed on
+//! the CPU and on the GPU side by side.
+
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use crate::backend::{CpuBackend, EarlyVision, FrameRequest, GpuBackend};
+use crate::early::compaction::{self, CompactionGpu, CompactionParams};
+use crate::early::cpf::{self, CpfGpu, CpfPyramids};
+use crate::early::gaussian::{self, GaussianParams};
+use crate::early::log::{self, LogParams};
+use crate::early::sobel::{self, SobelGpu, SobelOutput};
+use crate::early::temporal_diff::{self, TemporalDiffParams};
+use crate::early::zero_crossing::{self, Edgels, EdgelsGpu, ZeroCrossingParams};
+use crate::early::{Window, frame_sum};
+use crate::gpu::{GpuContext, GpuImage, Recorder, uniform_arena};
+use crate::image::{FloatImage, GrayImage};
+use crate::testimage::natural;
+use crate::{Error, Result};
+
+/// The stages benchmarked, by the names used in shader files and bench ids.
+pub const STAGES: &[&str] =
+    &["gaussian", "temporal_diff", "frame_sum", "sobel", "log", "zero_crossing", "cpf", "compaction", "chain"];
+
+/// Frames in the synthetic sequence the chain benchmark streams through.
+const CHAIN_FRAMES: usize = 8;
+/// Stage dispatches recorded per GPU submission when timing one stage.
+const GPU_REPEATS: usize = 8;
+
+/// A prepared benchmark body: one call = one frame's worth of that stage.
+pub type Body<'a> = Box<dyn FnMut() -> Result<()> + 'a>;
+
+/// Inputs shared by the stage bodies: a natural-looking frame pair at one size.
+pub struct Inputs {
+    /// Frames of a short sequence (a textured scene shifting one pixel per frame).
+    pub frames: Vec<GrayImage>,
+    /// First frame as f32.
+    pub luma: FloatImage,
+    /// The first two frames smoothed with σ = 1.
+    pub smoothed: [FloatImage; 2],
+}
+
+impl Inputs {
+    /// Inputs of `width`×`height`.
+    pub fn new(width: usize, height: usize) -> Result<Self> {
+        let base = natural(width + CHAIN_FRAMES, height, 2024);
+        let frames: Vec<GrayImage> = (0..CHAIN_FRAMES)
+            .map(|k| GrayImage::from_fn(width, height, |x, y| base.get(x + k, y)))
+            .collect();
+        let luma = frames[0].to_f32();
+        let p = GaussianParams::default();
+        let smoothed = [gaussian::smooth(&luma, &p)?, gaussian::smooth(&frames[1].to_f32(), &p)?];
+        Ok(Self { frames, luma, smoothed })
+    }
+}
+
+/// Threshold on Sobel magnitude used by the compaction benchmark.
+const EDGE_THRESHOLD: f32 = 60.0;
+
+/// The CPU body of `stage` (caller-allocated outputs, allocated here once).
+pub fn cpu_body<'a>(stage: &str, inp: &'a Inputs) -> Result<Body<'a>> {
+    let (w, h) = inp.luma.size();
+    let mut a = FloatImage::new(w, h);
+    let mut b = FloatImage::new(w, h);
+    let mut c = FloatImage::new(w, h);
+    Ok(match stage {
+        "gaussian" => Box::new(move || gaussian::smooth_cpu(&inp.luma, &GaussianParams::default(), &mut a, &mut b)),
+        "temporal_diff" => Box::new(move || {
+            temporal_diff::temporal_diff_cpu(&inp.smoothed[0], &inp.smoothed[1], &TemporalDiffParams::default(), &mut a)
+        }),
+        "frame_sum" => Box::new(move || frame_sum::frame_sum_cpu(&inp.smoothed[0], &inp.smoothed[1], &mut a)),
+        "sobel" => {
+            let mut out = SobelOutput::new(w, h);
+            Box::new(move || {
+                sobel::sobel_cpu(&inp.luma, &mut out);
+                Ok(())
+            })
+        }
+        "log" => Box::new(move || log::log_cpu(&inp.luma, &LogParams::default(), &mut a, &mut b, &mut c)),
+        "zero_crossing" => {
+            let l = log::laplacian_of_gaussian(&inp.luma, &LogParams::default())?;
+            let mut out = Edgels::new(w, h);
+            Box::new(move || {
+                zero_crossing::zero_crossings_cpu(&l, &ZeroCrossingParams::default(), &mut out);
+                Ok(())
+            })
+        }
+        "cpf" => {
+            let mut out = CpfPyramids::default();
+            Box::new(move || {
+                cpf::cpf_cpu(&inp.luma, &mut out);
+                Ok(())
+            })
+        }
+        "compaction" => {
+            let s = sobel::sobel(&inp.luma);
+            let p = compaction_params(w, h);
+            let mut list = Vec::new();
+            Box::new(move || compaction::compact_cpu(&s.magnitude, &s.direction, &s.magnitude, &p, &mut list))
+        }
+        "chain" => {
+            let mut backend = CpuBackend::new();
+            let request = FrameRequest::full_chain(w, h);
+            let mut i = 0;
+            Box::new(move || {
+                backend.process(&inp.frames[i % inp.frames.len()], &request)?;
+                i += 1;
+                Ok(())
+            })
+        }
+        other => return Err(Error::Parameter(format!("unknown stage {other:?}; known: {}", STAGES.join(", ")))),
+    })
+}
+
+fn compaction_params(w: usize, h: usize) -> CompactionParams {
+    CompactionParams { window: Window::full(w, h), threshold: EDGE_THRESHOLD, cap: Some(1500), seed: 1 }
+}
+
+/// The GPU body of `stage`: inputs resident on the device, the stage recorded
+/// `GPU_REPEATS` times into one submission, then a wait. One call = `GPU_REPEATS`
+/// frames' worth; see [`gpu_frames_per_call`]. The chain streams whole frames
+/// (upload, compute, readback) through [`GpuBackend::process_stream`].
+pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result<Body<'a>> {
+    let (w, h) = inp.luma.size();
+    if stage == "chain" {
+        let mut backend = GpuBackend::new(ctx.clone());
+        let request = FrameRequest::full_chain(w, h);
+        return Ok(Box::new(move || backend.process_stream(&inp.frames, &request, |_, _| {})));
+    }
+    let img = |f: &FloatImage, label| GpuImage::from_image(ctx, f, label);
+    let luma = img(&inp.luma, "bench.luma");
+    let s0 = img(&inp.smoothed[0], "bench.s0");
+    let s1 = img(&inp.smoothed[1], "bench.s1");
+    let t1 = GpuImage::new(ctx, w, h, "bench.t1");
+    let t2 = GpuImage::new(ctx, w, h, "bench.t2");
+    let t3 = GpuImage::new(ctx, w, h, "bench.t3");
+    let sob = SobelGpu::new(ctx, w, h);
+    let edg = EdgelsGpu::new(ctx, w, h);
+    let pyr = CpfGpu::new(ctx, w, h);
+    let list = CompactionGpu::new(ctx, w * h, Some(1500));
+    let arena = uniform_arena(ctx);
+    let stage: &'static str = STAGES.iter().copied().find(|s| *s == stage).ok_or_else(|| Error::Parameter(format!("unknown stage {stage:?}")))?;
+    // Inputs that are outputs of earlier stages are computed once up front.
+    crate::gpu::run_once(ctx, |rec| {
+        sobel::encode(rec, &luma, &sob)?;
+        log::encode(rec, &luma, &t1, &t2, &t3, &LogParams::default())
+    })?;
+    Ok(Box::new(move || {
+        let mut rec = Recorder::new(ctx, &arena);
+        for _ in 0..GPU_REPEATS {
+            record_stage(&mut rec, stage, &luma, &s0, &s1, [&t1, &t2, &t3], &sob, &edg, &pyr, &list, w, h)?;
+        }
+        rec.submit();
+        ctx.wait()
+    }))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn record_stage(
+    rec: &mut Recorder<'_>,
+    stage: &str,
+    luma: &GpuImage,
+    s0: &GpuImage,
+    s1: &GpuImage,
+    t: [&GpuImage; 3],
+    sob: &SobelGpu,
+    edg: &EdgelsGpu,
+    pyr: &CpfGpu,
+    list: &CompactionGpu,
+    w: usize,
+    h: usize,
+) -> Result<()> {
+    match stage {
+        "gaussian" => gaussian::encode(rec, luma, t[0], t[1], &GaussianParams::default()),
+        "temporal_diff" => temporal_diff::encode(rec, s0, s1, t[0], &TemporalDiffParams::default()),
+        "frame_sum" => frame_sum::encode(rec, s0, s1, t[0]),
+        "sobel" => sobel::encode(rec, luma, sob),
+        // t[2] holds the LoG computed up front; LoG writes into other buffers.
+        "log" => log::encode(rec, luma, t[0], t[1], s1, &LogParams::default()),
+        "zero_crossing" => zero_crossing::encode(rec, t[2], edg, &ZeroCrossingParams::default()),
+        "cpf" => cpf::encode(rec, luma, pyr),
+        "compaction" => compaction::encode(rec, &sob.magnitude, &sob.direction, &sob.magnitude, &compaction_params(w, h), list),
+        other => Err(Error::Parameter(format!("unknown stage {other:?}"))),
+    }
+}
+
+/// Frames' worth of work one call of a GPU body does.
+#[must_use]
+pub fn gpu_frames_per_call(stage: &str) -> usize {
+    if stage == "chain" { CHAIN_FRAMES } else { GPU_REPEATS }
+}
+
+/// Frames' worth of work one call of a CPU body does.
+#[must_use]
+pub fn cpu_frames_per_call(_stage: &str) -> usize {
+    1
+}
+
+/// Time `body` for about `budget`, after one warm-up call; returns frames per second.
+pub fn frames_per_second(body: &mut Body<'_>, frames_per_call: usize, budget: Duration) -> Result<f64> {
+    body()?;
+    let start = Instant::now();
+    let mut calls = 0usize;
+    while calls < 3 || start.elapsed() < budget {
+        body()?;
+        calls += 1;
+    }
+    Ok((calls * frames_per_call) as f64 / start.elapsed().as_secs_f64())
+}
+
+/// One row of a comparison: a stage at a size on both backends.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchRow {
+    /// Stage name (or `chain`).
+    pub stage: String,
+    /// `WxH`.
+    pub size: String,
+    /// CPU frames per second.
+    pub cpu_fps: f64,
+    /// GPU frames per second, if a GPU was available.
+    pub gpu_fps: Option<f64>,
+    /// GPU fps / CPU fps.
+    pub gpu_over_cpu: Option<f64>,
+}
+
+/// A whole comparison run.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    /// The GPU adapter, or why there is none.
+    pub adapter: String,
+    /// CPU threads used by the CPU backend.
+    pub cpu_threads: usize,
+    /// Rows in stage-major order.
+    pub rows: Vec<BenchRow>,
+}
+
+/// Run every stage at every size on both backends.
+pub fn compare(sizes: &[(usize, usize)], stages: &[&str], budget: Duration, mut progress: impl FnMut(&BenchRow)) -> Result<BenchReport> {
+    let gpu = GpuContext::new();
+    let adapter = match &gpu {
+        Ok(ctx) => ctx.adapter_name().to_string(),
+        Err(e) => format!("none ({e})"),
+    };
+    let mut rows = Vec::new();
+    for &(w, h) in sizes {
+        let inp = Inputs::new(w, h)?;
+        for &stage in stages {
+            let mut cpu = cpu_body(stage, &inp)?;
+            let cpu_fps = frames_per_second(&mut cpu, cpu_frames_per_call(stage), budget)?;
+            drop(cpu);
+            let gpu_fps = match &gpu {
+                Ok(ctx) => {
+                    let mut body = gpu_body(stage, ctx, &inp)?;
+                    Some(frames_per_second(&mut body, gpu_frames_per_call(stage), budget)?)
+                }
+                Err(_) => None,
+            };
+            let row = BenchRow {
+                stage: stage.to_string(),
+                size: format!("{w}x{h}"),
+                cpu_fps,
+                gpu_fps,
+                gpu_over_cpu: gpu_fps.map(|g| g / cpu_fps),
+            };
+            progress(&row);
+            rows.push(row);
+        }
+    }
+    Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows })
+}
