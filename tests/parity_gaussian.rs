@@ -1,23 +1,11 @@
-//! GPU/CPU parity of `shaders/gaussian.wgsl` and `shaders/ingest.wgsl`
-//! against their twins in src/early/.
+//! GPU/CPU parity of `shaders/gaussian.wgsl` against its twin in src/early/gaussian.rs.
 mod common;
 
-use pipetrack::early::{gaussian, ingest};
+use pipetrack::early::gaussian;
 use pipetrack::testimage::natural;
 
 /// Smoothed values are 0..255 sums of at most ~130 products: a few ULPs of 255.
 const GAUSSIAN_ATOL: f32 = 2e-4;
-
-#[test]
-fn parity_ingest_bytes_exact() {
-    let Some((ctx, _g)) = common::gpu("parity_ingest_bytes_exact") else { return };
-    for &(w, h) in common::PARITY_SIZES {
-        let frame = natural(w, h, 7);
-        let cpu = ingest::ingest_gray(&frame);
-        let gpu = ingest::ingest_gray_gpu(ctx, &frame).unwrap();
-        common::assert_equal(&format!("ingest/{w}x{h}"), &cpu, &gpu);
-    }
-}
 
 #[test]
 fn parity_gaussian_all_sizes_and_sigmas() {
