@@ -4,6 +4,7 @@
 //! its parameters, its CPU twin, its GPU `encode`, and a standalone
 //! `*_gpu` function for tests and benches.
 
+pub mod angle;
 pub mod compaction;
 pub mod cpf;
 pub mod frame_sum;
