@@ -1,0 +1,87 @@
+//! GPU/CPU parity of `shaders/cpf.wgsl` (the `cpf` stage, four critical-point
+//! filter hierarchies) and `shaders/edge_pyramid.wgsl` (the `edge_pyramid`
+//! stage, averaged edge hierarchies) against their twins in src/early/cpf.rs.
+//!
+//! Tolerances: CPF levels must be **equal** (min/max are exact in f32, both
+//! twins pick the same children). Edge pyramid levels: `atol 1e-4, rtol 1e-5`
+//! (sums of four values times ¼ in the same order on both sides; the
+//! tolerance only absorbs a possible reassociation by the GPU compiler).
+mod common;
+
+use pipetrack::FloatImage;
+use pipetrack::early::cpf;
+use pipetrack::testimage::natural;
+
+const EDGE_PYRAMID_ATOL: f32 = 1e-4;
+const EDGE_PYRAMID_RTOL: f32 = 1e-5;
+
+/// Parity sizes plus the paper's 256×256 and single-row / single-column inputs.
+fn sizes() -> Vec<(usize, usize)> {
+    let mut s = common::PARITY_SIZES.to_vec();
+    s.extend([(256, 256), (1, 7), (7, 1)]);
+    s
+}
+
+/// A signed image standing in for a Sobel edge image (values −255..255).
+fn signed(w: usize, h: usize, seed: u64) -> FloatImage {
+    let a = natural(w, h, seed).to_f32();
+    let b = natural(w, h, seed + 100).to_f32();
+    FloatImage::from_vec(w, h, a.data().iter().zip(b.data()).map(|(x, y)| x - y).collect()).expect("same size")
+}
+
+#[test]
+fn parity_cpf_all_levels_exact() {
+    let Some((ctx, _g)) = common::gpu("parity_cpf_all_levels_exact") else { return };
+    for (w, h) in sizes() {
+        let src = natural(w, h, 21).to_f32();
+        let cpu = cpf::cpf(&src);
+        let gpu = cpf::cpf_gpu(ctx, &src).unwrap();
+        let levels = cpf::level_sizes(w, h).len();
+        for m in 0..cpf::HIERARCHIES {
+            assert_eq!(cpu.hierarchies[m].len(), levels, "cpf/{w}x{h}: CPU level count");
+            assert_eq!(gpu.hierarchies[m].len(), levels, "cpf/{w}x{h}: GPU level count");
+            for (k, (c, g)) in cpu.hierarchies[m].iter().zip(&gpu.hierarchies[m]).enumerate() {
+                common::assert_equal(&format!("cpf/{w}x{h}/m{m}/level{k}"), c, g);
+            }
+        }
+    }
+}
+
+/// Saddle hierarchies depend on which child pairs the inner min/max takes;
+/// an image with a strong row/column asymmetry makes a swapped pairing fail.
+#[test]
+fn parity_cpf_saddles_on_stripes() {
+    let Some((ctx, _g)) = common::gpu("parity_cpf_saddles_on_stripes") else { return };
+    let src = FloatImage::from_fn(33, 18, |x, y| ((x * 7 + y * 13) % 17) as f32 + if y % 2 == 0 { 100.0 } else { 0.0 });
+    let cpu = cpf::cpf(&src);
+    let gpu = cpf::cpf_gpu(ctx, &src).unwrap();
+    assert_eq!(cpu, gpu);
+}
+
+#[test]
+fn parity_edge_pyramid_all_levels() {
+    let Some((ctx, _g)) = common::gpu("parity_edge_pyramid_all_levels") else { return };
+    for (w, h) in sizes() {
+        let gx = signed(w, h, 3);
+        let gy = signed(w, h, 4);
+        let cpu = cpf::edge_pyramids(&gx, &gy).unwrap();
+        let gpu = cpf::edge_pyramids_gpu(ctx, &gx, &gy).unwrap();
+        let levels = cpf::level_sizes(w, h).len();
+        assert_eq!((cpu.horizontal.len(), cpu.vertical.len()), (levels, levels), "edge_pyramid/{w}x{h}: CPU level count");
+        assert_eq!((gpu.horizontal.len(), gpu.vertical.len()), (levels, levels), "edge_pyramid/{w}x{h}: GPU level count");
+        for k in 0..levels {
+            for (dir, c, g) in [("h", &cpu.horizontal[k], &gpu.horizontal[k]), ("v", &cpu.vertical[k], &gpu.vertical[k])] {
+                common::assert_close(&format!("edge_pyramid/{w}x{h}/{dir}/level{k}"), c, g, EDGE_PYRAMID_ATOL, EDGE_PYRAMID_RTOL);
+            }
+        }
+    }
+}
+
+#[test]
+fn parity_edge_pyramid_rejects_mismatched_inputs() {
+    let Some((ctx, _g)) = common::gpu("parity_edge_pyramid_rejects_mismatched_inputs") else { return };
+    let a = FloatImage::new(4, 4);
+    let b = FloatImage::new(4, 3);
+    assert!(cpf::edge_pyramids_gpu(ctx, &a, &b).is_err());
+    assert!(cpf::edge_pyramids(&a, &b).is_err());
+}
