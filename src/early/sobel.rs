@@ -1,1 +1,452 @@
-//! (stage under construction)
+//! Sobel 3×3 gradient (000 eq. 2, 002 §2.3) with clamp-to-edge borders.
+//!
+//! Kernels, with x to the right and y down:
+//!
+//! ```text
+//! gx = [-1 0 1]      gy = [-1 -2 -1]
+//!      [-2 0 2]           [ 0  0  0]
+//!      [-1 0 1]           [ 1  2  1]
+//! ```
+//!
+//! so `gx > 0` where intensity grows to the right and `gy > 0` where it grows
+//! downward. Five f32 planes come out of one pass:
+//!
+//! - `gx`, `gy`, and `magnitude = sqrt(gx² + gy²)`;
+//! - `direction`: the gradient direction `atan2(gy, gx)` in `(−π, π]`
+//!   (measured from +x towards +y, i.e. clockwise on screen);
+//! - `theta`: the edge orientation of 000 eq. 2,
+//!   `θ = atan(gy / gx) + π/2`, perpendicular to the gradient, as an
+//!   undirected line orientation in `[0, π)`, measured from +x towards +y.
+//!   A vertical edge line (gradient along x, `gy = 0`) has `θ = π/2`; a
+//!   horizontal one (`gx = 0`, `gy ≠ 0`, where `atan(±∞) + π/2` is `π` or
+//!   `0`) has `θ = 0`; a line from bottom-left to top-right on screen
+//!   (gradient along (1, 1)) has `θ = 3π/4`.
+//!
+//! Where `gx = gy = 0` (magnitude 0) the angles are undefined; both twins
+//! write `direction = 0` and `theta = π/2` (`atan(0) + π/2`) there, never
+//! evaluating `atan2(0, 0)`, which is not portable across GPUs.
+//!
+//! Both twins compute the angles the same way, from one `a = atan(gy / gx)`:
+//! `θ = a + π/2` (a result that rounds to below 0 or to π or above becomes
+//! 0); `direction = a` for `gx > 0`, `a + π` for `gx < 0 ≤ gy`, `a − π` for
+//! `gx < 0, gy < 0` (a result that rounds to `−π` becomes `π`); `±π/2` for
+//! `gx = 0`. `gx` and `gy` are formed in the same order as in
+//! `shaders/sobel.wgsl`: `gx` as the difference of the right and left
+//! columns' `[1 2 1]` sums, `gy` as the `[1 2 1]` sum of the three columns'
+//! `down − up` differences.
+
+use std::f32::consts::{FRAC_PI_2, PI};
+
+use bytemuck::{Pod, Zeroable};
+use rayon::prelude::*;
+
+use super::gaussian::PARALLEL_PIXELS;
+use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::image::FloatImage;
+use crate::{Error, Result};
+
+/// The shader of this stage.
+pub(crate) const SHADER: ShaderDef = ShaderDef { name: "sobel", source: include_str!("../../shaders/sobel.wgsl") };
+
+/// The five planes of the Sobel stage on the CPU, all the same size.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SobelOutput {
+    /// Horizontal derivative (positive where intensity grows to the right).
+    pub gx: FloatImage,
+    /// Vertical derivative (positive where intensity grows downward).
+    pub gy: FloatImage,
+    /// Gradient magnitude `sqrt(gx² + gy²)`.
+    pub magnitude: FloatImage,
+    /// Gradient direction `atan2(gy, gx)` in `(−π, π]`; 0 where the magnitude is 0.
+    pub direction: FloatImage,
+    /// Edge orientation of 000 eq. 2 in `[0, π)`; `π/2` where the magnitude is 0.
+    pub theta: FloatImage,
+}
+
+impl SobelOutput {
+    /// Five zeroed `width`×`height` planes.
+    #[must_use]
+    pub fn new(width: usize, height: usize) -> Self {
+        Self {
+            gx: FloatImage::new(width, height),
+            gy: FloatImage::new(width, height),
+            magnitude: FloatImage::new(width, height),
+            direction: FloatImage::new(width, height),
+            theta: FloatImage::new(width, height),
+        }
+    }
+
+    /// Resize every plane to `width`×`height` (contents unspecified).
+    pub fn resize(&mut self, width: usize, height: usize) {
+        for plane in [&mut self.gx, &mut self.gy, &mut self.magnitude, &mut self.direction, &mut self.theta] {
+            plane.resize(width, height);
+        }
+    }
+
+    /// `(width, height)` of the planes.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        self.gx.size()
+    }
+}
+
+/// The five planes of the Sobel stage on the GPU, all the same size.
+#[derive(Debug)]
+pub struct SobelGpu {
+    /// Horizontal derivative.
+    pub gx: GpuImage,
+    /// Vertical derivative.
+    pub gy: GpuImage,
+    /// Gradient magnitude.
+    pub magnitude: GpuImage,
+    /// Gradient direction in `(−π, π]`.
+    pub direction: GpuImage,
+    /// Edge orientation of 000 eq. 2 in `[0, π)`.
+    pub theta: GpuImage,
+}
+
+impl SobelGpu {
+    /// Allocate five uninitialised `width`×`height` planes on the device.
+    #[must_use]
+    pub fn new(ctx: &GpuContext, width: usize, height: usize) -> Self {
+        Self {
+            gx: GpuImage::new(ctx, width, height, "sobel.gx"),
+            gy: GpuImage::new(ctx, width, height, "sobel.gy"),
+            magnitude: GpuImage::new(ctx, width, height, "sobel.magnitude"),
+            direction: GpuImage::new(ctx, width, height, "sobel.direction"),
+            theta: GpuImage::new(ctx, width, height, "sobel.theta"),
+        }
+    }
+
+    /// `(width, height)` of the planes.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        (self.gx.width(), self.gx.height())
+    }
+
+    /// Copy all five planes back to the CPU (waits for the GPU; tests and benches).
+    pub fn download(&self, ctx: &GpuContext) -> Result<SobelOutput> {
+        Ok(SobelOutput {
+            gx: self.gx.download(ctx)?,
+            gy: self.gy.download(ctx)?,
+            magnitude: self.magnitude.download(ctx)?,
+            direction: self.direction.download(ctx)?,
+            theta: self.theta.download(ctx)?,
+        })
+    }
+}
+
+/// Uniform block of `sobel.wgsl`; kept in sync with its `Params`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct SobelUniform {
+    width: u32,
+    height: u32,
+    _pad: [u32; 2],
+}
+
+/// Gradient direction in `(−π, π]` and edge orientation θ in `[0, π)` of
+/// the gradient `(gx, gy)`, with the conventions and guards of the module
+/// documentation (the shader's arithmetic, step by step).
+#[must_use]
+pub fn gradient_angles(gx: f32, gy: f32) -> (f32, f32) {
+    if gx != 0.0 {
+        let a = (gy / gx).atan();
+        // 000 eq. 2: θ = atan(∇y/∇x) + π/2, folded into [0, π).
+        let mut theta = a + FRAC_PI_2;
+        if theta < 0.0 || theta >= PI {
+            theta = 0.0;
+        }
+        let direction = if gx > 0.0 {
+            a
+        } else if gy >= 0.0 {
+            a + PI
+        } else {
+            let d = a - PI;
+            if d <= -PI { PI } else { d }
+        };
+        (direction, theta)
+    } else if gy != 0.0 {
+        (if gy > 0.0 { FRAC_PI_2 } else { -FRAC_PI_2 }, 0.0)
+    } else {
+        // Zero gradient: guarded, atan2(0, 0) is not portable.
+        (0.0, FRAC_PI_2)
+    }
+}
+
+/// `(gx, gy)` at column `xc` from the rows above, at and below, with
+/// neighbour columns `xl`, `xr` (already clamped); the shader's order.
+#[inline(always)]
+fn gradient_at(up: &[f32], mid: &[f32], down: &[f32], xl: usize, xc: usize, xr: usize) -> (f32, f32) {
+    let sum_l = (up[xl] + 2.0 * mid[xl]) + down[xl];
+    let sum_r = (up[xr] + 2.0 * mid[xr]) + down[xr];
+    let d_l = down[xl] - up[xl];
+    let d_c = down[xc] - up[xc];
+    let d_r = down[xr] - up[xr];
+    (sum_r - sum_l, (d_l + 2.0 * d_c) + d_r)
+}
+
+/// The five output rows of one image row.
+struct Rows<'a> {
+    gx: &'a mut [f32],
+    gy: &'a mut [f32],
+    magnitude: &'a mut [f32],
+    direction: &'a mut [f32],
+    theta: &'a mut [f32],
+}
+
+/// One output row `y`: derivatives (interior without clamping, vectorisable;
+/// the two border columns clamped), then magnitude and angles.
+fn sobel_row(src: &[f32], width: usize, height: usize, y: usize, out: Rows<'_>) {
+    let row = |yy: usize| &src[yy * width..(yy + 1) * width];
+    let (up, mid, down) = (row(y.saturating_sub(1)), row(y), row((y + 1).min(height - 1)));
+    let Rows { gx, gy, magnitude, direction, theta } = out;
+
+    if width >= 3 {
+        let n = width - 2;
+        let (ul, uc, ur) = (&up[..n], &up[1..n + 1], &up[2..]);
+        let (ml, mr) = (&mid[..n], &mid[2..]);
+        let (dl, dc, dr) = (&down[..n], &down[1..n + 1], &down[2..]);
+        let (gx_in, gy_in) = (&mut gx[1..n + 1], &mut gy[1..n + 1]);
+        for i in 0..n {
+            let sum_l = (ul[i] + 2.0 * ml[i]) + dl[i];
+            let sum_r = (ur[i] + 2.0 * mr[i]) + dr[i];
+            gx_in[i] = sum_r - sum_l;
+            gy_in[i] = ((dl[i] - ul[i]) + 2.0 * (dc[i] - uc[i])) + (dr[i] - ur[i]);
+        }
+    }
+    let last = width - 1;
+    for xc in [0, last] {
+        let (x, y) = gradient_at(up, mid, down, xc.saturating_sub(1), xc, (xc + 1).min(last));
+        gx[xc] = x;
+        gy[xc] = y;
+    }
+
+    for i in 0..width {
+        let (x, y) = (gx[i], gy[i]);
+        magnitude[i] = (x * x + y * y).sqrt();
+        (direction[i], theta[i]) = gradient_angles(x, y);
+    }
+}
+
+/// CPU twin: the five Sobel planes of `src` into `out` (resized to match).
+/// No allocation once `out` has grown.
+pub fn sobel_cpu(src: &FloatImage, out: &mut SobelOutput) {
+    let (w, h) = src.size();
+    out.resize(w, h);
+    if w == 0 || h == 0 {
+        return;
+    }
+    let s = src.data();
+    let SobelOutput { gx, gy, magnitude, direction, theta } = out;
+    if w * h >= PARALLEL_PIXELS {
+        (
+            gx.data_mut().par_chunks_mut(w),
+            gy.data_mut().par_chunks_mut(w),
+            magnitude.data_mut().par_chunks_mut(w),
+            direction.data_mut().par_chunks_mut(w),
+            theta.data_mut().par_chunks_mut(w),
+        )
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(y, (gx, gy, magnitude, direction, theta))| {
+                sobel_row(s, w, h, y, Rows { gx, gy, magnitude, direction, theta });
+            });
+    } else {
+        gx.data_mut()
+            .chunks_mut(w)
+            .zip(gy.data_mut().chunks_mut(w))
+            .zip(magnitude.data_mut().chunks_mut(w))
+            .zip(direction.data_mut().chunks_mut(w))
+            .zip(theta.data_mut().chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, ((((gx, gy), magnitude), direction), theta))| {
+                sobel_row(s, w, h, y, Rows { gx, gy, magnitude, direction, theta });
+            });
+    }
+}
+
+/// CPU twin, allocating its outputs: the five Sobel planes of `src`.
+#[must_use]
+pub fn sobel(src: &FloatImage) -> SobelOutput {
+    let mut out = SobelOutput::new(0, 0);
+    sobel_cpu(src, &mut out);
+    out
+}
+
+/// Record one dispatch writing all five planes of `out` from `src` (same size).
+pub(crate) fn encode(rec: &mut Recorder<'_>, src: &GpuImage, out: &SobelGpu) -> Result<()> {
+    let (w, h) = (src.width(), src.height());
+    if out.size() != (w, h) {
+        let (ow, oh) = out.size();
+        return Err(Error::Size(format!("sobel src {w}x{h} vs output planes {ow}x{oh}")));
+    }
+    let planes = [&out.gx, &out.gy, &out.magnitude, &out.direction, &out.theta];
+    if planes.iter().any(|p| (p.width(), p.height()) != (w, h)) {
+        return Err(Error::Size(format!("sobel output planes are not all {w}x{h}")));
+    }
+    let u = SobelUniform { width: w as u32, height: h as u32, _pad: [0; 2] };
+    let buffers = [&src.buffer, &out.gx.buffer, &out.gy.buffer, &out.magnitude.buffer, &out.direction.buffer, &out.theta.buffer];
+    rec.dispatch(&SHADER, "sobel", &u, &buffers, workgroups_2d(w, h))
+}
+
+/// GPU: the five Sobel planes of a CPU image, read back (tests and benches).
+pub fn sobel_gpu(ctx: &GpuContext, src: &FloatImage) -> Result<SobelOutput> {
+    let (w, h) = src.size();
+    let input = GpuImage::from_image(ctx, src, "sobel.src");
+    let out = SobelGpu::new(ctx, w, h);
+    run_once(ctx, |rec| encode(rec, &input, &out))?;
+    out.download(ctx)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::f32::consts::FRAC_PI_4;
+
+    use super::*;
+
+    fn close(a: f32, b: f32) -> bool {
+        (a - b).abs() <= 1e-6
+    }
+
+    #[test]
+    fn vertical_step_edge() {
+        // 6×3 image, columns 0..=2 are 0 and columns 3..=5 are 100:
+        //   0 0 0 100 100 100   (every row)
+        // At x = 2 the right column (x = 3) has [1 2 1] sum 400 and the left
+        // (x = 1) sum 0, so gx = 400; the same at x = 3 (right 400, left 0).
+        // Elsewhere left and right columns are equal (clamp at x = 0, 5): 0.
+        // All rows are equal, so every down − up difference and gy are 0.
+        // Direction 0 (gradient along +x); theta = atan(0) + π/2 = π/2, a
+        // vertical edge line. Where gx = gy = 0: direction 0, theta π/2 by guard.
+        let src = FloatImage::from_fn(6, 3, |x, _| if x >= 3 { 100.0 } else { 0.0 });
+        let s = sobel(&src);
+        for y in 0..3 {
+            for x in 0..6 {
+                let expected_gx = if x == 2 || x == 3 { 400.0 } else { 0.0 };
+                assert_eq!(s.gx.get(x, y), expected_gx, "gx at ({x}, {y})");
+                assert_eq!(s.gy.get(x, y), 0.0);
+                assert_eq!(s.magnitude.get(x, y), expected_gx);
+                assert_eq!(s.direction.get(x, y), 0.0);
+                assert_eq!(s.theta.get(x, y), FRAC_PI_2);
+            }
+        }
+        // Mirrored step (bright on the left): gx = −400, direction π, theta still π/2.
+        let src = FloatImage::from_fn(6, 3, |x, _| if x < 3 { 100.0 } else { 0.0 });
+        let s = sobel(&src);
+        assert_eq!(s.gx.get(2, 1), -400.0);
+        assert_eq!(s.direction.get(2, 1), PI);
+        assert_eq!(s.theta.get(3, 1), FRAC_PI_2);
+    }
+
+    #[test]
+    fn horizontal_step_edge_has_theta_zero() {
+        // 3×6 image, rows 0..=2 are 0 and rows 3..=5 are 100. At y = 2 and
+        // y = 3 each column's down − up difference is 100, so
+        // gy = 100 + 2·100 + 100 = 400; gx = 0 (all columns equal).
+        // Direction π/2 (gradient points down, +y); the edge line is
+        // horizontal: atan(400/0) + π/2 = π ≡ 0, reported as 0 in [0, π).
+        let src = FloatImage::from_fn(3, 6, |_, y| if y >= 3 { 100.0 } else { 0.0 });
+        let s = sobel(&src);
+        for x in 0..3 {
+            for y in [2, 3] {
+                assert_eq!(s.gx.get(x, y), 0.0);
+                assert_eq!(s.gy.get(x, y), 400.0);
+                assert_eq!(s.magnitude.get(x, y), 400.0);
+                assert_eq!(s.direction.get(x, y), FRAC_PI_2);
+                assert_eq!(s.theta.get(x, y), 0.0);
+            }
+            assert_eq!(s.gy.get(x, 0), 0.0); // clamp: rows 0, 0, 1 all 0
+            assert_eq!(s.gy.get(x, 5), 0.0);
+        }
+        // Bright on top: gy = −400, direction −π/2, theta still 0.
+        let src = FloatImage::from_fn(3, 6, |_, y| if y < 3 { 100.0 } else { 0.0 });
+        let s = sobel(&src);
+        assert_eq!(s.gy.get(1, 2), -400.0);
+        assert_eq!(s.direction.get(1, 2), -FRAC_PI_2);
+        assert_eq!(s.theta.get(1, 2), 0.0);
+    }
+
+    #[test]
+    fn diagonal_ramp_gives_theta_three_quarter_pi() {
+        // I(x, y) = 10·(x + y) on 5×5. At an interior pixel the right column
+        // exceeds the left by 20 in each row: gx = 20·(1 + 2 + 1) = 80; by
+        // symmetry gy = 80. Direction atan2(80, 80) = π/4 (down-right); the
+        // edge line is perpendicular: θ = atan(1) + π/2 = 3π/4, a line
+        // running from bottom-left to top-right on screen (iso-intensity
+        // x + y = const). Magnitude 80·√2.
+        let src = FloatImage::from_fn(5, 5, |x, y| 10.0 * (x + y) as f32);
+        let s = sobel(&src);
+        for (x, y) in [(1, 1), (2, 2), (3, 1), (2, 3)] {
+            assert_eq!(s.gx.get(x, y), 80.0);
+            assert_eq!(s.gy.get(x, y), 80.0);
+            assert!(close(s.magnitude.get(x, y), 80.0 * 2f32.sqrt()));
+            assert!(close(s.direction.get(x, y), FRAC_PI_4));
+            assert!(close(s.theta.get(x, y), 3.0 * FRAC_PI_4));
+        }
+        // Anti-diagonal ramp I = 10·(x − y): gx = 80, gy = −80, direction
+        // −π/4, θ = atan(−1) + π/2 = π/4.
+        let src = FloatImage::from_fn(5, 5, |x, y| 10.0 * (x as f32 - y as f32));
+        let s = sobel(&src);
+        assert!(close(s.direction.get(2, 2), -FRAC_PI_4));
+        assert!(close(s.theta.get(2, 2), FRAC_PI_4));
+    }
+
+    #[test]
+    fn one_pixel_image_is_all_zero_gradient_with_clamp() {
+        // Every neighbour clamps to the one pixel: gx = gy = 0, so the
+        // zero-gradient guard gives direction 0 and theta π/2.
+        let s = sobel(&FloatImage::from_fn(1, 1, |_, _| 42.0));
+        assert_eq!((s.gx.get(0, 0), s.gy.get(0, 0), s.magnitude.get(0, 0)), (0.0, 0.0, 0.0));
+        assert_eq!((s.direction.get(0, 0), s.theta.get(0, 0)), (0.0, FRAC_PI_2));
+    }
+
+    #[test]
+    fn angle_ranges_and_quadrants() {
+        let q = |gx: f32, gy: f32| gradient_angles(gx, gy);
+        assert_eq!(q(1.0, 0.0), (0.0, FRAC_PI_2));
+        assert_eq!(q(-1.0, 0.0), (PI, FRAC_PI_2));
+        assert_eq!(q(-1.0, -0.0), (PI, FRAC_PI_2)); // −0 counts as gy ≥ 0: never −π
+        assert_eq!(q(0.0, 1.0), (FRAC_PI_2, 0.0));
+        assert_eq!(q(0.0, -1.0), (-FRAC_PI_2, 0.0));
+        assert_eq!(q(0.0, 0.0), (0.0, FRAC_PI_2));
+        // Opposite gradients share one edge line: (−1, −1) ∥ (1, 1) → 3π/4,
+        // (−1, 1) ∥ (1, −1) → π/4.
+        let (d, t) = q(-1.0, -1.0);
+        assert!(close(d, -3.0 * FRAC_PI_4) && close(t, 3.0 * FRAC_PI_4));
+        let (d, t) = q(-1.0, 1.0);
+        assert!(close(d, 3.0 * FRAC_PI_4) && close(t, FRAC_PI_4));
+        // Nearly vertical gradients: θ folds to 0 instead of reaching π.
+        assert_eq!(q(1e-30, 1.0).1, 0.0);
+        // Gradient just below −x: direction stays in (−π, π].
+        let (d, _) = q(-1.0, -1e-9);
+        assert!(d > -PI && d <= PI);
+        for i in 0..360 {
+            let a = (i as f32).to_radians();
+            let (d, t) = q(a.cos(), a.sin());
+            assert!(d > -PI && d <= PI, "direction {d} at {i}°");
+            assert!((0.0..PI).contains(&t), "theta {t} at {i}°");
+        }
+    }
+
+    #[test]
+    fn parallel_path_matches_row_by_row_and_output_is_resized() {
+        // 300×250 = 75 000 pixels takes the rayon path; each of its rows
+        // must equal the middle row of the 3-row strip around it, which a
+        // small (single-threaded) run computes.
+        let src = FloatImage::from_fn(300, 250, |x, y| ((x * 7 + y * 13) % 31) as f32);
+        let mut out = SobelOutput::new(1, 1);
+        sobel_cpu(&src, &mut out);
+        assert_eq!(out.size(), (300, 250));
+        for y in [0usize, 1, 100, 248, 249] {
+            // Rows y−1, y, y+1 clamped to the image, as the border rows see them.
+            let strip = FloatImage::from_fn(300, 3, |x, dy| src.get(x, (y + dy).saturating_sub(1).min(249)));
+            let s = sobel(&strip);
+            assert_eq!(out.gx.row(y), s.gx.row(1));
+            assert_eq!(out.gy.row(y), s.gy.row(1));
+            assert_eq!(out.magnitude.row(y), s.magnitude.row(1));
+            assert_eq!(out.direction.row(y), s.direction.row(1));
+            assert_eq!(out.theta.row(y), s.theta.row(1));
+        }
+    }
+}

@@ -1,1 +1,191 @@
-//! (stage under construction)
+//! Thresholded temporal difference (000 eq. 1): the binary motion image.
+//!
+//! 000 subtracts two temporally consecutive smoothed frames,
+//! `∂I/∂t = G*_t − G*_{t+1}`, and thresholds the result. Here a pixel is
+//! moving when `|prev − cur| > threshold` (strictly greater): the mask holds
+//! `1.0` there and `0.0` elsewhere. The mask is stored as f32 so that every
+//! mask in pipetrack has the same pixel type as the images it is combined with.
+
+use bytemuck::{Pod, Zeroable};
+use rayon::prelude::*;
+
+use super::gaussian::PARALLEL_PIXELS;
+use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::image::FloatImage;
+use crate::{Error, Result};
+
+/// The shader of this stage.
+pub(crate) const SHADER: ShaderDef =
+    ShaderDef { name: "temporal_diff", source: include_str!("../../shaders/temporal_diff.wgsl") };
+
+/// Mask value of a moving pixel.
+pub const MOVING: f32 = 1.0;
+/// Mask value of a still pixel.
+pub const STILL: f32 = 0.0;
+
+/// Parameters of the temporal difference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TemporalDiffParams {
+    /// A pixel is moving when `|prev − cur|` exceeds this, in grey levels of
+    /// the 0..255 scale; must be finite and `>= 0`. 000 gives no value.
+    /// pipetrack's default, 8, sits far above the noise of a difference of
+    /// two smoothed frames (8-bit camera noise of σ ≈ 2 levels drops below
+    /// 1 level after a σ = 1 Gaussian, so the difference has σ ≈ 1) while an
+    /// edge of contrast ≥ 16 levels moving ≥ 1 px/frame (000 tracks at
+    /// 1.1–4.5 px/frame) still changes the smoothed image by more than 8.
+    pub threshold: f32,
+}
+
+impl Default for TemporalDiffParams {
+    fn default() -> Self {
+        Self { threshold: 8.0 }
+    }
+}
+
+impl TemporalDiffParams {
+    /// Error unless the threshold is finite and non-negative.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.threshold.is_finite() && self.threshold >= 0.0) {
+            return Err(Error::Parameter(format!(
+                "temporal difference threshold {} must be finite and >= 0",
+                self.threshold
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Uniform block of `temporal_diff.wgsl`; kept in sync with its `Params`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct TemporalDiffUniform {
+    width: u32,
+    height: u32,
+    threshold: f32,
+    _pad: u32,
+}
+
+/// One row (or any run of pixels); same arithmetic as the shader.
+fn diff_row(prev: &[f32], cur: &[f32], out: &mut [f32], threshold: f32) {
+    for ((o, &p), &c) in out.iter_mut().zip(prev).zip(cur) {
+        // 000 eq. 1: G*_t − G*_{t+1}, thresholded on its magnitude.
+        *o = if (p - c).abs() > threshold { MOVING } else { STILL };
+    }
+}
+
+/// CPU twin: write the motion mask of `prev → cur` into `out` (resized to
+/// match). `prev` and `cur` must have the same size ([`Error::Size`]).
+pub fn temporal_diff_cpu(prev: &FloatImage, cur: &FloatImage, params: &TemporalDiffParams, out: &mut FloatImage) -> Result<()> {
+    params.validate()?;
+    prev.check_same_size(cur, "temporal difference prev/cur")?;
+    let (w, h) = prev.size();
+    out.resize(w, h);
+    if w == 0 || h == 0 {
+        return Ok(());
+    }
+    let t = params.threshold;
+    if w * h >= PARALLEL_PIXELS {
+        prev.data()
+            .par_chunks(w)
+            .zip(cur.data().par_chunks(w))
+            .zip(out.data_mut().par_chunks_mut(w))
+            .for_each(|((p, c), o)| diff_row(p, c, o, t));
+    } else {
+        prev.data()
+            .chunks(w)
+            .zip(cur.data().chunks(w))
+            .zip(out.data_mut().chunks_mut(w))
+            .for_each(|((p, c), o)| diff_row(p, c, o, t));
+    }
+    Ok(())
+}
+
+/// CPU twin, allocating its output: the motion mask of `prev → cur`.
+pub fn temporal_diff(prev: &FloatImage, cur: &FloatImage, params: &TemporalDiffParams) -> Result<FloatImage> {
+    let mut out = FloatImage::new(0, 0);
+    temporal_diff_cpu(prev, cur, params, &mut out)?;
+    Ok(out)
+}
+
+/// Record the mask `out = |prev − cur| > threshold` (all three the same size).
+pub(crate) fn encode(rec: &mut Recorder<'_>, prev: &GpuImage, cur: &GpuImage, out: &GpuImage, params: &TemporalDiffParams) -> Result<()> {
+    params.validate()?;
+    let (w, h) = (prev.width(), prev.height());
+    for (img, what) in [(cur, "cur"), (out, "out")] {
+        if (img.width(), img.height()) != (w, h) {
+            return Err(Error::Size(format!(
+                "temporal difference prev {w}x{h} vs {what} {}x{}",
+                img.width(),
+                img.height()
+            )));
+        }
+    }
+    let u = TemporalDiffUniform { width: w as u32, height: h as u32, threshold: params.threshold, _pad: 0 };
+    rec.dispatch(&SHADER, "temporal_diff", &u, &[&prev.buffer, &cur.buffer, &out.buffer], workgroups_2d(w, h))
+}
+
+/// GPU: the motion mask of two CPU images, read back (tests and benches).
+pub fn temporal_diff_gpu(ctx: &GpuContext, prev: &FloatImage, cur: &FloatImage, params: &TemporalDiffParams) -> Result<FloatImage> {
+    prev.check_same_size(cur, "temporal difference prev/cur")?;
+    let (w, h) = prev.size();
+    let p = GpuImage::from_image(ctx, prev, "temporal_diff.prev");
+    let c = GpuImage::from_image(ctx, cur, "temporal_diff.cur");
+    let out = GpuImage::new(ctx, w, h, "temporal_diff.mask");
+    run_once(ctx, |rec| encode(rec, &p, &c, &out, params))?;
+    out.download(ctx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn img(w: usize, h: usize, v: &[f32]) -> FloatImage {
+        FloatImage::from_vec(w, h, v.to_vec()).unwrap()
+    }
+
+    #[test]
+    fn moving_where_difference_exceeds_threshold_in_either_direction() {
+        // |prev − cur| = 0, 9, 9, 8, 7.5, 100 with threshold 8:
+        // only strictly greater differences count, whatever their sign.
+        let prev = img(3, 2, &[10.0, 10.0, 20.0, 50.0, 0.0, 200.0]);
+        let cur = img(3, 2, &[10.0, 19.0, 11.0, 58.0, 7.5, 100.0]);
+        let m = temporal_diff(&prev, &cur, &TemporalDiffParams::default()).unwrap();
+        assert_eq!(m.data(), &[0.0, 1.0, 1.0, 0.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn zero_threshold_marks_every_change_and_identical_frames_give_no_motion() {
+        let prev = img(2, 2, &[1.0, 2.0, 3.0, 4.0]);
+        let cur = img(2, 2, &[1.0, 2.001, 3.0, 3.5]);
+        let m = temporal_diff(&prev, &cur, &TemporalDiffParams { threshold: 0.0 }).unwrap();
+        assert_eq!(m.data(), &[0.0, 1.0, 0.0, 1.0]);
+        let m = temporal_diff(&prev, &prev, &TemporalDiffParams { threshold: 0.0 }).unwrap();
+        assert!(m.data().iter().all(|&v| v == STILL));
+    }
+
+    #[test]
+    fn size_mismatch_and_bad_threshold_are_errors() {
+        let a = FloatImage::new(3, 2);
+        let b = FloatImage::new(2, 3);
+        let mut out = FloatImage::new(0, 0);
+        let p = TemporalDiffParams::default();
+        assert!(matches!(temporal_diff_cpu(&a, &b, &p, &mut out), Err(Error::Size(_))));
+        for t in [-1.0, f32::NAN, f32::INFINITY] {
+            assert!(matches!(temporal_diff(&a, &a, &TemporalDiffParams { threshold: t }), Err(Error::Parameter(_))));
+        }
+    }
+
+    #[test]
+    fn output_is_resized_and_large_images_take_the_parallel_path() {
+        let (w, h) = (300, 250); // 75 000 pixels ≥ PARALLEL_PIXELS
+        let prev = FloatImage::from_fn(w, h, |x, _| x as f32);
+        let cur = FloatImage::from_fn(w, h, |x, y| if y % 2 == 0 { x as f32 + 10.0 } else { x as f32 });
+        let mut out = FloatImage::new(1, 1);
+        temporal_diff_cpu(&prev, &cur, &TemporalDiffParams::default(), &mut out).unwrap();
+        assert_eq!(out.size(), (w, h));
+        for y in 0..h {
+            let expected = if y % 2 == 0 { MOVING } else { STILL };
+            assert!(out.row(y).iter().all(|&v| v == expected), "row {y}");
+        }
+    }
+}

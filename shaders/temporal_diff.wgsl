@@ -1,0 +1,26 @@
+// Thresholded temporal difference (000 eq. 1): the binary motion image
+// |G*_t − G*_{t+1}| > threshold, stored as f32 (1.0 moving, 0.0 still).
+// Kept in sync with `TemporalDiffUniform` in src/early/temporal_diff.rs.
+
+struct Params {
+    width: u32,
+    height: u32,
+    threshold: f32,
+    _pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> prev: array<f32>;
+@group(0) @binding(2) var<storage, read> cur: array<f32>;
+@group(0) @binding(3) var<storage, read_write> mask: array<f32>;
+
+@compute @workgroup_size(16, 16)
+fn temporal_diff(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= params.width || id.y >= params.height) {
+        return;
+    }
+    let i = id.y * params.width + id.x;
+    // 000 eq. 1: ∂I/∂t = G*_t − G*_{t+1}, then thresholded on its magnitude.
+    let moving = abs(prev[i] - cur[i]) > params.threshold;
+    mask[i] = select(0.0, 1.0, moving);
+}
