@@ -1,1 +1,548 @@
-//! (stage under construction)
+//! Compaction (000's ISMAP; 002's window of interest and its cap of 1500
+//! points): the list of [`Feature`]s `(x, y, θ, magnitude)` of the pixels of a
+//! window whose `select` value exceeds a threshold, in row-major order.
+//!
+//! `select` is any f32 image: a 0/1 mask (threshold 0.5) or a magnitude
+//! (threshold = the smallest interesting magnitude). A pixel `p` is listed when
+//! `select[p] > threshold`, with `theta[p]` and `magnitude[p]` copied bit for
+//! bit from two other images of the same size. The window is clipped to the
+//! image first.
+//!
+//! **Cap: a stratified random subsample.** When a cap is given and the number
+//! `n` of selected pixels exceeds it, exactly `cap` of them are kept, one per
+//! stratum: ranks `0..n` are split into `cap` strata `[lo_j, lo_{j+1})` with
+//! `lo_j = floor(j·n/cap)`, and stratum `j` keeps rank
+//! `lo_j + lowbias32(seed ^ j·0x9E3779B9) % (lo_{j+1} − lo_j)` (u32 wrapping
+//! arithmetic; `lowbias32` is C. Wellons' 32-bit integer hash). The kept
+//! points stay in row-major order and are spread uniformly over the whole
+//! list, hence over the window: this serves 002's purpose of bounding the
+//! work per frame while keeping points all over the object. `lo_j` is computed
+//! as `j·q + (j·r)/cap` with `q = n / cap`, `r = n % cap`, which fits in u32
+//! because the cap is at most [`MAX_CAP`]; both twins use exactly this integer
+//! arithmetic, so their lists are identical element for element.
+//!
+//! GPU: four passes over blocks of [`BLOCK`] window pixels (a scan, since
+//! atomic append gives an unspecified order), see [`encode`]; only the header
+//! and the final list are read back.
+
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+use bytemuck::{Pod, Zeroable};
+use rayon::prelude::*;
+
+use super::gaussian::PARALLEL_PIXELS;
+use super::{Feature, Window};
+use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once};
+use crate::image::FloatImage;
+use crate::{Error, Result};
+
+/// The shader of this stage.
+pub(crate) const SHADER: ShaderDef = ShaderDef { name: "compaction", source: include_str!("../../shaders/compaction.wgsl") };
+
+/// Largest cap accepted: keeps `j·(n % cap)` below 2³² in the stratum bounds.
+pub const MAX_CAP: u32 = 65_535;
+/// Window pixels per workgroup of the count and scatter passes (the shader's `BLOCK`).
+pub const BLOCK: u32 = 256;
+/// Most workgroups per grid dimension (wgpu's downlevel limit); longer block
+/// grids wrap onto a second dimension.
+const MAX_GROUPS_PER_DIM: u32 = 65_535;
+/// Bytes of the header in front of the list in the staging buffer.
+const HEADER_BYTES: u64 = std::mem::size_of::<Header>() as u64;
+/// Bytes of one listed feature.
+const FEATURE_BYTES: u64 = std::mem::size_of::<Feature>() as u64;
+/// Features [`compact_gpu`] prefetches with the header when there is no cap.
+const STANDALONE_PREFETCH: u32 = 4096;
+/// Window rows per task of the parallel CPU twin.
+const BAND_ROWS: usize = 16;
+
+/// Parameters of compaction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CompactionParams {
+    /// Window of interest (clipped to the image).
+    pub window: Window,
+    /// A pixel is listed when `select > threshold` (must not be NaN).
+    pub threshold: f32,
+    /// Keep at most this many features (a stratified random subsample, see the
+    /// module doc); at most [`MAX_CAP`]. 002 uses 1500.
+    pub cap: Option<u32>,
+    /// Seed of the subsample's hash.
+    pub seed: u32,
+}
+
+/// Uniform block of `compaction.wgsl`; kept in sync with its `Params`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct CompactionUniform {
+    image_width: u32,
+    x0: u32,
+    y0: u32,
+    win_width: u32,
+    area: u32,
+    num_blocks: u32,
+    grid_x: u32,
+    cap: u32,
+    seed: u32,
+    threshold: f32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+/// The GPU list header; kept in sync with `Header` in `compaction.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct Header {
+    /// Selected pixels in the window (n).
+    total: u32,
+    /// Features in the final list: `min(n, cap)`.
+    listed: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+/// lowbias32 (C. Wellons, "hash-prospector"): a 32-bit integer mix; same as the shader's.
+fn lowbias32(v: u32) -> u32 {
+    let mut x = v;
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    x
+}
+
+/// `lo_j = floor(j·n / cap)` without overflow (`j ≤ cap ≤ MAX_CAP`).
+fn stratum_start(j: u32, n: u32, cap: u32) -> u32 {
+    let q = n / cap;
+    let r = n % cap;
+    j * q + (j * r) / cap
+}
+
+/// The rank kept from stratum `j` when `n > cap`: `lo_j + hash % (lo_{j+1} − lo_j)`.
+fn subsample_rank(j: u32, n: u32, cap: u32, seed: u32) -> u32 {
+    let lo = stratum_start(j, n, cap);
+    let hi = stratum_start(j + 1, n, cap);
+    lo + lowbias32(seed ^ j.wrapping_mul(0x9e37_79b9)) % (hi - lo)
+}
+
+/// Check the parameters against images of `size`; the clipped window.
+fn checked_window(size: (usize, usize), params: &CompactionParams) -> Result<Window> {
+    if params.threshold.is_nan() {
+        return Err(Error::Parameter("compaction threshold is NaN".into()));
+    }
+    if let Some(cap) = params.cap.filter(|&c| c > MAX_CAP) {
+        return Err(Error::Parameter(format!("compaction cap {cap} exceeds {MAX_CAP}")));
+    }
+    let window = params.window.clipped(size.0, size.1);
+    if window.area() > u32::MAX as usize {
+        return Err(Error::Parameter(format!("window of {} pixels is too large to list", window.area())));
+    }
+    Ok(window)
+}
+
+fn check_sizes(select: (usize, usize), theta: (usize, usize), magnitude: (usize, usize)) -> Result<()> {
+    if select != theta || select != magnitude {
+        return Err(Error::Size(format!(
+            "compaction: select {}x{}, theta {}x{}, magnitude {}x{}",
+            select.0, select.1, theta.0, theta.1, magnitude.0, magnitude.1
+        )));
+    }
+    Ok(())
+}
+
+/// Append the selected pixels of window row `y` (columns `x0..x0 + sel.len()`) to `emit`.
+#[inline]
+fn list_row(sel: &[f32], theta: &[f32], mag: &[f32], x0: usize, y: usize, threshold: f32, mut emit: impl FnMut(Feature)) {
+    for (dx, ((&s, &t), &m)) in sel.iter().zip(theta).zip(mag).enumerate() {
+        if s > threshold {
+            emit(Feature { x: (x0 + dx) as u32, y: y as u32, theta: t, magnitude: m });
+        }
+    }
+}
+
+/// CPU twin: the features of `params.window` into `out` (cleared first; no
+/// allocation once `out` has grown). Large windows are listed on several
+/// threads by the GPU's own scheme: count per band of rows, prefix-sum, fill.
+pub fn compact_cpu(select: &FloatImage, theta: &FloatImage, magnitude: &FloatImage, params: &CompactionParams, out: &mut Vec<Feature>) -> Result<()> {
+    check_sizes(select.size(), theta.size(), magnitude.size())?;
+    let win = checked_window(select.size(), params)?;
+    out.clear();
+    if win.is_empty() {
+        return Ok(());
+    }
+    let (x0, x1) = (win.x0 as usize, win.x1 as usize);
+    let (y0, y1) = (win.y0 as usize, win.y1 as usize);
+    let th = params.threshold;
+    fn span(img: &FloatImage, y: usize, x0: usize, x1: usize) -> &[f32] {
+        let w = img.width();
+        &img.data()[y * w + x0..y * w + x1]
+    }
+
+    if win.area() >= PARALLEL_PIXELS {
+        let bands: Vec<usize> = (y0..y1).step_by(BAND_ROWS).collect();
+        let rows_of = |b: usize| b..(b + BAND_ROWS).min(y1);
+        let counts: Vec<usize> = bands
+            .par_iter()
+            .map(|&b| rows_of(b).map(|y| span(select, y, x0, x1).iter().filter(|&&s| s > th).count()).sum())
+            .collect();
+        out.resize(counts.iter().sum(), Feature::default());
+        let mut slices = Vec::with_capacity(bands.len());
+        let mut rest = out.as_mut_slice();
+        for &c in &counts {
+            let (head, tail) = rest.split_at_mut(c);
+            slices.push(head);
+            rest = tail;
+        }
+        slices.into_par_iter().zip(bands).for_each(|(dst, b)| {
+            let mut k = 0;
+            for y in rows_of(b) {
+                list_row(span(select, y, x0, x1), span(theta, y, x0, x1), span(magnitude, y, x0, x1), x0, y, th, |f| {
+                    dst[k] = f;
+                    k += 1;
+                });
+            }
+        });
+    } else {
+        for y in y0..y1 {
+            list_row(span(select, y, x0, x1), span(theta, y, x0, x1), span(magnitude, y, x0, x1), x0, y, th, |f| out.push(f));
+        }
+    }
+
+    if let Some(cap) = params.cap {
+        let n = out.len() as u32; // ≤ window area ≤ u32::MAX, checked above
+        if n > cap {
+            // In place: rank_j ≥ lo_j ≥ j, so slot j is read before it is overwritten.
+            for j in 0..cap {
+                out[j as usize] = out[subsample_rank(j, n, cap, params.seed) as usize];
+            }
+            out.truncate(cap as usize);
+        }
+    }
+    Ok(())
+}
+
+/// CPU twin, allocating its output: the feature list.
+pub fn compact(select: &FloatImage, theta: &FloatImage, magnitude: &FloatImage, params: &CompactionParams) -> Result<Vec<Feature>> {
+    let mut out = Vec::new();
+    compact_cpu(select, theta, magnitude, params, &mut out)?;
+    Ok(out)
+}
+
+/// GPU scratch of compaction, allocated once and reused every frame: per-block
+/// counts and offsets, the full list, the capped list, the header, and a
+/// `MAP_READ` staging buffer for the header and the list.
+#[derive(Debug)]
+pub struct CompactionGpu {
+    block_counts: wgpu::Buffer,
+    block_offsets: wgpu::Buffer,
+    full_list: wgpu::Buffer,
+    capped_list: wgpu::Buffer,
+    header: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    max_pixels: usize,
+    max_cap: Option<u32>,
+    /// Whether the last [`encode`] gathered into `capped_list`.
+    last_capped: AtomicBool,
+    /// Features copied to `staging` by the last [`CompactionGpu::encode_readback`].
+    prefetched: AtomicU32,
+}
+
+impl CompactionGpu {
+    /// Scratch for windows of up to `max_pixels` pixels and caps up to
+    /// `max_cap` (`None`: uncapped lists only). Errors when `max_cap` exceeds
+    /// [`MAX_CAP`] or the lists exceed the device's buffer limits.
+    pub fn new(ctx: &GpuContext, max_pixels: usize, max_cap: Option<u32>) -> Result<Self> {
+        if let Some(cap) = max_cap.filter(|&c| c > MAX_CAP) {
+            return Err(Error::Parameter(format!("compaction cap {cap} exceeds {MAX_CAP}")));
+        }
+        let limits = ctx.device.limits();
+        let list_bytes = max_pixels.max(1) as u64 * FEATURE_BYTES;
+        if list_bytes > limits.max_storage_buffer_binding_size as u64 || HEADER_BYTES + list_bytes > limits.max_buffer_size {
+            return Err(Error::Parameter(format!("a list of {max_pixels} features exceeds the device's buffer limits")));
+        }
+        let max_blocks = max_pixels.div_ceil(BLOCK as usize).max(1) as u64;
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+        let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
+        };
+        Ok(Self {
+            block_counts: buffer("compaction.block_counts", max_blocks * 4, storage),
+            block_offsets: buffer("compaction.block_offsets", max_blocks * 4, storage),
+            full_list: buffer("compaction.full_list", list_bytes, storage),
+            capped_list: buffer(
+                "compaction.capped_list",
+                u64::from(max_cap.unwrap_or(0)).min(max_pixels as u64).max(1) * FEATURE_BYTES,
+                storage,
+            ),
+            header: buffer("compaction.header", HEADER_BYTES, storage),
+            staging: buffer(
+                "compaction.staging",
+                HEADER_BYTES + list_bytes,
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            max_pixels,
+            max_cap,
+            last_capped: AtomicBool::new(false),
+            prefetched: AtomicU32::new(0),
+        })
+    }
+
+    /// Features the capped list holds: never more than a window has pixels.
+    fn capped_capacity(&self) -> u64 {
+        u64::from(self.max_cap.unwrap_or(0)).min(self.max_pixels as u64)
+    }
+
+    /// The list the last [`encode`] left, and how many features it can hold.
+    fn list(&self) -> (&wgpu::Buffer, u64) {
+        if self.last_capped.load(Ordering::Relaxed) {
+            (&self.capped_list, self.capped_capacity())
+        } else {
+            (&self.full_list, self.max_pixels as u64)
+        }
+    }
+
+    /// Record, in the same submission as [`encode`], copies of the header and
+    /// of the first `min(prefetch, capacity)` features into the staging buffer.
+    pub(crate) fn encode_readback(&self, rec: &mut Recorder<'_>, prefetch: u32) {
+        let (list, capacity) = self.list();
+        let count = u64::from(prefetch).min(capacity);
+        rec.copy(&self.header, 0, &self.staging, 0, HEADER_BYTES);
+        rec.copy(list, 0, &self.staging, HEADER_BYTES, count * FEATURE_BYTES);
+        self.prefetched.store(count as u32, Ordering::Relaxed);
+    }
+
+    /// After the submission holding [`CompactionGpu::encode_readback`] is
+    /// done: map the staging buffer and return the list. When it is longer
+    /// than what was prefetched, one more copy of the remainder is submitted
+    /// and mapped, so only `16 + 16·count` bytes ever cross the bus.
+    pub fn read(&self, ctx: &GpuContext) -> Result<Vec<Feature>> {
+        let prefetched = u64::from(self.prefetched.load(Ordering::Relaxed));
+        let bytes = ctx.read_buffer(&self.staging, 0..HEADER_BYTES + prefetched * FEATURE_BYTES)?;
+        let header: Header = bytemuck::pod_read_unaligned(&bytes[..HEADER_BYTES as usize]);
+        let (list, capacity) = self.list();
+        let listed = u64::from(header.listed);
+        if listed > capacity || header.listed > header.total {
+            return Err(Error::Gpu(format!("compaction header lists {} of {} features, capacity {capacity}", header.listed, header.total)));
+        }
+        let head = listed.min(prefetched);
+        let mut out: Vec<Feature> = bytemuck::pod_collect_to_vec(&bytes[HEADER_BYTES as usize..(HEADER_BYTES + head * FEATURE_BYTES) as usize]);
+        if listed > prefetched {
+            let at = HEADER_BYTES + prefetched * FEATURE_BYTES;
+            let size = (listed - prefetched) * FEATURE_BYTES;
+            let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("compaction.readback") });
+            enc.copy_buffer_to_buffer(list, prefetched * FEATURE_BYTES, &self.staging, at, size);
+            ctx.queue.submit([enc.finish()]);
+            let rest = ctx.read_buffer(&self.staging, at..at + size)?;
+            out.extend(bytemuck::pod_collect_to_vec::<u8, Feature>(&rest));
+        }
+        Ok(out)
+    }
+}
+
+/// Workgroups covering `blocks` blocks, wrapping onto a second dimension past
+/// the per-dimension limit; `[0, 1, 1]` (skipped) when there are none.
+fn block_grid(blocks: u32) -> [u32; 3] {
+    let x = blocks.min(MAX_GROUPS_PER_DIM);
+    [x, if x == 0 { 1 } else { blocks.div_ceil(x) }, 1]
+}
+
+/// Record compaction of `params.window` of `select`, `theta`, `magnitude`
+/// (all the same size) into `scratch`'s list. Dispatches: 3 without a cap
+/// (count_blocks, scan_blocks, scatter; the first and last over
+/// `ceil(area / BLOCK)` workgroups, skipped for an empty window, scan_blocks
+/// always one workgroup so the header is always written), 4 with a cap
+/// (gather over `ceil(min(cap, area) / BLOCK)` workgroups). Follow with
+/// [`CompactionGpu::encode_readback`] in the same submission.
+pub(crate) fn encode(
+    rec: &mut Recorder<'_>,
+    select: &GpuImage,
+    theta: &GpuImage,
+    magnitude: &GpuImage,
+    params: &CompactionParams,
+    scratch: &CompactionGpu,
+) -> Result<()> {
+    let size = (select.width(), select.height());
+    check_sizes(size, (theta.width(), theta.height()), (magnitude.width(), magnitude.height()))?;
+    let win = checked_window(size, params)?;
+    if win.area() > scratch.max_pixels {
+        return Err(Error::Size(format!("window of {} pixels, compaction scratch holds {}", win.area(), scratch.max_pixels)));
+    }
+    if let Some(cap) = params.cap.filter(|&c| c > scratch.max_cap.unwrap_or(0)) {
+        return Err(Error::Parameter(format!("cap {cap}, compaction scratch built for caps up to {:?}", scratch.max_cap)));
+    }
+    let area = win.area() as u32;
+    let num_blocks = area.div_ceil(BLOCK);
+    let grid = block_grid(num_blocks);
+    let u = CompactionUniform {
+        image_width: size.0 as u32,
+        x0: win.x0,
+        y0: win.y0,
+        win_width: win.width(),
+        area,
+        num_blocks,
+        grid_x: grid[0],
+        cap: params.cap.unwrap_or(u32::MAX),
+        seed: params.seed,
+        threshold: params.threshold,
+        _pad0: 0,
+        _pad1: 0,
+    };
+    let s = scratch;
+    rec.dispatch(&SHADER, "count_blocks", &u, &[&select.buffer, &s.block_counts], grid)?;
+    rec.dispatch(&SHADER, "scan_blocks", &u, &[&s.block_counts, &s.block_offsets, &s.header], [1, 1, 1])?;
+    rec.dispatch(
+        &SHADER,
+        "scatter",
+        &u,
+        &[&select.buffer, &theta.buffer, &magnitude.buffer, &s.block_offsets, &s.full_list],
+        grid,
+    )?;
+    if let Some(cap) = params.cap {
+        let groups = cap.min(area).div_ceil(BLOCK);
+        rec.dispatch(&SHADER, "gather", &u, &[&s.header, &s.full_list, &s.capped_list], [groups, 1, 1])?;
+    }
+    s.last_capped.store(params.cap.is_some(), Ordering::Relaxed);
+    Ok(())
+}
+
+/// GPU: upload the three images, compact, and read the list back (tests and benches).
+pub fn compact_gpu(ctx: &GpuContext, select: &FloatImage, theta: &FloatImage, magnitude: &FloatImage, params: &CompactionParams) -> Result<Vec<Feature>> {
+    check_sizes(select.size(), theta.size(), magnitude.size())?;
+    let win = checked_window(select.size(), params)?;
+    let scratch = CompactionGpu::new(ctx, win.area(), params.cap)?;
+    let sel = GpuImage::from_image(ctx, select, "compaction.select");
+    let th = GpuImage::from_image(ctx, theta, "compaction.theta");
+    let mag = GpuImage::from_image(ctx, magnitude, "compaction.magnitude");
+    run_once(ctx, |rec| {
+        encode(rec, &sel, &th, &mag, params, &scratch)?;
+        scratch.encode_readback(rec, params.cap.unwrap_or(STANDALONE_PREFETCH));
+        Ok(())
+    })?;
+    scratch.read(ctx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 4×3 mask (1 = selected), θ = x + y/10 and magnitude = 10·y + x, so each
+    /// feature's values name its pixel.
+    fn tiny() -> (FloatImage, FloatImage, FloatImage) {
+        #[rustfmt::skip]
+        let mask = vec![
+            0.0, 1.0, 0.0, 1.0,
+            1.0, 0.0, 0.0, 0.0,
+            0.0, 0.0, 1.0, 1.0,
+        ];
+        let select = FloatImage::from_vec(4, 3, mask).unwrap();
+        let theta = FloatImage::from_fn(4, 3, |x, y| x as f32 + y as f32 / 10.0);
+        let magnitude = FloatImage::from_fn(4, 3, |x, y| (10 * y + x) as f32);
+        (select, theta, magnitude)
+    }
+
+    fn f(x: u32, y: u32, theta: f32, magnitude: f32) -> Feature {
+        Feature { x, y, theta, magnitude }
+    }
+
+    fn params(window: Window, cap: Option<u32>) -> CompactionParams {
+        CompactionParams { window, threshold: 0.5, cap, seed: 7 }
+    }
+
+    #[test]
+    fn tiny_mask_lists_set_pixels_row_major() {
+        let (s, t, m) = tiny();
+        let all = compact(&s, &t, &m, &params(Window::full(4, 3), None)).unwrap();
+        let expected = vec![f(1, 0, 1.0, 1.0), f(3, 0, 3.0, 3.0), f(0, 1, 0.1, 10.0), f(2, 2, 2.2, 22.0), f(3, 2, 3.2, 23.0)];
+        assert_eq!(all, expected);
+
+        // Columns 1..3, rows 0..3: only (1, 0) and (2, 2).
+        let win = Window { x0: 1, y0: 0, x1: 3, y1: 3 };
+        assert_eq!(compact(&s, &t, &m, &params(win, None)).unwrap(), vec![f(1, 0, 1.0, 1.0), f(2, 2, 2.2, 22.0)]);
+
+        // A window reaching past the image is clipped: rows 2.., columns 3..
+        let outside = Window { x0: 3, y0: 2, x1: 100, y1: 100 };
+        assert_eq!(compact(&s, &t, &m, &params(outside, None)).unwrap(), vec![f(3, 2, 3.2, 23.0)]);
+
+        // Empty window.
+        let empty = Window { x0: 2, y0: 0, x1: 2, y1: 3 };
+        assert!(compact(&s, &t, &m, &params(empty, None)).unwrap().is_empty());
+    }
+
+    #[test]
+    fn threshold_is_strict() {
+        let (_, t, m) = tiny();
+        // Magnitude as select: 23 > 22 only; 22 itself is not listed.
+        let p = CompactionParams { window: Window::full(4, 3), threshold: 22.0, cap: None, seed: 0 };
+        assert_eq!(compact(&m, &t, &m, &p).unwrap(), vec![f(3, 2, 3.2, 23.0)]);
+    }
+
+    #[test]
+    fn strata_of_ten_into_three() {
+        // n = 10, cap = 3: q = 3, r = 1, lo = 0, 3 + 1/3 = 3, 6 + 2/3 = 6, 9 + 3/3 = 10.
+        let starts: Vec<u32> = (0..=3).map(|j| stratum_start(j, 10, 3)).collect();
+        assert_eq!(starts, vec![0, 3, 6, 10]);
+        // A 10×1 all-selected image, θ = x: the listed x are the kept ranks.
+        let ones = FloatImage::from_fn(10, 1, |_, _| 1.0);
+        let xs = FloatImage::from_fn(10, 1, |x, _| x as f32);
+        for seed in [0u32, 1, 7, 12345] {
+            let p = CompactionParams { window: Window::full(10, 1), threshold: 0.5, cap: Some(3), seed };
+            let got = compact(&ones, &xs, &xs, &p).unwrap();
+            let ranks: Vec<u32> = got.iter().map(|f| f.x).collect();
+            let expected: Vec<u32> = (0..3u32)
+                .map(|j| {
+                    let (lo, hi) = (starts[j as usize], starts[j as usize + 1]);
+                    lo + lowbias32(seed ^ j.wrapping_mul(0x9e37_79b9)) % (hi - lo)
+                })
+                .collect();
+            assert_eq!(ranks, expected, "seed {seed}");
+            assert!(ranks[0] < 3 && (3..6).contains(&ranks[1]) && (6..10).contains(&ranks[2]), "{ranks:?}");
+        }
+    }
+
+    #[test]
+    fn lowbias32_mixes() {
+        assert_eq!(lowbias32(0), 0);
+        assert_ne!(lowbias32(1), lowbias32(2));
+        // One input bit flips about half the output bits.
+        let flips = (lowbias32(0x1234_5678) ^ lowbias32(0x1234_5679)).count_ones();
+        assert!((8..=24).contains(&flips), "{flips}");
+    }
+
+    #[test]
+    fn cap_at_least_n_returns_all() {
+        let (s, t, m) = tiny();
+        let all = compact(&s, &t, &m, &params(Window::full(4, 3), None)).unwrap();
+        for cap in [5, 6, 100] {
+            assert_eq!(compact(&s, &t, &m, &params(Window::full(4, 3), Some(cap))).unwrap(), all);
+        }
+        assert_eq!(compact(&s, &t, &m, &params(Window::full(4, 3), Some(0))).unwrap(), vec![]);
+        assert_eq!(compact(&s, &t, &m, &params(Window::full(4, 3), Some(1))).unwrap().len(), 1);
+    }
+
+    #[test]
+    fn bad_parameters_are_errors() {
+        let (s, t, m) = tiny();
+        assert!(matches!(compact(&s, &t, &m, &params(Window::full(4, 3), Some(MAX_CAP + 1))), Err(Error::Parameter(_))));
+        let nan = CompactionParams { threshold: f32::NAN, ..params(Window::full(4, 3), None) };
+        assert!(matches!(compact(&s, &t, &m, &nan), Err(Error::Parameter(_))));
+        let small = FloatImage::new(3, 3);
+        assert!(matches!(compact(&s, &small, &m, &params(Window::full(4, 3), None)), Err(Error::Size(_))));
+    }
+
+    #[test]
+    fn parallel_path_matches_serial_rows() {
+        // A window big enough for the banded parallel path (≥ PARALLEL_PIXELS).
+        let (w, h) = (300, 250);
+        let sel = FloatImage::from_fn(w, h, |x, y| ((x * 7 + y * 13) % 5 == 0) as u32 as f32);
+        let th = FloatImage::from_fn(w, h, |x, y| (x + y) as f32);
+        let got = compact(&sel, &th, &th, &params(Window::full(w, h), None)).unwrap();
+        let mut expected = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                if sel.get(x, y) > 0.5 {
+                    expected.push(f(x as u32, y as u32, (x + y) as f32, (x + y) as f32));
+                }
+            }
+        }
+        assert_eq!(got, expected);
+    }
+}
