@@ -139,7 +139,7 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
     let sob = SobelGpu::new(ctx, w, h);
     let edg = EdgelsGpu::new(ctx, w, h);
     let pyr = CpfGpu::new(ctx, w, h);
-    let list = CompactionGpu::new(ctx, w * h, Some(1500));
+    let list = CompactionGpu::new(ctx, w * h, Some(1500))?;
     let arena = uniform_arena(ctx);
     let stage: &'static str = STAGES.iter().copied().find(|s| *s == stage).ok_or_else(|| Error::Parameter(format!("unknown stage {stage:?}")))?;
     // Inputs that are outputs of earlier stages are computed once up front.

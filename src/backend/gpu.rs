@@ -217,16 +217,16 @@ impl GpuBackend {
             s.motion_mask.get_or_insert_with(|| GpuImage::new(ctx, w, h, "motion_mask"));
             s.sum.get_or_insert_with(|| GpuImage::new(ctx, w, h, "frame_sum"));
             s.sobel_sum.get_or_insert_with(|| SobelGpu::new(ctx, w, h));
-            ensure_list(ctx, &mut s.motion_list, area, m.list.cap);
+            ensure_list(ctx, &mut s.motion_list, area, m.list.cap)?;
         }
         if let Some(e) = &request.edges {
             s.sobel_frame.get_or_insert_with(|| SobelGpu::new(ctx, w, h));
-            ensure_list(ctx, &mut s.edge_list, area, e.list.cap);
+            ensure_list(ctx, &mut s.edge_list, area, e.list.cap)?;
         }
         if let Some(z) = &request.zero_crossings {
             s.log.get_or_insert_with(|| GpuImage::new(ctx, w, h, "log"));
             s.edgels.get_or_insert_with(|| EdgelsGpu::new(ctx, w, h));
-            ensure_list(ctx, &mut s.crossing_list, area, z.list.cap);
+            ensure_list(ctx, &mut s.crossing_list, area, z.list.cap)?;
         }
         if request.pyramids {
             s.sobel_frame.get_or_insert_with(|| SobelGpu::new(ctx, w, h));
@@ -298,7 +298,7 @@ impl GpuBackend {
             }
             let (c, e) = opt(&s.cpf)?;
             cpf::encode(&mut rec, &s.luma, c)?;
-            cpf::encode_edge_pyramids(&mut rec, &sob.gx, &sob.gy, e)?;
+            cpf::encode_edges(&mut rec, &sob.gx, &sob.gy, e)?;
         }
         self.stats.dispatches = rec.dispatch_count();
         rec.submit();
@@ -351,11 +351,12 @@ fn opt<T>(v: &Option<T>) -> Result<&T> {
 }
 
 /// Allocate (or grow) a slot's compaction scratch for `area` pixels and `cap`.
-fn ensure_list(ctx: &GpuContext, list: &mut Option<CompactionGpu>, area: usize, cap: Option<u32>) {
+fn ensure_list(ctx: &GpuContext, list: &mut Option<CompactionGpu>, area: usize, cap: Option<u32>) -> Result<()> {
     let fits = list.as_ref().is_some_and(|l| l.fits(area, cap));
     if !fits {
-        *list = Some(CompactionGpu::new(ctx, area, cap));
+        *list = Some(CompactionGpu::new(ctx, area, cap)?);
     }
+    Ok(())
 }
 
 impl EarlyVision for GpuBackend {

@@ -286,6 +286,16 @@ impl CompactionGpu {
         })
     }
 
+    /// Whether this scratch serves windows of `max_pixels` pixels with cap `cap`.
+    #[must_use]
+    pub fn fits(&self, max_pixels: usize, cap: Option<u32>) -> bool {
+        max_pixels <= self.max_pixels
+            && match cap {
+                None => true,
+                Some(c) => self.max_cap.is_some_and(|m| c <= m),
+            }
+    }
+
     /// Features the capped list holds: never more than a window has pixels.
     fn capped_capacity(&self) -> u64 {
         u64::from(self.max_cap.unwrap_or(0)).min(self.max_pixels as u64)
