@@ -7,10 +7,13 @@
 
 pub mod early;
 pub mod error;
+pub mod fit;
 pub mod formats;
 pub mod gpu;
 pub mod image;
+pub mod predict;
 pub mod testimage;
+pub mod track;
 
 pub use error::{Error, Result};
 pub use gpu::{GpuContext, GpuImage};

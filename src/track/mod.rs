@@ -1,0 +1,124 @@
+//! Trackers: host code that matches early-vision features to a model, fits,
+//! verifies and predicts. One module per paper; all share the [`Tracker`]
+//! trait and the per-frame [`FrameOutcome`].
+//!
+//! A tracker does no image processing itself: per frame it says where it
+//! wants features ([`Tracker::window_of_interest`]), takes the feature lists
+//! the backend computed there ([`Observations`]) and returns a
+//! [`FrameOutcome`] (status, corners in model-vertex order, overlay and
+//! diagnostic data), which [`FrameOutcome::to_result`] turns into the output
+//! line of SPEC §4.
+
+pub mod motion_edge;
+
+pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker};
+
+use crate::early::{Feature, Window};
+use crate::formats::{FrameResult, Pose, Status};
+
+/// The feature lists of one frame, as far as the backend computed them.
+/// A tracker reads the lists it asked for and treats a missing one as empty.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Observations<'a> {
+    /// Motion pixels with the edge orientation of the summed frames (000).
+    pub motion: Option<&'a [Feature]>,
+    /// Edge pixels (002).
+    pub edges: Option<&'a [Feature]>,
+    /// Zero crossings of the LoG (001).
+    pub zero_crossings: Option<&'a [Feature]>,
+}
+
+/// Which feature lists a tracker reads.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Needs {
+    /// Motion pixels (000).
+    pub motion: bool,
+    /// Edge pixels (002).
+    pub edges: bool,
+    /// LoG zero crossings (001).
+    pub zero_crossings: bool,
+}
+
+/// Where a tracker is in its cycle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    /// Waiting for the image to confirm the initial model (000 §2: tracking
+    /// begins when the operator's features match extracted ones).
+    Acquiring,
+    /// Locked on; measurements update the motion model.
+    Tracking,
+    /// Lost; predictions continue and re-acquisition is attempted.
+    Lost,
+}
+
+/// Per-frame numbers for diagnosis and tests.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Diagnostics {
+    /// Labelled feature points per model line (model edge order).
+    pub points_per_line: Vec<usize>,
+    /// Whether each model line was fitted this frame (enough points).
+    pub line_fitted: Vec<bool>,
+    /// Whether each corner was measured (at least one of its lines fitted).
+    pub corner_measured: Vec<bool>,
+    /// Largest distance of a measured corner from its prediction (000 eq. 9), px.
+    pub max_corner_deviation: Option<f64>,
+    /// Features that matched a model line's orientation but lay near no
+    /// model line (evidence of the object elsewhere).
+    pub unexplained_points: usize,
+    /// Why the frame is lost, when it is.
+    pub lost_reason: Option<String>,
+}
+
+/// What a tracker reports for one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameOutcome {
+    /// Frame index.
+    pub frame: usize,
+    /// Tracking or lost (the output contract's status).
+    pub status: Status,
+    /// The tracker's phase after this frame.
+    pub phase: Phase,
+    /// Image positions of the model vertices at this frame, model-vertex order.
+    pub corners: Vec<[f64; 2]>,
+    /// Pose, where the tracker has one.
+    pub pose: Option<Pose>,
+    /// Joint parameters, where the tracker has them.
+    pub params: Option<Vec<f64>>,
+    /// Covariance of the state, row-major, where the tracker has one.
+    pub covariance: Option<Vec<f64>>,
+    /// Labelled feature pixels per model line, for overlays (model edge order).
+    pub labelled: Vec<Vec<(u32, u32)>>,
+    /// Diagnostics.
+    pub diagnostics: Diagnostics,
+}
+
+impl FrameOutcome {
+    /// The output line of SPEC §4 for this frame, with its timing.
+    #[must_use]
+    pub fn to_result(&self, ms: f64) -> FrameResult {
+        FrameResult {
+            frame: self.frame,
+            status: self.status,
+            corners: self.corners.clone(),
+            pose: self.pose,
+            params: self.params.clone(),
+            covariance: self.covariance.clone(),
+            ms,
+        }
+    }
+}
+
+/// A model-based tracker driven frame by frame.
+pub trait Tracker {
+    /// The `--tracker` name (SPEC §3).
+    fn name(&self) -> &'static str;
+
+    /// Which feature lists [`Tracker::track`] reads.
+    fn needs(&self) -> Needs;
+
+    /// Where the next frame's features are needed, clipped to the image.
+    fn window_of_interest(&self, width: usize, height: usize) -> Window;
+
+    /// Take the features of frame `frame` and report the frame's outcome.
+    fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome;
+}
