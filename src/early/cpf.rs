@@ -179,6 +179,9 @@ fn reduce_level(src: &FloatImage, dst: &mut FloatImage, row: impl Fn(&[f32], &[f
     }
 }
 
+/// One output row of each of the four hierarchies, as zipped by `cpf_first_level`.
+type FourRows<'a> = (((&'a mut [f32], &'a mut [f32]), &'a mut [f32]), &'a mut [f32]);
+
 /// Level 1 of all four hierarchies from the input (each `dst` already sized).
 fn cpf_first_level(src: &FloatImage, dst: [&mut FloatImage; HIERARCHIES]) {
     let (sw, sh) = src.size();
@@ -187,7 +190,7 @@ fn cpf_first_level(src: &FloatImage, dst: [&mut FloatImage; HIERARCHIES]) {
     if dw == 0 || d0.height() == 0 {
         return;
     }
-    let body = |(y, (((a, b), c), d)): (usize, (((&mut [f32], &mut [f32]), &mut [f32]), &mut [f32]))| {
+    let body = |(y, (((a, b), c), d)): (usize, FourRows<'_>)| {
         let (y0, y1) = child_rows(y, sh);
         cpf_rows_all(src.row(y0), src.row(y1), [a, b, c, d]);
     };
@@ -671,7 +674,8 @@ mod tests {
         let (w, h) = (src.width().div_ceil(2), src.height().div_ceil(2));
         FloatImage::from_fn(w, h, |i, j| {
             let p = |a: usize, b: usize| src.get_clamped((2 * i + a) as isize, (2 * j + b) as isize);
-            let (inner, outer): (fn(f32, f32) -> f32, fn(f32, f32) -> f32) = match m {
+            type Op = fn(f32, f32) -> f32;
+            let (inner, outer): (Op, Op) = match m {
                 0 => (f32::min, f32::min),
                 1 => (f32::min, f32::max),
                 2 => (f32::max, f32::min),
@@ -686,7 +690,7 @@ mod tests {
     #[test]
     fn fast_twin_matches_per_pixel_definition() {
         let src = crate::testimage::natural(301, 257, 5).to_f32();
-        assert!(301 * 257 >= PARALLEL_PIXELS);
+        const { assert!(301 * 257 >= PARALLEL_PIXELS) };
         let p = cpf(&src);
         for (m, levels) in p.hierarchies.iter().enumerate() {
             for k in 1..levels.len() {
@@ -695,8 +699,8 @@ mod tests {
         }
         for k in 0..p.hierarchies[0].len() {
             let direct = cpf_to_level(&src, k).unwrap();
-            for m in 0..HIERARCHIES {
-                assert_eq!(direct[m], p.hierarchies[m][k], "cpf_to_level m {m} level {k}");
+            for (m, image) in direct.iter().enumerate() {
+                assert_eq!(image, &p.hierarchies[m][k], "cpf_to_level m {m} level {k}");
             }
         }
         // Edge levels: the mean of the children that exist (1, 2 or 4 of them).
