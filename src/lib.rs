@@ -10,6 +10,8 @@ pub mod error;
 pub mod formats;
 pub mod gpu;
 pub mod image;
+pub mod overlay;
+pub mod synth;
 pub mod testimage;
 
 pub use error::{Error, Result};
