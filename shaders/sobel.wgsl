@@ -23,6 +23,25 @@ const HALF_PI: f32 = 1.57079632679490;
 @group(0) @binding(5) var<storage, read_write> direction_out: array<f32>;
 @group(0) @binding(6) var<storage, read_write> theta_out: array<f32>;
 
+// atan(t) by the odd degree-15 polynomial of src/early/angle.rs (`fast_atan`),
+// the same operations in the same order, so both twins round alike.
+fn fast_atan(t: f32) -> f32 {
+    let at = abs(t);
+    let invert = at > 1.0;
+    var a = at;
+    if (invert) {
+        a = 1.0 / at;
+    }
+    let s = a * a;
+    let p = ((((((-0.004054058 * s + 0.021861229) * s - 0.055909886) * s + 0.096420044) * s - 0.13908534) * s
+        + 0.19946536) * s - 0.33329856) * s + 0.99999933;
+    var r = p * a;
+    if (invert) {
+        r = HALF_PI - r;
+    }
+    return select(r, -r, t < 0.0);
+}
+
 @compute @workgroup_size(16, 16)
 fn sobel(@builtin(global_invocation_id) id: vec3<u32>) {
     let w = params.width;
@@ -55,7 +74,7 @@ fn sobel(@builtin(global_invocation_id) id: vec3<u32>) {
     var direction = 0.0;
     var theta = HALF_PI;
     if (gx != 0.0) {
-        let a = atan(gy / gx);
+        let a = fast_atan(gy / gx);
         // 000 eq. 2: θ = atan(∇y/∇x) + π/2, folded into [0, π).
         theta = a + HALF_PI;
         if (theta < 0.0 || theta >= PI) {

@@ -1,8 +1,7 @@
-//! A fast, branch-free `atan2` shared by the CPU twins; the shaders carry the
-//! same polynomial (`fast_atan2` in `sobel.wgsl` and `zero_crossing.wgsl`),
-//! operation for operation, so GPU and CPU orientations agree to a few ULPs
-//! while the CPU loop still vectorises (the libm `atan2` would dominate the
-//! Sobel stage's cost).
+//! A fast arctangent shared by the CPU twins; `shaders/sobel.wgsl` carries
+//! the same polynomial (`fast_atan`), operation for operation, so GPU and CPU
+//! orientations agree to a few ULPs while the CPU avoids libm's `atan`, which
+//! would otherwise dominate the Sobel stage's cost.
 
 use std::f32::consts::{FRAC_PI_2, PI};
 
@@ -20,6 +19,28 @@ const C: [f32; 8] = [
     -0.004_054_058,
 ];
 
+/// atan(a) for `a` in [0, 1]: Horner, highest power first (the shader uses
+/// the same order).
+#[inline]
+fn atan_unit(a: f32) -> f32 {
+    let s = a * a;
+    let p = ((((((C[7] * s + C[6]) * s + C[5]) * s + C[4]) * s + C[3]) * s + C[2]) * s + C[1]) * s + C[0];
+    p * a
+}
+
+/// `atan(t)` for any finite `t`, in (−π/2, π/2): the polynomial on
+/// `[0, 1]`, with `atan(t) = π/2 − atan(1/t)` beyond.
+#[inline]
+#[must_use]
+pub fn fast_atan(t: f32) -> f32 {
+    let at = t.abs();
+    let invert = at > 1.0;
+    let a = if invert { 1.0 / at } else { at };
+    let r = atan_unit(a);
+    let r = if invert { FRAC_PI_2 - r } else { r };
+    if t < 0.0 { -r } else { r }
+}
+
 /// `atan2(y, x)` in (−π, π], with `atan2(0, 0) = 0` (defined, unlike WGSL's).
 #[inline]
 #[must_use]
@@ -29,10 +50,7 @@ pub fn fast_atan2(y: f32, x: f32) -> f32 {
     let hi = ax.max(ay);
     let lo = ax.min(ay);
     let a = if hi > 0.0 { lo / hi } else { 0.0 };
-    let s = a * a;
-    // Horner, highest power first (the shaders use the same order).
-    let p = ((((((C[7] * s + C[6]) * s + C[5]) * s + C[4]) * s + C[3]) * s + C[2]) * s + C[1]) * s + C[0];
-    let mut r = p * a;
+    let mut r = atan_unit(a);
     if ay > ax {
         r = FRAC_PI_2 - r;
     }
@@ -64,6 +82,17 @@ mod tests {
             }
         }
         assert!(worst < 1e-6, "worst error {worst}");
+    }
+
+    #[test]
+    fn fast_atan_matches_f64_atan() {
+        let mut worst = 0.0f64;
+        for i in -4000..=4000 {
+            let t = i as f32 * 0.01;
+            worst = worst.max((fast_atan(t) as f64 - (t as f64).atan()).abs());
+        }
+        assert!(worst < 1e-6, "worst error {worst}");
+        assert!((fast_atan(1e30) - FRAC_PI_2).abs() < 1e-6);
     }
 
     #[test]

@@ -40,6 +40,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
+use super::angle::fast_atan;
 use super::gaussian::PARALLEL_PIXELS;
 use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
 use crate::image::FloatImage;
@@ -151,7 +152,7 @@ struct SobelUniform {
 #[must_use]
 pub fn gradient_angles(gx: f32, gy: f32) -> (f32, f32) {
     if gx != 0.0 {
-        let a = (gy / gx).atan();
+        let a = fast_atan(gy / gx);
         // 000 eq. 2: θ = atan(∇y/∇x) + π/2, folded into [0, π).
         let mut theta = a + FRAC_PI_2;
         if theta < 0.0 || theta >= PI {

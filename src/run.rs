@@ -1,0 +1,223 @@
+//! Running a tracker over a sequence: frames → backend → tracker → JSON
+//! Lines, with optional overlays and a progress bar. The `track` and `demo`
+//! commands and the end-to-end tests all go through [`track_sequence`].
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::backend::{BackendKind, EarlyVision, make_backend};
+use crate::formats::{FrameResult, Status};
+use crate::sequence::{AtomicFile, Sequence};
+use crate::image::GrayImage;
+use crate::track::{FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
+use crate::{Error, Result};
+
+/// The `--tracker` names pipetrack knows.
+pub const TRACKERS: &[&str] = &["motion-edge"];
+
+/// Read tracker parameters of type `P` from a TOML file: the table named after
+/// the tracker (`[motion-edge]`) when there is one, else the whole file.
+pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>, tracker: &str) -> Result<P> {
+    let Some(path) = path else { return Ok(P::default()) };
+    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+    let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| Error::input(path, one_line(&e.to_string())))?;
+    let section = match table.remove(tracker) {
+        Some(toml::Value::Table(t)) => t,
+        Some(_) => return Err(Error::input(path, format!("[{tracker}] must be a table"))),
+        None => table,
+    };
+    toml::Value::Table(section)
+        .try_into()
+        .map_err(|e: toml::de::Error| Error::input(path, one_line(&e.to_string())))
+}
+
+fn one_line(s: &str) -> String {
+    s.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join("; ")
+}
+
+/// Make the tracker `name` for `seq`, with parameters from `config`.
+pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result<Box<dyn Tracker>> {
+    match name {
+        "motion-edge" => {
+            let params: MotionEdgeParams = read_config(config, name)?;
+            if seq.init.corners.is_empty() {
+                return Err(Error::input(seq.dir().join("init.json"), "motion-edge needs \"corners\" (the operator's points)"));
+            }
+            let tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), params)
+                .map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
+            Ok(Box::new(tracker))
+        }
+        other => Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", ")))),
+    }
+}
+
+/// Options of one tracking run.
+#[derive(Clone, Debug)]
+pub struct TrackOptions {
+    /// `--tracker`.
+    pub tracker: String,
+    /// `--backend`.
+    pub backend: BackendKind,
+    /// `--config`.
+    pub config: Option<PathBuf>,
+    /// `--overlay DIR`.
+    pub overlay: Option<PathBuf>,
+    /// Show a progress bar on stderr (hidden anyway when stderr is not a terminal).
+    pub progress: bool,
+}
+
+/// What a run did, for the summary line.
+#[derive(Clone, Debug)]
+pub struct RunSummary {
+    /// The backend that ran (after any fallback).
+    pub backend: String,
+    /// Frames processed.
+    pub frames: usize,
+    /// Frames with status tracking.
+    pub tracked: usize,
+    /// Frames per second over the whole run.
+    pub fps: f64,
+    /// Why the GPU was not used, when it was asked for and missing.
+    pub fallback: Option<String>,
+}
+
+/// Track `seq` and write one JSON line per frame to `out`; with
+/// `opts.overlay`, write one PNG per frame into that folder (staged in a
+/// sibling `.partial` folder and renamed at the end, so an interrupted run
+/// never leaves a folder that looks complete).
+pub fn track_sequence(seq: &Sequence, opts: &TrackOptions, out: &mut dyn Write, mut on_result: impl FnMut(&FrameResult)) -> Result<RunSummary> {
+    let mut tracker = make_tracker(&opts.tracker, seq, opts.config.as_deref())?;
+    let (mut backend, fallback) = make_backend(opts.backend);
+    if let Some(reason) = &fallback {
+        eprintln!("pipetrack: no GPU ({reason})");
+    }
+    let overlay = opts.overlay.as_deref().map(OverlayDir::create).transpose()?;
+    let (w, h) = (seq.camera.width as usize, seq.camera.height as usize);
+    let frames = seq.frames();
+    let bar = progress_bar(opts.progress, frames.len_hint());
+    let start = Instant::now();
+    let (mut count, mut tracked) = (0, 0);
+    track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), |frame, outcome, result| {
+        serde_json::to_writer(&mut *out, result).map_err(|e| Error::io("output", e.into()))?;
+        writeln!(out).map_err(|e| Error::io("output", e))?;
+        if let Some(dir) = &overlay {
+            let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
+            let img = crate::overlay::draw_overlay(frame, &outcome.corners, &seq.model.edges, outcome.status, &labelled);
+            dir.write(outcome.frame, &img)?;
+        }
+        tracked += usize::from(result.status == Status::Tracking);
+        count += 1;
+        on_result(result);
+        bar.inc(1);
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    if let Some(dir) = overlay {
+        dir.finish()?;
+    }
+    Ok(RunSummary {
+        backend: backend.name(),
+        frames: count,
+        tracked,
+        fps: count as f64 / start.elapsed().as_secs_f64().max(1e-9),
+        fallback,
+    })
+}
+
+/// The per-frame loop shared by every caller: ask the tracker what it needs,
+/// run the backend on the frame, let the tracker update, hand the outcome
+/// and its output line to `sink`. Frames must be `size`; errors stop the run.
+pub fn track_frames<I>(
+    tracker: &mut dyn Tracker,
+    backend: &mut dyn EarlyVision,
+    frames: I,
+    size: (usize, usize),
+    mut sink: impl FnMut(&GrayImage, &FrameOutcome, &FrameResult) -> Result<()>,
+) -> Result<()>
+where
+    I: IntoIterator<Item = Result<GrayImage>>,
+{
+    backend.reset();
+    for (i, frame) in frames.into_iter().enumerate() {
+        let frame = frame?;
+        let t0 = Instant::now();
+        let request = tracker.request(size.0, size.1);
+        let features = backend.process(&frame, &request)?;
+        let obs = Observations {
+            motion: features.motion.as_deref(),
+            edges: features.edges.as_deref(),
+            zero_crossings: features.zero_crossings.as_deref(),
+        };
+        let outcome = tracker.track(i, &obs);
+        let result = outcome.to_result(t0.elapsed().as_secs_f64() * 1e3);
+        sink(&frame, &outcome, &result)?;
+    }
+    Ok(())
+}
+
+fn progress_bar(enabled: bool, len: Option<usize>) -> indicatif::ProgressBar {
+    if !enabled {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::with_draw_target(len.map(|n| n as u64), indicatif::ProgressDrawTarget::stderr());
+    if let Ok(style) = indicatif::ProgressStyle::with_template("{spinner} {pos}/{len} frames {per_sec} [{elapsed_precise}] {wide_bar}") {
+        bar.set_style(style);
+    }
+    bar
+}
+
+/// An overlay folder being written: PNGs go to `<dir>.partial` until
+/// [`OverlayDir::finish`] renames it.
+struct OverlayDir {
+    dir: PathBuf,
+    partial: PathBuf,
+    finished: bool,
+}
+
+impl OverlayDir {
+    fn create(dir: &Path) -> Result<Self> {
+        if dir.exists() && std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.next().is_some() {
+            return Err(Error::input(dir, "overlay folder exists and is not empty"));
+        }
+        let mut name = dir.file_name().ok_or_else(|| Error::input(dir, "not a folder name"))?.to_os_string();
+        name.push(".partial");
+        let partial = dir.with_file_name(name);
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+        }
+        std::fs::create_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+        Ok(Self { dir: dir.to_path_buf(), partial, finished: false })
+    }
+
+    fn write(&self, frame: usize, img: &image::RgbImage) -> Result<()> {
+        let path = self.partial.join(format!("{frame:06}.png"));
+        img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))
+    }
+
+    fn finish(mut self) -> Result<()> {
+        if self.dir.exists() {
+            std::fs::remove_dir(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
+        }
+        std::fs::rename(&self.partial, &self.dir).map_err(|e| Error::io(&self.dir, e))?;
+        self.finished = true;
+        Ok(())
+    }
+}
+
+impl Drop for OverlayDir {
+    fn drop(&mut self) {
+        if !self.finished {
+            let _ = std::fs::remove_dir_all(&self.partial);
+        }
+    }
+}
+
+/// Track `seq` writing JSON Lines to `out_path` atomically (the file appears
+/// only when the run completed).
+pub fn track_to_file(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Result<RunSummary> {
+    let mut file = AtomicFile::create(out_path)?;
+    let summary = track_sequence(seq, opts, &mut file, |_| {})?;
+    file.finish()?;
+    Ok(summary)
+}
