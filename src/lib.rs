@@ -11,6 +11,10 @@ pub mod formats;
 pub mod gpu;
 pub mod image;
 pub mod testimage;
+pub mod sequence;
+pub mod y4m;
+pub mod cao;
+pub mod score;
 
 pub use error::{Error, Result};
 pub use gpu::{GpuContext, GpuImage};
