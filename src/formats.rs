@@ -143,3 +143,210 @@ pub struct FrameResult {
     /// Milliseconds spent on this frame.
     pub ms: f64,
 }
+
+// ---------------------------------------------------------------------------
+// Validation. serde checks the shape of a file; these check what serde cannot
+// (finite numbers, positive focal lengths, indices in range). Each takes the
+// path of the file the value came from, so the error names it.
+
+use std::path::Path;
+
+use crate::{Error, Result};
+
+fn all_finite(values: &[f64]) -> bool {
+    values.iter().all(|v| v.is_finite())
+}
+
+impl Camera {
+    /// Check the intrinsics: width and height > 0, fx and fy finite and
+    /// positive, cx and cy finite. `path` names `camera.json` in the error.
+    pub fn validate(&self, path: &Path) -> Result<()> {
+        if self.width == 0 || self.height == 0 {
+            return Err(Error::input(
+                path,
+                format!("image size {}x{} is empty: width and height must be > 0", self.width, self.height),
+            ));
+        }
+        for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::input(path, format!("{name} = {v}: focal lengths must be finite and > 0")));
+            }
+        }
+        for (name, v) in [("cx", self.cx), ("cy", self.cy)] {
+            if !v.is_finite() {
+                return Err(Error::input(path, format!("{name} = {v}: the principal point must be finite")));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Pose {
+    /// Whether all six numbers are finite.
+    #[must_use]
+    pub fn is_finite(&self) -> bool {
+        all_finite(&self.rotation) && all_finite(&self.translation)
+    }
+}
+
+impl Model {
+    /// Check the model: at least two vertices and one edge, finite
+    /// coordinates, edge/face/joint indices in range, no edge from a vertex
+    /// to itself, no edge listed twice (either direction), faces of at least
+    /// three distinct vertices, joints with a finite non-zero axis,
+    /// `min <= max`, distinct names and no vertex listed twice.
+    /// `path` names the model file in the error.
+    pub fn validate(&self, path: &Path) -> Result<()> {
+        let fail = |msg: String| Err(Error::input(path, msg));
+        let n = self.vertices.len();
+        if n < 2 {
+            return fail(format!("the model has {n} vertices: it needs at least 2"));
+        }
+        if let Some(i) = self.vertices.iter().position(|v| !all_finite(v)) {
+            return fail(format!("vertex {i} has a coordinate that is not a finite number"));
+        }
+        if self.edges.is_empty() {
+            return fail("the model has no edges".to_string());
+        }
+        let mut seen = std::collections::HashMap::with_capacity(self.edges.len());
+        for (e, &[a, b]) in self.edges.iter().enumerate() {
+            if a >= n || b >= n {
+                return fail(format!("edge {e} [{a}, {b}] refers to a vertex beyond the last one ({})", n - 1));
+            }
+            if a == b {
+                return fail(format!("edge {e} [{a}, {b}] joins a vertex to itself"));
+            }
+            if let Some(first) = seen.insert((a.min(b), a.max(b)), e) {
+                return fail(format!("edge {e} [{a}, {b}] repeats edge {first}"));
+            }
+        }
+        for (f, face) in self.faces.iter().enumerate() {
+            if face.len() < 3 {
+                return fail(format!("face {f} has {} vertices: a face needs at least 3", face.len()));
+            }
+            for (k, &v) in face.iter().enumerate() {
+                if v >= n {
+                    return fail(format!("face {f} refers to vertex {v}, beyond the last one ({})", n - 1));
+                }
+                if face[..k].contains(&v) {
+                    return fail(format!("face {f} lists vertex {v} twice"));
+                }
+            }
+        }
+        for (j, joint) in self.joints.iter().enumerate() {
+            let name = &joint.name;
+            if self.joints[..j].iter().any(|other| &other.name == name) {
+                return fail(format!("joint {j} \"{name}\": another joint has the same name"));
+            }
+            if !all_finite(&joint.origin) || !all_finite(&joint.axis) {
+                return fail(format!("joint \"{name}\": origin and axis must be finite numbers"));
+            }
+            if joint.axis.iter().map(|a| a * a).sum::<f64>() == 0.0 {
+                return fail(format!("joint \"{name}\": the axis is the zero vector"));
+            }
+            if !(joint.min.is_finite() && joint.max.is_finite() && joint.min <= joint.max) {
+                return fail(format!(
+                    "joint \"{name}\": limits min = {} and max = {} must be finite with min <= max",
+                    joint.min, joint.max
+                ));
+            }
+            for (k, &v) in joint.vertices.iter().enumerate() {
+                if v >= n {
+                    return fail(format!("joint \"{name}\" moves vertex {v}, beyond the last one ({})", n - 1));
+                }
+                if joint.vertices[..k].contains(&v) {
+                    return fail(format!("joint \"{name}\" lists vertex {v} twice"));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Check one set of state fields (shared by `init.json` and `truth.jsonl`
+/// lines): finite pose, params and corners; params one per joint when given;
+/// corners one per model vertex when given. `line` (1-based) is the line of
+/// a JSON Lines file the fields came from.
+fn validate_state(
+    path: &Path,
+    line: Option<usize>,
+    pose: Option<&Pose>,
+    params: &[f64],
+    corners: &[[f64; 2]],
+    model: &Model,
+    model_path: &Path,
+) -> Result<()> {
+    let what = line.map_or_else(String::new, |l| format!("line {l}: "));
+    let fail = |msg: String| Err(Error::input(path, format!("{what}{msg}")));
+    if pose.is_some_and(|p| !p.is_finite()) {
+        return fail("the pose has a value that is not a finite number".to_string());
+    }
+    if !all_finite(params) {
+        return fail("params has a value that is not a finite number".to_string());
+    }
+    if !params.is_empty() && params.len() != model.joints.len() {
+        return fail(format!(
+            "{} params but the model has {} joints (give one value per joint, or none)",
+            params.len(),
+            model.joints.len()
+        ));
+    }
+    if corners.iter().any(|c| !all_finite(c)) {
+        return fail("corners has a value that is not a finite number".to_string());
+    }
+    let n = model.vertices.len();
+    if corners.len() > n {
+        // The model is the likelier culprit: name it, and the file with the corners.
+        let file = path.file_name().map_or_else(|| path.display().to_string(), |f| f.to_string_lossy().into_owned());
+        let at = line.map_or_else(String::new, |l| format!(" line {l}"));
+        return Err(Error::input(
+            model_path,
+            format!("the model has {n} vertices, fewer than the {} corners in {file}{at}", corners.len()),
+        ));
+    }
+    if !corners.is_empty() && corners.len() < n {
+        return fail(format!(
+            "{} corners but the model has {n} vertices (give one corner per model vertex, or none)",
+            corners.len()
+        ));
+    }
+    Ok(())
+}
+
+impl InitState {
+    /// Check `init.json` against the model: finite numbers, one param per
+    /// joint (or none), one corner per model vertex (or none), and at least a
+    /// pose or corners. More corners than vertices names the model file.
+    pub fn validate(&self, path: &Path, model: &Model, model_path: &Path) -> Result<()> {
+        if self.pose.is_none() && self.corners.is_empty() {
+            return Err(Error::input(path, "neither a pose nor corners: a tracker needs one of them"));
+        }
+        validate_state(path, None, self.pose.as_ref(), &self.params, &self.corners, model, model_path)
+    }
+}
+
+impl TruthFrame {
+    /// Check one line (1-based `line`) of `truth.jsonl` against the model,
+    /// as [`InitState::validate`] does.
+    pub fn validate(&self, path: &Path, line: usize, model: &Model, model_path: &Path) -> Result<()> {
+        validate_state(path, Some(line), self.pose.as_ref(), &self.params, &self.corners, model, model_path)
+    }
+}
+
+impl FrameResult {
+    /// Check one line (1-based `line`) of a tracker output file: finite
+    /// numbers, and corners present while tracking.
+    pub fn validate(&self, path: &Path, line: usize) -> Result<()> {
+        let fail = |msg: &str| Err(Error::input(path, format!("line {line}: {msg}")));
+        if self.status == Status::Tracking && self.corners.is_empty() {
+            return fail("status is tracking but there are no corners");
+        }
+        if self.corners.iter().any(|c| !all_finite(c)) {
+            return fail("corners has a value that is not a finite number");
+        }
+        if self.pose.is_some_and(|p| !p.is_finite()) {
+            return fail("the pose has a value that is not a finite number");
+        }
+        Ok(())
+    }
+}

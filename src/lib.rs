@@ -7,6 +7,7 @@
 
 pub mod backend;
 pub mod bench;
+pub mod cao;
 pub mod early;
 pub mod error;
 pub mod fit;
@@ -15,9 +16,14 @@ pub mod gpu;
 pub mod image;
 pub mod overlay;
 pub mod predict;
+pub mod reproduce;
+pub mod run;
+pub mod score;
+pub mod sequence;
 pub mod synth;
 pub mod testimage;
 pub mod track;
+pub mod y4m;
 
 pub use error::{Error, Result};
 pub use gpu::{GpuContext, GpuImage};

@@ -1,0 +1,190 @@
+//! Scoring a tracker's output against `truth.jsonl` (the `score` command).
+//!
+//! **Corner error** of a frame: the mean over model vertices of the
+//! Euclidean distance in pixels between predicted and true corners. It is
+//! computed on the frames where the truth is visible and the prediction is
+//! tracking; a lost frame counts against "frames tracked", not against the
+//! error figures. Over those frames we report mean, median (mean of the two
+//! middle values for an even count), p95 (nearest rank: the ⌈0.95·n⌉-th
+//! smallest) and max.
+//!
+//! **Frame agreement.** The tracker writes one line per frame, so the
+//! predictions must list exactly the truth's frames, in the same order:
+//! a different count (a run that stopped early, a truth file for another
+//! sequence) or a different frame number is an error naming the
+//! predictions file, never a silently partial score. A tracking frame whose
+//! truth is visible must have as many corners as the truth.
+
+use std::fmt;
+use std::path::Path;
+
+use crate::formats::{FrameResult, Status, TruthFrame};
+use crate::sequence::read_jsonl;
+use crate::{Error, Result};
+
+/// Error figures over the scored frames, in pixels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ErrorStats {
+    /// Mean of the per-frame corner errors.
+    pub mean: f64,
+    /// Median of the per-frame corner errors.
+    pub median: f64,
+    /// 95th percentile (nearest rank) of the per-frame corner errors.
+    pub p95: f64,
+    /// Largest per-frame corner error.
+    pub max: f64,
+}
+
+impl ErrorStats {
+    /// Figures of `errors`; `None` when it is empty.
+    #[must_use]
+    pub fn of(errors: &[f64]) -> Option<Self> {
+        if errors.is_empty() {
+            return None;
+        }
+        let mut sorted = errors.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let n = sorted.len();
+        let median = if n % 2 == 1 { sorted[n / 2] } else { 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]) };
+        // Nearest rank: the smallest value with at least 95 % of the values at or below it.
+        let rank = (n * 95).div_ceil(100).max(1);
+        Some(Self { mean: sorted.iter().sum::<f64>() / n as f64, median, p95: sorted[rank - 1], max: sorted[n - 1] })
+    }
+}
+
+/// The result of scoring one run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Score {
+    /// Frames in the run (prediction lines).
+    pub frames: usize,
+    /// Frames whose status is tracking.
+    pub tracked: usize,
+    /// The first frame whose status is lost, if any.
+    pub first_lost: Option<usize>,
+    /// `(frame, corner error)` for every scored frame (truth visible and
+    /// tracking), in frame order.
+    pub frame_errors: Vec<(usize, f64)>,
+    /// Mean error of each model vertex over the scored frames, in vertex
+    /// order (empty when no frame was scored).
+    pub corner_errors: Vec<f64>,
+    /// Figures over `frame_errors`; `None` when no frame was scored.
+    pub stats: Option<ErrorStats>,
+}
+
+/// Score `predictions` against `truth` (see the module docs for the rules).
+/// A disagreement between the two is an [`Error::Parameter`]; use
+/// [`score_file`] to get an error naming the predictions file.
+pub fn score(truth: &[TruthFrame], predictions: &[FrameResult]) -> Result<Score> {
+    score_impl(truth, predictions).map_err(Error::Parameter)
+}
+
+/// Read the tracker output at `pred_path` and score it against `truth`;
+/// errors name `pred_path`.
+pub fn score_file(truth: &[TruthFrame], pred_path: &Path) -> Result<Score> {
+    let predictions = read_predictions(pred_path)?;
+    score_impl(truth, &predictions).map_err(|msg| Error::input(pred_path, msg))
+}
+
+fn score_impl(truth: &[TruthFrame], predictions: &[FrameResult]) -> std::result::Result<Score, String> {
+    if predictions.len() != truth.len() {
+        let range = |first: Option<usize>, last: Option<usize>| match (first, last) {
+            (Some(a), Some(b)) => format!(" (frames {a} to {b})"),
+            _ => String::new(),
+        };
+        return Err(format!(
+            "{} frames{} but truth.jsonl has {}{}: score needs one prediction per truth frame",
+            predictions.len(),
+            range(predictions.first().map(|p| p.frame), predictions.last().map(|p| p.frame)),
+            truth.len(),
+            range(truth.first().map(|t| t.frame), truth.last().map(|t| t.frame)),
+        ));
+    }
+    let mut frame_errors = Vec::new();
+    let mut corner_sums: Vec<f64> = Vec::new();
+    for (p, t) in predictions.iter().zip(truth) {
+        if p.frame != t.frame {
+            return Err(format!("frame {} where truth.jsonl has frame {}", p.frame, t.frame));
+        }
+        if !(t.visible && p.status == Status::Tracking) {
+            continue;
+        }
+        if t.corners.is_empty() {
+            return Err(format!("frame {}: truth.jsonl has no corners for this visible frame", t.frame));
+        }
+        if p.corners.len() != t.corners.len() {
+            return Err(format!(
+                "frame {}: {} corners but truth.jsonl has {}",
+                p.frame,
+                p.corners.len(),
+                t.corners.len()
+            ));
+        }
+        if corner_sums.is_empty() {
+            corner_sums = vec![0.0; t.corners.len()];
+        } else if corner_sums.len() != t.corners.len() {
+            return Err(format!(
+                "frame {}: the number of corners changes from {} to {}",
+                p.frame,
+                corner_sums.len(),
+                t.corners.len()
+            ));
+        }
+        let mut sum = 0.0;
+        for ((pc, tc), acc) in p.corners.iter().zip(&t.corners).zip(&mut corner_sums) {
+            let d = (pc[0] - tc[0]).hypot(pc[1] - tc[1]);
+            *acc += d;
+            sum += d;
+        }
+        frame_errors.push((p.frame, sum / t.corners.len() as f64));
+    }
+    let errors: Vec<f64> = frame_errors.iter().map(|&(_, e)| e).collect();
+    let scored = errors.len() as f64;
+    Ok(Score {
+        frames: predictions.len(),
+        tracked: predictions.iter().filter(|p| p.status == Status::Tracking).count(),
+        first_lost: predictions.iter().find(|p| p.status == Status::Lost).map(|p| p.frame),
+        stats: ErrorStats::of(&errors),
+        corner_errors: corner_sums.into_iter().map(|s| s / scored).collect(),
+        frame_errors,
+    })
+}
+
+/// Read a tracker output file (JSON Lines, SPEC §4): each line must parse,
+/// pass [`FrameResult::validate`], and frame numbers must strictly increase.
+/// Errors name the file and the line.
+pub fn read_predictions(path: &Path) -> Result<Vec<FrameResult>> {
+    let lines: Vec<(usize, FrameResult)> = read_jsonl(path)?;
+    let mut previous: Option<usize> = None;
+    for (line, p) in &lines {
+        p.validate(path, *line)?;
+        if let Some(prev) = previous.filter(|&prev| p.frame <= prev) {
+            return Err(Error::input(
+                path,
+                format!("line {line}: frame {} after frame {prev}: frames must be in increasing order", p.frame),
+            ));
+        }
+        previous = Some(p.frame);
+    }
+    Ok(lines.into_iter().map(|(_, p)| p).collect())
+}
+
+impl fmt::Display for Score {
+    /// The summary the `score` command prints, one figure per line.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.stats {
+            Some(s) => {
+                writeln!(f, "mean corner error:   {:.3} px", s.mean)?;
+                writeln!(f, "median corner error: {:.3} px", s.median)?;
+                writeln!(f, "p95 corner error:    {:.3} px", s.p95)?;
+                writeln!(f, "max corner error:    {:.3} px", s.max)?;
+            }
+            None => writeln!(f, "corner error:        n/a (no frame with the object visible and tracked)")?,
+        }
+        writeln!(f, "frames scored:       {} (truth visible and tracking)", self.frame_errors.len())?;
+        writeln!(f, "frames tracked:      {} of {}", self.tracked, self.frames)?;
+        match self.first_lost {
+            Some(frame) => write!(f, "first lost frame:    {frame}"),
+            None => write!(f, "first lost frame:    none"),
+        }
+    }
+}

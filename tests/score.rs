@@ -1,0 +1,145 @@
+//! Scoring (the `score` command) on hand-worked cases: every figure below
+//! can be checked with pencil and paper.
+
+use std::fs;
+use std::path::PathBuf;
+
+use pipetrack::Error;
+use pipetrack::formats::{FrameResult, Status, TruthFrame};
+use pipetrack::score::{ErrorStats, read_predictions, score, score_file};
+
+const SQUARE: [[f64; 2]; 4] = [[10.0, 10.0], [20.0, 10.0], [20.0, 20.0], [10.0, 20.0]];
+
+fn truth(frame: usize, visible: bool) -> TruthFrame {
+    TruthFrame { frame, visible, pose: None, params: Vec::new(), corners: SQUARE.to_vec() }
+}
+
+/// A prediction at the square moved by `(dx, dy)`, with corner 2 moved a further `(0, extra)`.
+fn pred(frame: usize, status: Status, dx: f64, dy: f64, extra: f64) -> FrameResult {
+    let mut corners: Vec<[f64; 2]> = SQUARE.iter().map(|c| [c[0] + dx, c[1] + dy]).collect();
+    corners[2][1] += extra;
+    FrameResult { frame, status, corners, pose: None, params: None, covariance: None, ms: 1.0 }
+}
+
+/// Six frames: errors 5 (every corner off by (3,4)), 0, 1 (one corner of
+/// four off by 4), lost, truth invisible, 2.
+fn run() -> (Vec<TruthFrame>, Vec<FrameResult>) {
+    use Status::{Lost, Tracking};
+    let truth = vec![truth(0, true), truth(1, true), truth(2, true), truth(3, true), truth(4, false), truth(5, true)];
+    let preds = vec![
+        pred(0, Tracking, 3.0, 4.0, 0.0),
+        pred(1, Tracking, 0.0, 0.0, 0.0),
+        pred(2, Tracking, 0.0, 0.0, 4.0),
+        pred(3, Lost, 50.0, 50.0, 0.0),
+        pred(4, Tracking, 9.0, 9.0, 0.0),
+        pred(5, Tracking, 0.0, 2.0, 0.0),
+    ];
+    (truth, preds)
+}
+
+#[test]
+fn score_hand_worked_run() {
+    let (truth, preds) = run();
+    let s = score(&truth, &preds).unwrap();
+    assert_eq!(s.frames, 6);
+    assert_eq!(s.tracked, 5);
+    assert_eq!(s.first_lost, Some(3));
+    assert_eq!(s.frame_errors, vec![(0, 5.0), (1, 0.0), (2, 1.0), (5, 2.0)]);
+    // Scored errors 5, 0, 1, 2: mean 2, median (1 + 2) / 2, p95 = 4th of 4 (rank ⌈3.8⌉), max 5.
+    assert_eq!(s.stats, Some(ErrorStats { mean: 2.0, median: 1.5, p95: 5.0, max: 5.0 }));
+    // Corner 2: 5 + 0 + 4 + 2 over 4 frames; the others 5 + 0 + 0 + 2.
+    assert_eq!(s.corner_errors, vec![1.75, 1.75, 2.75, 1.75]);
+    let text = s.to_string();
+    assert!(text.contains("mean corner error:   2.000 px"), "{text}");
+    assert!(text.contains("p95 corner error:    5.000 px"), "{text}");
+    assert!(text.contains("frames tracked:      5 of 6"), "{text}");
+    assert!(text.ends_with("first lost frame:    3"), "{text}");
+}
+
+#[test]
+fn score_with_nothing_to_score_says_so() {
+    let truth = vec![truth(0, true)];
+    let s = score(&truth, &[pred(0, Status::Lost, 0.0, 0.0, 0.0)]).unwrap();
+    assert_eq!(s.stats, None);
+    assert!(s.corner_errors.is_empty());
+    assert!(s.to_string().contains("n/a"));
+    let s = score(&truth, &[pred(0, Status::Tracking, 0.0, 0.0, 0.0)]).unwrap();
+    assert!(s.to_string().ends_with("first lost frame:    none"));
+}
+
+#[test]
+fn error_stats_percentiles() {
+    let values: Vec<f64> = (1..=20).map(f64::from).collect();
+    let s = ErrorStats::of(&values).unwrap();
+    // Median of 1..20 is 10.5; p95 nearest rank is the 19th value.
+    assert_eq!((s.mean, s.median, s.p95, s.max), (10.5, 10.5, 19.0, 20.0));
+    let one = ErrorStats::of(&[3.0]).unwrap();
+    assert_eq!((one.median, one.p95), (3.0, 3.0));
+    assert_eq!(ErrorStats::of(&[]), None);
+}
+
+#[test]
+fn mismatched_frames_are_errors() {
+    let (truth, preds) = run();
+    let msg = score(&truth, &preds[..4]).unwrap_err().to_string();
+    assert!(msg.contains("4 frames (frames 0 to 3) but truth.jsonl has 6 (frames 0 to 5)"), "{msg}");
+    let mut shifted = preds.clone();
+    shifted[5].frame = 6;
+    assert!(score(&truth, &shifted).unwrap_err().to_string().contains("frame 6 where truth.jsonl has frame 5"));
+    let mut short = preds.clone();
+    short[1].corners.pop();
+    assert!(score(&truth, &short).unwrap_err().to_string().contains("frame 1: 3 corners but truth.jsonl has 4"));
+}
+
+struct TempFile(PathBuf);
+
+impl TempFile {
+    fn new(name: &str, text: &str) -> Self {
+        let p = std::env::temp_dir().join(format!("pipetrack-score-{}-{name}", std::process::id()));
+        fs::write(&p, text).unwrap();
+        TempFile(p)
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        let _ = fs::remove_file(&self.0);
+    }
+}
+
+fn input_message<T: std::fmt::Debug>(r: pipetrack::Result<T>, file: &TempFile) -> String {
+    match r {
+        Err(Error::Input { path, message }) => {
+            assert_eq!(path, file.0);
+            message
+        }
+        other => panic!("expected an input error, got {other:?}"),
+    }
+}
+
+#[test]
+fn predictions_file_round_trip_and_errors() {
+    let (truth, preds) = run();
+    let text: String = preds.iter().map(|p| serde_json::to_string(p).unwrap() + "\n").collect();
+    let file = TempFile::new("good.jsonl", &text);
+    assert_eq!(read_predictions(&file.0).unwrap(), preds);
+    assert_eq!(score_file(&truth, &file.0).unwrap(), score(&truth, &preds).unwrap());
+
+    let first_four: String = text.lines().take(4).map(|l| format!("{l}\n")).collect();
+    let short = TempFile::new("short.jsonl", &first_four);
+    assert!(input_message(score_file(&truth, &short.0), &short).starts_with("4 frames"));
+
+    let bad = TempFile::new("bad.jsonl", &format!("{first_four}{{\"frame\":4,\"status\":\"sleeping\"}}\n"));
+    let msg = input_message(read_predictions(&bad.0), &bad);
+    assert!(msg.starts_with("line 5: wrong content at column"), "{msg}");
+
+    let order = TempFile::new("order.jsonl", &format!("{first_four}{}", text.lines().next().unwrap()));
+    assert!(input_message(read_predictions(&order.0), &order).starts_with("line 5: frame 0 after frame 3"));
+
+    let no_corners =
+        TempFile::new("nocorners.jsonl", "{\"frame\":0,\"status\":\"tracking\",\"corners\":[],\"ms\":1}\n");
+    assert!(input_message(read_predictions(&no_corners.0), &no_corners).contains("no corners"));
+
+    let empty = TempFile::new("empty.jsonl", "");
+    assert!(input_message(read_predictions(&empty.0), &empty).starts_with("empty file"));
+}
