@@ -4,7 +4,7 @@
 //! texture input) and `CpuBackend`.
 mod common;
 
-use pipetrack::backend::{CpuBackend, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, ListSpec};
+use pipetrack::backend::{CpuBackend, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, ListSpec, Pyramids};
 use pipetrack::early::{Feature, Window};
 use pipetrack::testimage::natural;
 use pipetrack::GrayImage;
@@ -50,6 +50,7 @@ fn gpu_and_cpu_backends_agree_on_the_full_chain() {
     for (w, h) in [(257, 243), (64, 48), (2, 3)] {
         let frames = sequence(w, h, 4);
         let mut request = FrameRequest::full_chain(w, h);
+        request.pyramids = Pyramids::Return;
         // An off-centre window and a cap on one list, as trackers ask.
         request.edges.as_mut().unwrap().list = ListSpec { window: Window { x0: 3, y0: 5, x1: w as u32 / 2 + 1, y1: h as u32 }, cap: Some(300), seed: 4 };
         let mut cpu = CpuBackend::new();
@@ -74,7 +75,8 @@ fn pipelined_stream_equals_frame_by_frame() {
     let Some((ctx, _g)) = common::gpu("pipelined_stream_equals_frame_by_frame") else { return };
     let (w, h) = (160, 120);
     let frames = sequence(w, h, 7);
-    let request = FrameRequest::full_chain(w, h);
+    let mut request = FrameRequest::full_chain(w, h);
+    request.pyramids = Pyramids::Return;
     let mut one = GpuBackend::new(ctx.clone());
     let expected: Vec<FrameFeatures> = frames.iter().map(|f| one.process(f, &request).unwrap()).collect();
     let mut streamed = Vec::new();

@@ -1,7 +1,7 @@
 //! The CPU backend: the CPU twins of every stage, with buffers reused from
 //! frame to frame so the per-frame loop does not allocate images.
 
-use super::{EarlyVision, FrameFeatures, FrameRequest};
+use super::{EarlyVision, FrameFeatures, FrameRequest, Pyramids};
 use crate::early::compaction::compact_cpu;
 use crate::early::cpf::{self, CpfPyramids, EdgePyramids};
 use crate::early::gaussian::smooth_cpu;
@@ -114,13 +114,15 @@ impl EarlyVision for CpuBackend {
             out.zero_crossings = Some(list);
         }
 
-        if request.pyramids {
+        if request.builds_pyramids() {
             cpf::cpf_cpu(&self.luma, &mut self.cpf);
             if request.edges.is_none() || request.edges.is_some_and(|e| e.smoothed) {
                 sobel_cpu(&self.luma, &mut self.sobel_edges);
             }
             cpf::edge_pyramids_cpu(&self.sobel_edges.gx, &self.sobel_edges.gy, &mut self.edge_pyramids)?;
-            out.pyramids = Some((self.cpf.clone(), self.edge_pyramids.clone()));
+            if request.pyramids == Pyramids::Return {
+                out.pyramids = Some((self.cpf.clone(), self.edge_pyramids.clone()));
+            }
         }
 
         if request.motion.is_some() {

@@ -3,7 +3,7 @@
 //! compact lists read back, and a ring of frame slots so that uploading,
 //! computing and reading back successive frames overlap.
 
-use super::{EarlyVision, FrameFeatures, FrameRequest};
+use super::{EarlyVision, FrameFeatures, FrameRequest, Pyramids};
 use crate::early::compaction::{self, CompactionGpu};
 use crate::early::cpf::{self, CpfGpu, EdgePyramidGpu};
 use crate::early::sobel::{self, SobelGpu};
@@ -228,7 +228,7 @@ impl GpuBackend {
             s.edgels.get_or_insert_with(|| EdgelsGpu::new(ctx, w, h));
             ensure_list(ctx, &mut s.crossing_list, area, z.list.cap)?;
         }
-        if request.pyramids {
+        if request.builds_pyramids() {
             s.sobel_frame.get_or_insert_with(|| SobelGpu::new(ctx, w, h));
             s.cpf.get_or_insert_with(|| (CpfGpu::new(ctx, w, h), EdgePyramidGpu::new(ctx, w, h)));
         }
@@ -291,7 +291,7 @@ impl GpuBackend {
             compaction::encode(&mut rec, &ed.strength, &ed.direction, &ed.strength, &p, list)?;
             list.encode_readback(&mut rec, readback_prefetch(z.list.cap, s.width * s.height));
         }
-        if request.pyramids {
+        if request.builds_pyramids() {
             let sob = opt(&s.sobel_frame)?;
             if !sobel_of_frame_done {
                 sobel::encode(&mut rec, &s.luma, sob)?;
@@ -333,7 +333,7 @@ impl GpuBackend {
         if request.zero_crossings.is_some() {
             out.zero_crossings = Some(read(&s.crossing_list)?);
         }
-        if request.pyramids {
+        if request.pyramids == Pyramids::Return {
             let (c, e) = opt(&s.cpf)?;
             let pyr = c.download(&self.ctx)?;
             let edges = e.download(&self.ctx)?;

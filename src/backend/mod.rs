@@ -11,7 +11,7 @@ mod cpu;
 mod gpu;
 
 pub use cpu::CpuBackend;
-pub use gpu::{GpuBackend, Ticket};
+pub use gpu::{FrameStats, GpuBackend, Ticket};
 
 use crate::early::compaction::CompactionParams;
 use crate::early::cpf::{CpfPyramids, EdgePyramids};
@@ -95,11 +95,25 @@ pub struct FrameRequest {
     /// LoG zero crossings (001).
     pub zero_crossings: Option<ZeroCrossingRequest>,
     /// Critical-point and edge hierarchies of the frame (004).
-    pub pyramids: bool,
+    pub pyramids: Pyramids,
+}
+
+/// Whether to build the CPF and edge hierarchies, and where they end up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Pyramids {
+    /// Not built.
+    #[default]
+    Off,
+    /// Built, and left where they were computed (on the GPU: for later GPU
+    /// stages; nothing crosses the bus).
+    Keep,
+    /// Built and returned in [`FrameFeatures::pyramids`] (on the GPU: read back).
+    Return,
 }
 
 impl FrameRequest {
-    /// The full chain, every list over the whole frame: what the benchmarks run.
+    /// The full chain, every list over the whole frame, pyramids built but
+    /// kept where they were computed: what the benchmarks run.
     #[must_use]
     pub fn full_chain(width: usize, height: usize) -> Self {
         let list = ListSpec::full(width, height);
@@ -112,11 +126,15 @@ impl FrameRequest {
                 crossings: ZeroCrossingParams::default(),
                 list,
             }),
-            pyramids: true,
+            pyramids: Pyramids::Keep,
         }
     }
 
     /// Whether any stage needs the smoothed frame.
+    pub(crate) fn builds_pyramids(&self) -> bool {
+        self.pyramids != Pyramids::Off
+    }
+
     pub(crate) fn needs_smoothing(&self) -> bool {
         self.motion.is_some() || self.edges.is_some_and(|e| e.smoothed)
     }
