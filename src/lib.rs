@@ -11,7 +11,9 @@ pub mod fit;
 pub mod formats;
 pub mod gpu;
 pub mod image;
+pub mod overlay;
 pub mod predict;
+pub mod synth;
 pub mod testimage;
 pub mod track;
 

@@ -1,0 +1,182 @@
+//! Overlay images for `pipetrack track --overlay DIR` (SPEC §5): the frame in
+//! grey, the motion pixels the tracker labelled tinted cyan, the model edges as
+//! anti-aliased 1-px lines — yellow while tracking, red when lost — and a small
+//! cross on every corner.
+//!
+//! Lines use Xiaolin Wu's algorithm: along the major axis one pixel pair per
+//! step, the two pixels straddling the exact line weighted by their distance to
+//! it. Segments are clipped to the image (Liang–Barsky) first, so corners far
+//! outside cost nothing; corners that are NaN or infinite, and edges naming a
+//! corner that does not exist, are skipped.
+
+use image::{Rgb, RgbImage};
+
+use crate::formats::Status;
+use crate::image::GrayImage;
+
+/// Model colour while tracking.
+pub const TRACKING_COLOUR: [u8; 3] = [255, 255, 0];
+/// Model colour when lost.
+pub const LOST_COLOUR: [u8; 3] = [255, 0, 0];
+/// Tint of labelled motion pixels.
+pub const LABELLED_COLOUR: [u8; 3] = [0, 255, 255];
+/// How much of [`LABELLED_COLOUR`] is blended into a labelled pixel.
+pub const LABELLED_OPACITY: f32 = 0.35;
+/// Half the arm length of a corner cross, pixels.
+pub const CORNER_MARKER_RADIUS: i64 = 2;
+
+/// The colour the model is drawn in for `status`.
+#[must_use]
+pub fn status_colour(status: Status) -> [u8; 3] {
+    match status {
+        Status::Tracking => TRACKING_COLOUR,
+        Status::Lost => LOST_COLOUR,
+    }
+}
+
+/// Draw the overlay for one frame: `frame` as grey RGB, `labelled` motion
+/// pixels `(x, y)` tinted, `edges` (pairs of indices into `corners`) as
+/// anti-aliased lines and every corner as a small cross, in the colour of
+/// `status`. Never panics: out-of-image pixels, non-finite corners and
+/// out-of-range indices are skipped.
+#[must_use]
+pub fn draw_overlay(
+    frame: &GrayImage,
+    corners: &[[f64; 2]],
+    edges: &[[usize; 2]],
+    status: Status,
+    labelled: &[(u32, u32)],
+) -> RgbImage {
+    let (w, h) = (frame.width() as u32, frame.height() as u32);
+    let mut out = RgbImage::from_fn(w, h, |x, y| {
+        let v = frame.get(x as usize, y as usize);
+        Rgb([v, v, v])
+    });
+    for &(x, y) in labelled {
+        blend(
+            &mut out,
+            i64::from(x),
+            i64::from(y),
+            LABELLED_COLOUR,
+            LABELLED_OPACITY,
+        );
+    }
+    let colour = status_colour(status);
+    let finite = |p: &[f64; 2]| p[0].is_finite() && p[1].is_finite();
+    for &[i, j] in edges {
+        if let (Some(a), Some(b)) = (corners.get(i), corners.get(j))
+            && finite(a)
+            && finite(b)
+        {
+            draw_line_aa(&mut out, *a, *b, colour);
+        }
+    }
+    for p in corners.iter().filter(|p| finite(p)) {
+        draw_cross(&mut out, *p, colour);
+    }
+    out
+}
+
+/// Blend `colour` into pixel `(x, y)` with weight `alpha` in 0..=1; pixels
+/// outside the image are ignored.
+fn blend(img: &mut RgbImage, x: i64, y: i64, colour: [u8; 3], alpha: f32) {
+    if x < 0 || y < 0 || x >= i64::from(img.width()) || y >= i64::from(img.height()) {
+        return;
+    }
+    let alpha = alpha.clamp(0.0, 1.0);
+    let px = img.get_pixel_mut(x as u32, y as u32);
+    for (c, &target) in px.0.iter_mut().zip(&colour) {
+        *c = (f32::from(*c) * (1.0 - alpha) + f32::from(target) * alpha).round() as u8;
+    }
+}
+
+/// A cross of arm [`CORNER_MARKER_RADIUS`] centred on the pixel nearest `p`.
+fn draw_cross(img: &mut RgbImage, p: [f64; 2], colour: [u8; 3]) {
+    let limit = f64::from(img.width().max(img.height())) + 8.0;
+    if p[0].abs() > limit || p[1].abs() > limit {
+        return;
+    }
+    let (x, y) = (p[0].round() as i64, p[1].round() as i64);
+    for d in -CORNER_MARKER_RADIUS..=CORNER_MARKER_RADIUS {
+        blend(img, x + d, y, colour, 1.0);
+        blend(img, x, y + d, colour, 1.0);
+    }
+}
+
+/// Clip the segment `a`–`b` to `[lo, hi]` in both coordinates (Liang–Barsky);
+/// `None` when nothing of it is inside.
+fn clip_segment(
+    a: [f64; 2],
+    b: [f64; 2],
+    lo: [f64; 2],
+    hi: [f64; 2],
+) -> Option<([f64; 2], [f64; 2])> {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for axis in 0..2 {
+        for (p, q) in [
+            (-d[axis], a[axis] - lo[axis]),
+            (d[axis], hi[axis] - a[axis]),
+        ] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return None;
+                }
+            } else {
+                let r = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(r);
+                } else {
+                    t1 = t1.min(r);
+                }
+            }
+        }
+    }
+    if t0 > t1 {
+        return None;
+    }
+    let at = |t: f64| [a[0] + t * d[0], a[1] + t * d[1]];
+    Some((at(t0), at(t1)))
+}
+
+/// Xiaolin Wu's anti-aliased line from `a` to `b`, clipped to the image
+/// (plus a one-pixel fringe so lines along the border keep their antialiasing).
+fn draw_line_aa(img: &mut RgbImage, a: [f64; 2], b: [f64; 2], colour: [u8; 3]) {
+    let hi = [f64::from(img.width()), f64::from(img.height())];
+    let Some((a, b)) = clip_segment(a, b, [-1.0, -1.0], hi) else {
+        return;
+    };
+    // Guard against overflow in the clip of huge (finite) coordinates: the
+    // loop below is bounded only when both ends lie in the clip box.
+    let inside = |p: [f64; 2]| (0..2).all(|k| p[k] >= -2.0 && p[k] <= hi[k] + 1.0);
+    if !(inside(a) && inside(b)) {
+        return;
+    }
+    let steep = (b[1] - a[1]).abs() > (b[0] - a[0]).abs();
+    // Work with x as the major axis.
+    let (mut a, mut b) = if steep {
+        ([a[1], a[0]], [b[1], b[0]])
+    } else {
+        (a, b)
+    };
+    if a[0] > b[0] {
+        std::mem::swap(&mut a, &mut b);
+    }
+    let dx = b[0] - a[0];
+    let gradient = if dx == 0.0 { 0.0 } else { (b[1] - a[1]) / dx };
+    let mut plot = |major: i64, minor: i64, alpha: f64| {
+        if steep {
+            blend(img, minor, major, colour, alpha as f32);
+        } else {
+            blend(img, major, minor, colour, alpha as f32);
+        }
+    };
+    let (x_start, x_end) = (a[0].round() as i64, b[0].round() as i64);
+    for x in x_start..=x_end {
+        let y = a[1] + gradient * (x as f64 - a[0]);
+        let y_floor = y.floor();
+        let frac = y - y_floor;
+        plot(x, y_floor as i64, 1.0 - frac);
+        plot(x, y_floor as i64 + 1, frac);
+    }
+}

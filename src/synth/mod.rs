@@ -1,0 +1,1027 @@
+//! Synthetic sequences with exact ground truth (`pipetrack synth`, SPEC §5).
+//!
+//! # The renderer core
+//!
+//! Scenes draw into a [`Canvas`]: a grey image held at `S`× the output
+//! resolution (`S` = [`DEFAULT_SUPERSAMPLE`] = 4 unless asked otherwise).
+//! [`Canvas::downsample_into`] averages each `S`×`S` block of cells (a box
+//! filter) into one output pixel.
+//!
+//! Coordinates are output-pixel coordinates in the convention of SPEC §4: pixel
+//! `(0, 0)` is the *centre* of the top-left pixel, so pixel `(x, y)` covers
+//! `[x − ½, x + ½] × [y − ½, y + ½]`. Super-sample (cell) `(i, j)` — column `i`,
+//! row `j` of the `S·W × S·H` grid — covers the square of side `1/S` centred at
+//! `((i + 0.5)/S − 0.5, (j + 0.5)/S − 0.5)`; [`Canvas::sample_centre`] says so
+//! in code, and cell coordinates are `u = (x + ½)·S`.
+//!
+//! Polygons are filled with *exact area coverage*: an accumulation-buffer
+//! rasteriser (the signed-area method of font renderers) gives every cell the
+//! fraction of its area inside the polygon, and the cell is blended with the
+//! polygon's grey by that fraction. After the box filter an output pixel
+//! therefore holds the exact area-weighted mix at any edge position, not only
+//! at multiples of `1/S`, and ground-truth corners are exact. Super-sampling
+//! still matters where several things meet inside one pixel (an edge over a
+//! texture, two polygons, a corner): blending per cell confines the error of
+//! compositing by coverage to cells `1/S` of a pixel wide. Faces that share
+//! edges (a polyhedron's visible faces) should be drawn as one layer with
+//! [`Canvas::fill_faces`], which adds their coverages before blending, so no
+//! background shows through a shared edge; overlapping polygons are drawn back
+//! to front (painter's algorithm). Both [`FillRule`]s are offered; scenes use
+//! [`FillRule::EvenOdd`] unless they say otherwise.
+//!
+//! A sequence is made by rendering its static background once
+//! ([`render_background`]) and box-filtering it down once; then for every frame
+//! only the window the moving things touch ([`Canvas::window_around`]) is
+//! restored from the background, drawn, and box-filtered into a copy of the
+//! downsampled background, before Gaussian noise is added and values are
+//! rounded to `u8` ([`add_noise_and_quantise`]). Frames are independent (the noise of frame `k`
+//! comes from its own ChaCha stream), so they render in parallel and the same
+//! seed always gives the same bytes.
+//!
+//! # Scenes
+//!
+//! [`scene_names`] lists them, [`render_scene`] renders one in memory and
+//! [`generate`] renders and writes a sequence folder (SPEC §4). Today:
+//! `pendulum` ([`pendulum`], paper 000).
+
+pub mod pendulum;
+
+use std::path::{Path, PathBuf};
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use crate::early::Window;
+use crate::formats::{Camera, InitState, Model, TruthFrame};
+use crate::image::{FloatImage, GrayImage};
+use crate::{Error, Result};
+
+pub use pendulum::{PendulumMotion, PendulumOptions, PendulumSwing, render_pendulum};
+
+/// Super-sampling factor used by the scenes unless told otherwise.
+pub const DEFAULT_SUPERSAMPLE: usize = 4;
+/// Largest super-sampling factor a [`Canvas`] accepts.
+pub const MAX_SUPERSAMPLE: usize = 16;
+
+/// How [`Canvas::fill_polygon`] decides which samples a self-intersecting or
+/// multiply-wound outline covers. Convex and simple polygons look the same
+/// under both.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum FillRule {
+    /// Inside where a ray crosses the outline an odd number of times.
+    #[default]
+    EvenOdd,
+    /// Inside where the winding number is not zero.
+    NonZero,
+}
+
+/// A grey canvas at `S`× the output resolution (see the module docs for the
+/// sample positions). Values are grey levels in the 0..255 scale, as `f32`.
+#[derive(Clone, Debug)]
+pub struct Canvas {
+    width: usize,
+    height: usize,
+    supersample: usize,
+    samples: Vec<f32>,
+    /// Reused buffers of polygon filling.
+    scratch: FillScratch,
+}
+
+/// Buffers [`Canvas::fill_faces`] reuses from call to call.
+#[derive(Clone, Debug, Default)]
+struct FillScratch {
+    /// Signed-area accumulator of one face.
+    accumulator: Vec<f64>,
+    /// Summed coverage of the layer's faces per cell.
+    alpha: Vec<f32>,
+    /// Summed coverage × grey per cell.
+    premultiplied: Vec<f32>,
+}
+
+impl Canvas {
+    /// A canvas for a `width`×`height` output image at `supersample`× resolution,
+    /// filled with `grey`. Errors when a size is zero or `supersample` is not in
+    /// `1..=MAX_SUPERSAMPLE`.
+    pub fn new(width: usize, height: usize, supersample: usize, grey: f32) -> Result<Self> {
+        if width == 0 || height == 0 {
+            return Err(Error::Parameter(format!(
+                "canvas size {width}x{height} is empty"
+            )));
+        }
+        if !(1..=MAX_SUPERSAMPLE).contains(&supersample) {
+            return Err(Error::Parameter(format!(
+                "supersample factor {supersample} is not in 1..={MAX_SUPERSAMPLE}"
+            )));
+        }
+        let n = width * supersample * height * supersample;
+        Ok(Self {
+            width,
+            height,
+            supersample,
+            samples: vec![grey; n],
+            scratch: FillScratch::default(),
+        })
+    }
+
+    /// Output width in pixels.
+    #[must_use]
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Output height in pixels.
+    #[must_use]
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The super-sampling factor `S`.
+    #[must_use]
+    pub fn supersample(&self) -> usize {
+        self.supersample
+    }
+
+    /// The super-samples, row-major, `S·W` per row.
+    #[must_use]
+    pub fn samples(&self) -> &[f32] {
+        &self.samples
+    }
+
+    /// Where super-sample `(i, j)` sits in output-pixel coordinates:
+    /// `((i + 0.5)/S − 0.5, (j + 0.5)/S − 0.5)`.
+    #[must_use]
+    pub fn sample_centre(&self, i: usize, j: usize) -> [f64; 2] {
+        let s = self.supersample as f64;
+        [(i as f64 + 0.5) / s - 0.5, (j as f64 + 0.5) / s - 0.5]
+    }
+
+    /// Set every sample to `grey`.
+    pub fn fill(&mut self, grey: f32) {
+        self.samples.fill(grey);
+    }
+
+    /// Set every sample to `shade(x, y)`, evaluated at the sample's position in
+    /// output-pixel coordinates (so a smooth texture is area-averaged by
+    /// [`Canvas::downsample_into`]). Rows are shaded in parallel.
+    pub fn shade_with(&mut self, shade: impl Fn(f64, f64) -> f32 + Sync) {
+        let sw = self.width * self.supersample;
+        let s = self.supersample as f64;
+        self.samples
+            .par_chunks_mut(sw)
+            .enumerate()
+            .for_each(|(j, row)| {
+                let y = (j as f64 + 0.5) / s - 0.5;
+                for (i, v) in row.iter_mut().enumerate() {
+                    *v = shade((i as f64 + 0.5) / s - 0.5, y);
+                }
+            });
+    }
+
+    /// Copy another canvas of the same size and factor into this one (the
+    /// per-frame "start from the background" step; no allocation).
+    pub fn copy_from(&mut self, other: &Canvas) -> Result<()> {
+        self.check_same_shape(other)?;
+        self.samples.copy_from_slice(&other.samples);
+        Ok(())
+    }
+
+    fn check_same_shape(&self, other: &Canvas) -> Result<()> {
+        if (self.width, self.height, self.supersample)
+            != (other.width, other.height, other.supersample)
+        {
+            return Err(Error::Size(format!(
+                "canvas {}x{}@{} vs {}x{}@{}",
+                self.width,
+                self.height,
+                self.supersample,
+                other.width,
+                other.height,
+                other.supersample
+            )));
+        }
+        Ok(())
+    }
+
+    /// Fill the polygon with vertices `points` (output-pixel coordinates, in
+    /// order, implicitly closed) with `grey`, deciding inside by `rule`: every
+    /// cell is blended with `grey` by the exact fraction of its area the
+    /// polygon covers. Convex, non-convex and self-intersecting outlines all
+    /// work; parts outside the canvas are clipped. A polygon with fewer than
+    /// three points or a non-finite coordinate draws nothing.
+    pub fn fill_polygon(&mut self, points: &[[f64; 2]], rule: FillRule, grey: f32) {
+        self.fill_faces(&[Face { points, grey }], rule);
+    }
+
+    /// Fill several polygons that do not overlap one another (e.g. the visible
+    /// faces of a convex polyhedron) as one layer: their coverages add up
+    /// before blending, so along an edge two faces share the background does
+    /// not show through. Polygons that do overlap should be drawn back to front
+    /// with separate calls instead. Faces with fewer than three points or a
+    /// non-finite coordinate are skipped.
+    pub fn fill_faces(&mut self, faces: &[Face<'_>], rule: FillRule) {
+        let s = self.supersample as f64;
+        let (sw, sh) = (
+            self.width * self.supersample,
+            self.height * self.supersample,
+        );
+        // Cell coordinates: cell (i, j) spans [i, i+1] x [j, j+1], i.e. pixel
+        // coordinates u = (x + 1/2)·S.
+        let to_cell = |p: &[f64; 2]| [(p[0] + 0.5) * s, (p[1] + 0.5) * s];
+        let drawable =
+            |f: &&Face<'_>| f.points.len() >= 3 && f.points.iter().flatten().all(|c| c.is_finite());
+        let boxes: Vec<Option<CellBox>> = faces
+            .iter()
+            .map(|f| {
+                drawable(&f)
+                    .then(|| CellBox::of(f.points.iter().map(to_cell), sw, sh))
+                    .flatten()
+            })
+            .collect();
+        let Some(layer) = boxes.iter().flatten().copied().reduce(CellBox::union) else {
+            return;
+        };
+        let (lw, lh) = (layer.x1 - layer.x0, layer.y1 - layer.y0);
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.alpha.clear();
+        scratch.alpha.resize(lw * lh, 0.0);
+        scratch.premultiplied.clear();
+        scratch.premultiplied.resize(lw * lh, 0.0);
+        for (face, cells) in faces.iter().zip(&boxes) {
+            let Some(cells) = cells else { continue };
+            let (fw, fh) = (cells.x1 - cells.x0, cells.y1 - cells.y0);
+            // Two spare columns: an edge on the right border writes one past it.
+            let stride = fw + 2;
+            scratch.accumulator.clear();
+            scratch.accumulator.resize(stride * fh, 0.0);
+            let origin = [cells.x0 as f64, cells.y0 as f64];
+            let n = face.points.len();
+            for k in 0..n {
+                let a = to_cell(&face.points[k]);
+                let b = to_cell(&face.points[(k + 1) % n]);
+                accumulate_edge(
+                    &mut scratch.accumulator,
+                    stride,
+                    [fw as f64, fh as f64],
+                    [a[0] - origin[0], a[1] - origin[1]],
+                    [b[0] - origin[0], b[1] - origin[1]],
+                );
+            }
+            // Running sums along each row turn edge contributions into the
+            // covered area of every cell (its mean winding number).
+            for (r, acc_row) in scratch.accumulator.chunks_exact(stride).enumerate() {
+                let at = (cells.y0 - layer.y0 + r) * lw + (cells.x0 - layer.x0);
+                let alpha = &mut scratch.alpha[at..at + fw];
+                let premultiplied = &mut scratch.premultiplied[at..at + fw];
+                let mut winding = 0.0f64;
+                for ((a, p), acc) in alpha.iter_mut().zip(premultiplied.iter_mut()).zip(acc_row) {
+                    winding += acc;
+                    let coverage = rule.coverage(winding) as f32;
+                    *a += coverage;
+                    *p += coverage * face.grey;
+                }
+            }
+        }
+        let stride = self.width * self.supersample;
+        for r in 0..lh {
+            let row = &mut self.samples[(layer.y0 + r) * stride + layer.x0..][..lw];
+            let alpha = &scratch.alpha[r * lw..(r + 1) * lw];
+            let premultiplied = &scratch.premultiplied[r * lw..(r + 1) * lw];
+            for ((v, &a), &p) in row.iter_mut().zip(alpha).zip(premultiplied) {
+                if a >= 1.0 {
+                    // Fully covered (or faces overlapping after all): their mean grey.
+                    *v = p / a;
+                } else if a > 0.0 {
+                    *v = *v * (1.0 - a) + p;
+                }
+            }
+        }
+        self.scratch = scratch;
+    }
+
+    /// Fill an ellipse with centre `centre`, semi-axes `radii` and the first
+    /// axis turned by `angle` radians (from +x towards +y), as a polygon of
+    /// [`ELLIPSE_SEGMENTS`] sides.
+    pub fn fill_ellipse(&mut self, centre: [f64; 2], radii: [f64; 2], angle: f64, grey: f32) {
+        let points = ellipse_points(centre, radii, angle, ELLIPSE_SEGMENTS);
+        self.fill_polygon(&points, FillRule::EvenOdd, grey);
+    }
+
+    /// Draw the segment `a`–`b` as a filled rectangle `width` pixels wide
+    /// (square caps flush with the end points). A zero-length segment draws nothing.
+    pub fn fill_segment(&mut self, a: [f64; 2], b: [f64; 2], width: f64, grey: f32) {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let len = dx.hypot(dy);
+        if len == 0.0 || !len.is_finite() {
+            return;
+        }
+        let (nx, ny) = (-dy / len * width / 2.0, dx / len * width / 2.0);
+        let quad = [
+            [a[0] + nx, a[1] + ny],
+            [b[0] + nx, b[1] + ny],
+            [b[0] - nx, b[1] - ny],
+            [a[0] - nx, a[1] - ny],
+        ];
+        self.fill_polygon(&quad, FillRule::EvenOdd, grey);
+    }
+
+    /// Box-filter down to the output resolution: every output pixel is the mean
+    /// of its `S`×`S` block. `out` is resized to `width`×`height` if needed.
+    pub fn downsample_into(&self, out: &mut FloatImage) {
+        if out.size() != (self.width, self.height) {
+            out.resize(self.width, self.height);
+        }
+        self.downsample_rows(out, Window::full(self.width, self.height));
+    }
+
+    /// Box-filter only the pixels of `window` (clipped to the canvas) into
+    /// `out`, which must be `width`×`height`; other pixels are left as they
+    /// are. With [`Canvas::copy_window_from`] this lets a scene redo only the
+    /// part of a frame that moving things touch ([`Canvas::window_around`]).
+    pub fn downsample_window_into(&self, out: &mut FloatImage, window: Window) -> Result<()> {
+        if out.size() != (self.width, self.height) {
+            return Err(Error::Size(format!(
+                "downsample into {}x{} from a {}x{} canvas",
+                out.width(),
+                out.height(),
+                self.width,
+                self.height
+            )));
+        }
+        self.downsample_rows(out, window.clipped(self.width, self.height));
+        Ok(())
+    }
+
+    fn downsample_rows(&self, out: &mut FloatImage, window: Window) {
+        if window.is_empty() {
+            return;
+        }
+        let (w, s) = (self.width, self.supersample);
+        let (x0, x1) = (window.x0 as usize, window.x1 as usize);
+        let (y0, y1) = (window.y0 as usize, window.y1 as usize);
+        let norm = 1.0 / (s * s) as f32;
+        let block_rows = w * s * s;
+        let samples = &self.samples[y0 * block_rows..y1 * block_rows];
+        out.data_mut()[y0 * w..y1 * w]
+            .par_chunks_mut(w)
+            .zip(samples.par_chunks(block_rows))
+            .for_each(|(out_row, block)| {
+                let out_row = &mut out_row[x0..x1];
+                out_row.fill(0.0);
+                for sample_row in block.chunks_exact(w * s) {
+                    let cells = sample_row[x0 * s..x1 * s].chunks_exact(s);
+                    for (o, cell) in out_row.iter_mut().zip(cells) {
+                        *o += cell.iter().sum::<f32>();
+                    }
+                }
+                for o in out_row.iter_mut() {
+                    *o *= norm;
+                }
+            });
+    }
+
+    /// Copy the cells under output-pixel window `window` (clipped) from a
+    /// canvas of the same size and factor.
+    pub fn copy_window_from(&mut self, other: &Canvas, window: Window) -> Result<()> {
+        self.check_same_shape(other)?;
+        let window = window.clipped(self.width, self.height);
+        if window.is_empty() {
+            return Ok(());
+        }
+        let (s, sw) = (self.supersample, self.width * self.supersample);
+        let (i0, i1) = (window.x0 as usize * s, window.x1 as usize * s);
+        for j in window.y0 as usize * s..window.y1 as usize * s {
+            let span = j * sw + i0..j * sw + i1;
+            self.samples[span.clone()].copy_from_slice(&other.samples[span]);
+        }
+        Ok(())
+    }
+
+    /// The output pixels that polygons with vertices `points` can change: their
+    /// bounding box grown to whole pixels plus a one-pixel margin, clipped to
+    /// the canvas. Non-finite points are ignored.
+    #[must_use]
+    pub fn window_around<'a>(&self, points: impl IntoIterator<Item = &'a [f64; 2]>) -> Window {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in points
+            .into_iter()
+            .filter(|p| p[0].is_finite() && p[1].is_finite())
+        {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        if lo[0] > hi[0] {
+            return Window::default();
+        }
+        let (w, h) = (self.width as f64, self.height as f64);
+        let to = |v: f64, max: f64| v.clamp(0.0, max) as u32;
+        Window {
+            x0: to((lo[0] + 0.5).floor() - 1.0, w),
+            y0: to((lo[1] + 0.5).floor() - 1.0, h),
+            x1: to((hi[0] + 0.5).ceil() + 1.0, w),
+            y1: to((hi[1] + 0.5).ceil() + 1.0, h),
+        }
+    }
+
+    /// Box-filter down to a new image (see [`Canvas::downsample_into`]).
+    #[must_use]
+    pub fn downsample(&self) -> FloatImage {
+        let mut out = FloatImage::new(self.width, self.height);
+        self.downsample_into(&mut out);
+        out
+    }
+}
+
+/// Sides of the polygon [`Canvas::fill_ellipse`] draws.
+pub const ELLIPSE_SEGMENTS: usize = 48;
+
+/// The `n` vertices of an ellipse (centre, semi-axes, rotation in radians).
+#[must_use]
+pub fn ellipse_points(centre: [f64; 2], radii: [f64; 2], angle: f64, n: usize) -> Vec<[f64; 2]> {
+    let (sa, ca) = angle.sin_cos();
+    (0..n)
+        .map(|k| {
+            let t = std::f64::consts::TAU * k as f64 / n as f64;
+            let (u, v) = (radii[0] * t.cos(), radii[1] * t.sin());
+            [centre[0] + ca * u - sa * v, centre[1] + sa * u + ca * v]
+        })
+        .collect()
+}
+
+/// A polygon and its grey level, for [`Canvas::fill_faces`].
+#[derive(Clone, Copy, Debug)]
+pub struct Face<'a> {
+    /// Vertices in output-pixel coordinates, in order, implicitly closed.
+    pub points: &'a [[f64; 2]],
+    /// Grey level to fill with.
+    pub grey: f32,
+}
+
+impl FillRule {
+    /// Coverage of a cell from its mean winding number `w` (exact wherever
+    /// the winding number inside the cell takes only the values 0 and ±1, as
+    /// everywhere for a simple polygon; for overlapping outlines the rule is
+    /// applied to the mean, as font rasterisers do).
+    fn coverage(self, w: f64) -> f64 {
+        let w = w.abs();
+        match self {
+            FillRule::NonZero => w.min(1.0),
+            FillRule::EvenOdd => {
+                let m = w % 2.0;
+                if m <= 1.0 { m } else { 2.0 - m }
+            }
+        }
+    }
+}
+
+/// A half-open range of canvas cells `x0..x1`, `y0..y1`, non-empty.
+#[derive(Clone, Copy, Debug)]
+struct CellBox {
+    x0: usize,
+    y0: usize,
+    x1: usize,
+    y1: usize,
+}
+
+impl CellBox {
+    /// The cells touched by `points` (cell coordinates), clipped to `sw`×`sh`;
+    /// `None` when that is empty. Points left of the canvas clip to column 0,
+    /// where [`accumulate_edge`] folds them.
+    fn of(points: impl Iterator<Item = [f64; 2]>, sw: usize, sh: usize) -> Option<Self> {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in points {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let x0 = lo[0].floor().clamp(0.0, sw as f64) as usize;
+        let x1 = hi[0].ceil().clamp(0.0, sw as f64) as usize;
+        let y0 = lo[1].floor().clamp(0.0, sh as f64) as usize;
+        let y1 = hi[1].ceil().clamp(0.0, sh as f64) as usize;
+        // Entirely left of the canvas still covers nothing (winding cancels),
+        // but a polygon straddling x = 0 needs column 0.
+        (x0 < x1 && y0 < y1).then_some(Self { x0, y0, x1, y1 })
+    }
+
+    fn union(self, o: Self) -> Self {
+        Self {
+            x0: self.x0.min(o.x0),
+            y0: self.y0.min(o.y0),
+            x1: self.x1.max(o.x1),
+            y1: self.y1.max(o.y1),
+        }
+    }
+}
+
+/// Add the signed-area contribution of the edge `a`→`b` to the accumulator
+/// (cell units, origin at the box's top-left, `size` = box width and height,
+/// `stride` ≥ width + 2). After a running sum along each row, every cell holds
+/// the area-weighted mean winding number of the polygon over that cell
+/// (the accumulation-buffer method of font rasterisers). Rows outside the box
+/// are dropped; x outside `0..=width` is folded onto the border, which leaves
+/// the winding of every cell inside the box unchanged.
+fn accumulate_edge(acc: &mut [f64], stride: usize, size: [f64; 2], a: [f64; 2], b: [f64; 2]) {
+    if a[1] == b[1] {
+        return;
+    }
+    // Split where the edge crosses x = 0 or x = width, then fold x into range.
+    let mut cuts = [0.0, 1.0, 1.0, 1.0];
+    let mut n = 1;
+    for border in [0.0, size[0]] {
+        let t = (border - a[0]) / (b[0] - a[0]);
+        if t > 0.0 && t < 1.0 {
+            cuts[n] = t;
+            n += 1;
+        }
+    }
+    cuts[n] = 1.0;
+    cuts[..=n].sort_by(f64::total_cmp);
+    let at = |t: f64| {
+        if t == 1.0 {
+            b
+        } else {
+            [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+        }
+    };
+    for k in 0..n {
+        let (p, q) = (at(cuts[k]), at(cuts[k + 1]));
+        let fold = |v: [f64; 2]| [v[0].clamp(0.0, size[0]), v[1]];
+        accumulate_piece(acc, stride, size, fold(p), fold(q));
+    }
+}
+
+/// [`accumulate_edge`] for an edge with `0 <= x <= width` at both ends.
+fn accumulate_piece(acc: &mut [f64], stride: usize, size: [f64; 2], a: [f64; 2], b: [f64; 2]) {
+    if a[1] == b[1] {
+        return;
+    }
+    let (dir, top, bottom) = if a[1] < b[1] {
+        (1.0, a, b)
+    } else {
+        (-1.0, b, a)
+    };
+    let dxdy = (bottom[0] - top[0]) / (bottom[1] - top[1]);
+    let (mut x, mut y0) = (top[0], top[1]);
+    if y0 < 0.0 {
+        x -= y0 * dxdy;
+        y0 = 0.0;
+    }
+    let y1 = bottom[1].min(size[1]);
+    if y0 >= y1 {
+        return;
+    }
+    let width = size[0];
+    for row in (y0.floor() as usize)..(y1.ceil() as usize) {
+        let line = &mut acc[row * stride..(row + 1) * stride];
+        let dy = ((row + 1) as f64).min(y1) - (row as f64).max(y0);
+        let x_next = (x + dxdy * dy).clamp(0.0, width);
+        let x_here = x.clamp(0.0, width);
+        let d = dy * dir;
+        let (xa, xb) = if x_here < x_next {
+            (x_here, x_next)
+        } else {
+            (x_next, x_here)
+        };
+        let xa_floor = xa.floor();
+        let ia = xa_floor as usize;
+        let ib = xb.ceil() as usize;
+        if ib <= ia + 1 {
+            // Within one cell column: the part right of the edge's mean x.
+            let mid = 0.5 * (x_here + x_next) - xa_floor;
+            line[ia] += d - d * mid;
+            line[ia + 1] += d * mid;
+        } else {
+            // Across several columns: trapezoids and a triangle at each end.
+            let inv = 1.0 / (xb - xa);
+            let fa = xa - xa_floor;
+            let first = 0.5 * inv * (1.0 - fa) * (1.0 - fa);
+            let fb = xb - ib as f64 + 1.0;
+            let last = 0.5 * inv * fb * fb;
+            line[ia] += d * first;
+            if ib == ia + 2 {
+                line[ia + 1] += d * (1.0 - first - last);
+            } else {
+                let second = inv * (1.5 - fa);
+                line[ia + 1] += d * (second - first);
+                for v in &mut line[ia + 2..ib - 1] {
+                    *v += d * inv;
+                }
+                let before_last = second + (ib - ia - 3) as f64 * inv;
+                line[ib - 1] += d * (1.0 - before_last - last);
+            }
+            line[ib] += d * last;
+        }
+        x = x_next;
+    }
+}
+
+/// Add zero-mean Gaussian noise of standard deviation `noise_sigma` (grey
+/// levels) to `image`, clamp to 0..255 and round to the nearest integer (halves
+/// away from zero) into `out` (resized if needed). Gaussian deviates come from
+/// the Box–Muller transform of `rng`'s uniforms; with `noise_sigma == 0` the
+/// generator is not touched.
+pub fn add_noise_and_quantise(
+    image: &FloatImage,
+    noise_sigma: f32,
+    rng: &mut impl Rng,
+    out: &mut GrayImage,
+) {
+    let (w, h) = image.size();
+    if out.size() != (w, h) {
+        out.resize(w, h);
+    }
+    let to_u8 = |v: f32| v.clamp(0.0, 255.0).round() as u8;
+    if noise_sigma == 0.0 {
+        for (o, &v) in out.data_mut().iter_mut().zip(image.data()) {
+            *o = to_u8(v);
+        }
+        return;
+    }
+    for (o, v) in out.data_mut().chunks_mut(2).zip(image.data().chunks(2)) {
+        let (z0, z1) = standard_normal_pair(rng);
+        o[0] = to_u8(v[0] + noise_sigma * z0);
+        if o.len() > 1 {
+            o[1] = to_u8(v[1] + noise_sigma * z1);
+        }
+    }
+}
+
+/// Two independent standard normal deviates (Box–Muller).
+fn standard_normal_pair(rng: &mut impl Rng) -> (f32, f32) {
+    // 1 − U lies in (0, 1], so the logarithm is finite.
+    let u1 = 1.0 - rng.random::<f32>();
+    let u2 = rng.random::<f32>();
+    let r = (-2.0 * u1.ln()).sqrt();
+    let (s, c) = (std::f32::consts::TAU * u2).sin_cos();
+    (r * c, r * s)
+}
+
+/// The static backdrop of a scene.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Background {
+    /// One flat grey level ([`BACKGROUND_GREY`]).
+    Flat,
+    /// Seeded smooth value noise (three octaves) around [`BACKGROUND_GREY`].
+    #[default]
+    Textured,
+    /// A milder texture with seeded random rectangles, lines and blobs on it.
+    Cluttered,
+}
+
+impl Background {
+    /// The names [`Background::from_str`](std::str::FromStr) accepts.
+    pub const NAMES: [&'static str; 3] = ["flat", "textured", "cluttered"];
+
+    /// The lowercase name of this background.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Background::Flat => "flat",
+            Background::Textured => "textured",
+            Background::Cluttered => "cluttered",
+        }
+    }
+}
+
+impl std::str::FromStr for Background {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "flat" => Ok(Background::Flat),
+            "textured" => Ok(Background::Textured),
+            "cluttered" => Ok(Background::Cluttered),
+            _ => Err(Error::Parameter(format!(
+                "unknown background '{s}' (known: {})",
+                Background::NAMES.join(", ")
+            ))),
+        }
+    }
+}
+
+/// Mean grey level of every background.
+pub const BACKGROUND_GREY: f32 = 100.0;
+/// Texture octaves: (amplitude in grey levels, lattice cell in pixels).
+const TEXTURE_OCTAVES: [(f32, f64); 3] = [(28.0, 48.0), (14.0, 20.0), (6.0, 8.0)];
+/// Clutter shapes keep to this grey range, so a bright target (> 200) stays distinct.
+const CLUTTER_GREYS: std::ops::Range<f32> = 20.0..170.0;
+
+/// Render a static background into a new `width`×`height` canvas at factor
+/// `supersample`. `seed` picks the texture and clutter (same seed, same image).
+pub fn render_background(
+    kind: Background,
+    width: usize,
+    height: usize,
+    supersample: usize,
+    seed: u64,
+) -> Result<Canvas> {
+    let mut canvas = Canvas::new(width, height, supersample, BACKGROUND_GREY)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(BACKGROUND_STREAM);
+    match kind {
+        Background::Flat => {}
+        Background::Textured => {
+            let noise = ValueNoise::new(width, height, 1.0, &mut rng);
+            noise.paint(&mut canvas, BACKGROUND_GREY);
+        }
+        Background::Cluttered => {
+            let noise = ValueNoise::new(width, height, 0.5, &mut rng);
+            noise.paint(&mut canvas, BACKGROUND_GREY);
+            draw_clutter(&mut canvas, &mut rng);
+        }
+    }
+    Ok(canvas)
+}
+
+/// ChaCha stream of the background; frame `k`'s noise uses `FRAME_STREAM_BASE + k`.
+const BACKGROUND_STREAM: u64 = 0;
+/// First ChaCha stream used for per-frame noise.
+pub const FRAME_STREAM_BASE: u64 = 1 << 32;
+
+/// The generator of frame `frame`'s pixel noise for sequence seed `seed`:
+/// its own ChaCha8 stream, so frames can be rendered in any order.
+#[must_use]
+pub fn frame_rng(seed: u64, frame: usize) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(FRAME_STREAM_BASE + frame as u64);
+    rng
+}
+
+/// Seeded value noise: random values on square lattices, interpolated with the
+/// quintic fade `6t⁵ − 15t⁴ + 10t³` (smooth to second order), summed over octaves.
+struct ValueNoise {
+    octaves: Vec<(f32, f64, usize, Vec<f32>)>,
+}
+
+impl ValueNoise {
+    fn new(width: usize, height: usize, scale: f32, rng: &mut ChaCha8Rng) -> Self {
+        let octaves = TEXTURE_OCTAVES
+            .iter()
+            .map(|&(amp, cell)| {
+                let gw = (width as f64 / cell).ceil() as usize + 3;
+                let gh = (height as f64 / cell).ceil() as usize + 3;
+                let grid = (0..gw * gh)
+                    .map(|_| rng.random_range(-1.0f32..1.0))
+                    .collect();
+                (amp * scale, cell, gw, grid)
+            })
+            .collect();
+        Self { octaves }
+    }
+
+    /// Set every cell of `canvas` to `base` plus the noise at the cell's
+    /// centre. Separable: per row, the lattice is interpolated in y once, then
+    /// every cell interpolates in x between precomputed columns.
+    fn paint(&self, canvas: &mut Canvas, base: f32) {
+        let fade = |t: f64| t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
+        // +1 keeps positions down to −0.5 inside the lattice; the lattice has
+        // two spare nodes past the far border, so `i + 1` stays in range.
+        let lattice = |coord: f64, cell: f64| {
+            let f = (coord + 1.0) / cell;
+            let i = f.floor().max(0.0);
+            (i as usize, fade(f - i) as f32)
+        };
+        let sw = canvas.width * canvas.supersample;
+        let columns: Vec<Vec<(usize, f32)>> = self
+            .octaves
+            .iter()
+            .map(|(_, cell, _, _)| {
+                (0..sw)
+                    .map(|i| lattice(canvas.sample_centre(i, 0)[0], *cell))
+                    .collect()
+            })
+            .collect();
+        let s = canvas.supersample as f64;
+        let widest = self.octaves.iter().map(|o| o.2).max().unwrap_or(0);
+        canvas.samples.par_chunks_mut(sw).enumerate().for_each_init(
+            || vec![0.0f32; widest],
+            |between_rows, (j, row)| {
+                row.fill(base);
+                let y = (j as f64 + 0.5) / s - 0.5;
+                for ((amp, cell, gw, grid), columns) in self.octaves.iter().zip(&columns) {
+                    let (iy, ty) = lattice(y, *cell);
+                    let (upper, lower) = (&grid[iy * gw..][..*gw], &grid[(iy + 1) * gw..][..*gw]);
+                    for ((m, &u), &l) in between_rows.iter_mut().zip(upper).zip(lower) {
+                        *m = u * (1.0 - ty) + l * ty;
+                    }
+                    for (v, &(ix, tx)) in row.iter_mut().zip(columns) {
+                        *v += amp * (between_rows[ix] * (1.0 - tx) + between_rows[ix + 1] * tx);
+                    }
+                }
+            },
+        );
+    }
+}
+
+/// Seeded static clutter: turned rectangles, lines 1–3 px wide and elliptic blobs.
+fn draw_clutter(canvas: &mut Canvas, rng: &mut ChaCha8Rng) {
+    let (w, h) = (canvas.width() as f64, canvas.height() as f64);
+    let extent = w.min(h);
+    for _ in 0..12 {
+        let c = [rng.random_range(0.0..w), rng.random_range(0.0..h)];
+        let half = [
+            rng.random_range(3.0..extent / 8.0),
+            rng.random_range(3.0..extent / 8.0),
+        ];
+        let (sa, ca) = rng.random_range(0.0..std::f64::consts::PI).sin_cos();
+        let corners: Vec<[f64; 2]> = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
+            .iter()
+            .map(|[u, v]| {
+                let (u, v) = (u * half[0], v * half[1]);
+                [c[0] + ca * u - sa * v, c[1] + sa * u + ca * v]
+            })
+            .collect();
+        let grey = rng.random_range(CLUTTER_GREYS);
+        canvas.fill_polygon(&corners, FillRule::EvenOdd, grey);
+    }
+    for _ in 0..10 {
+        let a = [rng.random_range(0.0..w), rng.random_range(0.0..h)];
+        let b = [rng.random_range(0.0..w), rng.random_range(0.0..h)];
+        let width = rng.random_range(1.0..3.0);
+        let grey = rng.random_range(CLUTTER_GREYS);
+        canvas.fill_segment(a, b, width, grey);
+    }
+    for _ in 0..8 {
+        let c = [rng.random_range(0.0..w), rng.random_range(0.0..h)];
+        let radii = [
+            rng.random_range(3.0..extent / 10.0),
+            rng.random_range(3.0..extent / 10.0),
+        ];
+        let angle = rng.random_range(0.0..std::f64::consts::PI);
+        let grey = rng.random_range(CLUTTER_GREYS);
+        canvas.fill_ellipse(c, radii, angle, grey);
+    }
+}
+
+/// A rendered sequence held in memory: what a sequence folder (SPEC §4) holds.
+#[derive(Clone, Debug)]
+pub struct SyntheticSequence {
+    /// Name of the scene that made it.
+    pub scene: String,
+    /// Intrinsics and image size (`camera.json`).
+    pub camera: Camera,
+    /// The object (`model.json`).
+    pub model: Model,
+    /// The state at frame 0 (`init.json`).
+    pub init: InitState,
+    /// Ground truth, one entry per frame (`truth.jsonl`).
+    pub truth: Vec<TruthFrame>,
+    /// The frames, 8-bit grey (`frames/000000.png`, ...).
+    pub frames: Vec<GrayImage>,
+    /// Scene parameters for people reading the folder (`meta.json`, ignored by readers).
+    pub meta: serde_json::Value,
+}
+
+impl SyntheticSequence {
+    /// Write the sequence folder `dir`: `camera.json`, `model.json`,
+    /// `init.json`, `truth.jsonl`, `meta.json` and `frames/NNNNNN.png`.
+    ///
+    /// `dir` must not exist or be an empty folder, otherwise this is an
+    /// [`Error::Input`] (sequences are never mixed). Everything is written into a
+    /// hidden sibling folder first and renamed to `dir` at the end, so an
+    /// interrupted write never leaves a folder that looks complete.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        check_output_dir(dir)?;
+        let name = dir
+            .file_name()
+            .ok_or_else(|| Error::input(dir, "output folder has no name"))?
+            .to_string_lossy()
+            .into_owned();
+        let parent = match dir.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
+        let staging = parent.join(format!(".{name}.partial-{}", std::process::id()));
+        if staging.exists() {
+            std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        }
+        let written = self.write_files(&staging).and_then(|()| {
+            if dir.exists() {
+                // An empty folder (checked above): replace it.
+                std::fs::remove_dir(dir).map_err(|e| Error::io(dir, e))?;
+            }
+            std::fs::rename(&staging, dir).map_err(|e| Error::io(dir, e))
+        });
+        if written.is_err() {
+            let _ = std::fs::remove_dir_all(&staging);
+        }
+        written
+    }
+
+    fn write_files(&self, dir: &Path) -> Result<()> {
+        let frames_dir = dir.join("frames");
+        std::fs::create_dir_all(&frames_dir).map_err(|e| Error::io(&frames_dir, e))?;
+        write_json(&dir.join("camera.json"), &self.camera)?;
+        write_json(&dir.join("model.json"), &self.model)?;
+        write_json(&dir.join("init.json"), &self.init)?;
+        write_json(&dir.join("meta.json"), &self.meta)?;
+        let mut truth = String::new();
+        for line in &self.truth {
+            truth.push_str(&serde_json::to_string(line).map_err(|e| json_error(dir, e))?);
+            truth.push('\n');
+        }
+        let truth_path = dir.join("truth.jsonl");
+        std::fs::write(&truth_path, truth).map_err(|e| Error::io(&truth_path, e))?;
+        self.frames
+            .par_iter()
+            .enumerate()
+            .try_for_each(|(k, frame)| {
+                let path = frames_dir.join(format!("{k:06}.png"));
+                image::save_buffer_with_format(
+                    &path,
+                    frame.data(),
+                    frame.width() as u32,
+                    frame.height() as u32,
+                    image::ColorType::L8,
+                    image::ImageFormat::Png,
+                )
+                .map_err(|e| Error::io(&path, std::io::Error::other(e)))
+            })
+    }
+}
+
+fn json_error(path: &Path, e: serde_json::Error) -> Error {
+    Error::io(path, std::io::Error::other(e))
+}
+
+fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let mut text = serde_json::to_string_pretty(value).map_err(|e| json_error(path, e))?;
+    text.push('\n');
+    std::fs::write(path, text).map_err(|e| Error::io(path, e))
+}
+
+/// Error unless `dir` is absent or an empty folder.
+fn check_output_dir(dir: &Path) -> Result<()> {
+    if !dir.exists() {
+        return Ok(());
+    }
+    if !dir.is_dir() {
+        return Err(Error::input(dir, "exists and is not a folder"));
+    }
+    let mut entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    if entries.next().is_some() {
+        return Err(Error::input(
+            dir,
+            "output folder exists and is not empty (synth will not mix sequences); remove it or pick another",
+        ));
+    }
+    Ok(())
+}
+
+/// The scenes [`render_scene`] and [`generate`] know.
+#[must_use]
+pub fn scene_names() -> &'static [&'static str] {
+    &["pendulum"]
+}
+
+/// Render scene `scene` in memory. `frames` overrides the scene's default
+/// length; `extra` holds scene options as `(key, value)` strings (for
+/// `pendulum`: see [`PendulumOptions::set`]). Unknown scenes, keys or values are
+/// [`Error::Parameter`]s naming what is known.
+pub fn render_scene(
+    scene: &str,
+    frames: Option<usize>,
+    seed: u64,
+    extra: &[(String, String)],
+) -> Result<SyntheticSequence> {
+    match scene {
+        "pendulum" => {
+            let mut opts = PendulumOptions {
+                seed,
+                ..PendulumOptions::default()
+            };
+            if let Some(n) = frames {
+                opts.frames = n;
+            }
+            for (key, value) in extra {
+                opts.set(key, value)?;
+            }
+            render_pendulum(&opts)
+        }
+        _ => Err(Error::Parameter(format!(
+            "unknown scene '{scene}' (known scenes: {})",
+            scene_names().join(", ")
+        ))),
+    }
+}
+
+/// `pipetrack synth SCENE OUT_DIR [--frames N] [--seed S]`: check that
+/// `out_dir` is absent or empty, render the scene (validating every option)
+/// and only then write the folder (see [`SyntheticSequence::write`]). Returns
+/// the sequence that was written.
+pub fn generate(
+    scene: &str,
+    out_dir: &Path,
+    frames: Option<usize>,
+    seed: u64,
+    extra: &[(String, String)],
+) -> Result<SyntheticSequence> {
+    check_output_dir(out_dir)?;
+    let sequence = render_scene(scene, frames, seed, extra)?;
+    sequence.write(out_dir)?;
+    Ok(sequence)
+}
