@@ -8,7 +8,7 @@ struct Params {
     radius: u32,
     _pad: u32,
     // Half kernel: weights[k] for offsets ±k, k = 0..=radius, 4 per vec4.
-    weights: array<vec4<f32>, 16>,
+    weights: array<vec4<f32>, 15>,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

@@ -5,6 +5,8 @@
 //! and the two interchangeable backends in [`backend`].
 #![deny(missing_docs)]
 
+pub mod backend;
+pub mod bench;
 pub mod early;
 pub mod error;
 pub mod fit;

@@ -16,9 +16,10 @@ use crate::{Error, Result};
 pub(crate) const SHADER: ShaderDef = ShaderDef { name: "gaussian", source: include_str!("../../shaders/gaussian.wgsl") };
 
 /// Most half-kernel weights the shader's uniform block holds.
-const MAX_TAPS: usize = 64;
-/// Largest σ accepted (radius `ceil(3σ)` must stay below [`MAX_TAPS`]).
-pub const MAX_SIGMA: f32 = 21.0;
+const MAX_TAPS: usize = 60;
+/// Largest σ accepted (radius `ceil(3σ)` must stay below [`MAX_TAPS`], so
+/// the uniform block fits the recorder's 256-byte slot).
+pub const MAX_SIGMA: f32 = 19.5;
 /// Images with at least this many pixels are smoothed on several threads.
 pub(crate) const PARALLEL_PIXELS: usize = 1 << 16;
 

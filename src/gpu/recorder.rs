@@ -147,11 +147,6 @@ impl<'a> Recorder<'a> {
         Self { ctx, encoder, uniform_buffer, uniforms: Vec::new(), dispatches: 0 }
     }
 
-    /// The context this recorder records for.
-    pub(crate) fn ctx(&self) -> &'a GpuContext {
-        self.ctx
-    }
-
     /// Number of compute dispatches recorded so far.
     pub(crate) fn dispatch_count(&self) -> u32 {
         self.dispatches
@@ -188,6 +183,9 @@ impl<'a> Recorder<'a> {
             return Err(Error::Gpu(format!("more than {MAX_DISPATCHES} dispatches in one submission")));
         }
         let bytes = bytemuck::bytes_of(params);
+        if bytes.len() as u64 > UNIFORM_STRIDE {
+            return Err(Error::Gpu(format!("{}: uniform block of {} bytes exceeds {UNIFORM_STRIDE}", shader.name, bytes.len())));
+        }
         self.uniforms.extend_from_slice(bytes);
         self.uniforms.resize((offset + UNIFORM_STRIDE) as usize, 0);
         let size = (bytes.len() as u64).next_multiple_of(16);
@@ -223,11 +221,6 @@ impl<'a> Recorder<'a> {
         if size > 0 {
             self.encoder.copy_buffer_to_buffer(src, src_offset, dst, dst_offset, size);
         }
-    }
-
-    /// The underlying encoder, for copies from textures and other commands.
-    pub(crate) fn encoder(&mut self) -> &mut wgpu::CommandEncoder {
-        &mut self.encoder
     }
 
     /// Write the uniform blocks and submit everything recorded as one command buffer.

@@ -13,6 +13,7 @@ pub mod motion_edge;
 
 pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker};
 
+use crate::backend::FrameRequest;
 use crate::early::{Feature, Window};
 use crate::formats::{FrameResult, Pose, Status};
 
@@ -118,6 +119,11 @@ pub trait Tracker {
 
     /// Where the next frame's features are needed, clipped to the image.
     fn window_of_interest(&self, width: usize, height: usize) -> Window;
+
+    /// What early vision must compute for the next frame of a
+    /// `width`×`height` sequence: the lists of [`Tracker::needs`], inside
+    /// [`Tracker::window_of_interest`], with the tracker's own parameters.
+    fn request(&self, width: usize, height: usize) -> FrameRequest;
 
     /// Take the features of frame `frame` and report the frame's outcome.
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome;

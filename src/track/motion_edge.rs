@@ -131,6 +131,9 @@
 use serde::{Deserialize, Serialize};
 
 use super::{Diagnostics, FrameOutcome, Needs, Observations, Phase, Tracker};
+use crate::backend::{FrameRequest, ListSpec, MotionRequest};
+use crate::early::gaussian::GaussianParams;
+use crate::early::temporal_diff::TemporalDiffParams;
 use crate::early::{Feature, Window};
 use crate::fit::{Line, LineFit, LineSums, fit_line, fit_line_orthogonal, orientation_difference};
 use crate::formats::Status;
@@ -1065,6 +1068,20 @@ impl Tracker for MotionEdgeTracker {
 
     fn window_of_interest(&self, width: usize, height: usize) -> Window {
         MotionEdgeTracker::window_of_interest(self, width, height)
+    }
+
+    /// Smoothing σ and the motion threshold of eq. 1 from the parameters;
+    /// motion pixels inside the window of interest, uncapped (000 labels
+    /// every motion pixel it gets).
+    fn request(&self, width: usize, height: usize) -> FrameRequest {
+        FrameRequest {
+            smoothing: GaussianParams { sigma: self.params.sigma },
+            motion: Some(MotionRequest {
+                diff: TemporalDiffParams { threshold: self.params.motion_threshold },
+                list: ListSpec { window: MotionEdgeTracker::window_of_interest(self, width, height), cap: None, seed: 0 },
+            }),
+            ..FrameRequest::default()
+        }
     }
 
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {

@@ -1,0 +1,68 @@
+// Zero crossings of the LoG image (001 "Real-time line detection": a change
+// of sign between adjacent pixels; the approximate gradient at the crossing is
+// the difference of the neighbouring pixels across it).
+// One entry point; each pixel gathers its 4 neighbours (clamp to edge, so a
+// border pixel pairs with itself and finds no crossing there) and writes only
+// its own outputs. Kept in sync with `ZeroCrossingUniform` in
+// src/early/zero_crossing.rs, and with its CPU twin `axis` / `edgel`.
+
+struct Params {
+    width: u32,
+    height: u32,
+    // Least |b − a| across a crossing (already floored on the Rust side).
+    min_slope: f32,
+    _pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> lap: array<f32>;
+@group(0) @binding(2) var<storage, read_write> strength: array<f32>;
+@group(0) @binding(3) var<storage, read_write> direction: array<f32>;
+@group(0) @binding(4) var<storage, read_write> offset_x: array<f32>;
+@group(0) @binding(5) var<storage, read_write> offset_y: array<f32>;
+
+// The crossing kept by the centre pixel `c` along one axis, from the pairs
+// (prev, c) and (c, next): (b − a, zero position − pixel position), or (0, 0).
+// Sign: v >= 0 counts as positive. The zero of a pair (a, b) lies at
+// t = a/(a − b) = |a|/(|a| + |b|); it belongs to the nearer pixel, i.e. to the
+// first one when |a| <= |b| (t <= 1/2). The steeper crossing wins; on a tie
+// the backward pair (prev, c).
+fn axis(prev: f32, c: f32, next: f32) -> vec2<f32> {
+    let back_slope = abs(c - prev);
+    let back = ((prev >= 0.0) != (c >= 0.0)) && back_slope >= params.min_slope && abs(prev) > abs(c);
+    let fwd_slope = abs(next - c);
+    let fwd = ((c >= 0.0) != (next >= 0.0)) && fwd_slope >= params.min_slope && abs(c) <= abs(next);
+    if (fwd && (!back || fwd_slope > back_slope)) {
+        return vec2<f32>(next - c, abs(c) / fwd_slope);
+    }
+    if (back) {
+        return vec2<f32>(c - prev, -(abs(c) / back_slope));
+    }
+    return vec2<f32>(0.0, 0.0);
+}
+
+@compute @workgroup_size(16, 16)
+fn edgels(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= params.width || id.y >= params.height) {
+        return;
+    }
+    let w = params.width;
+    let i = id.y * w + id.x;
+    let xl = max(id.x, 1u) - 1u;
+    let xr = min(id.x + 1u, w - 1u);
+    let yu = max(id.y, 1u) - 1u;
+    let yd = min(id.y + 1u, params.height - 1u);
+    let c = lap[i];
+    let h = axis(lap[id.y * w + xl], c, lap[id.y * w + xr]);
+    let v = axis(lap[yu * w + id.x], c, lap[yd * w + id.x]);
+    let s = sqrt(h.x * h.x + v.x * v.x);
+    strength[i] = s;
+    // atan2(0, 0) is not defined on every GPU: no edgel, direction 0.
+    var dir = 0.0;
+    if (s > 0.0) {
+        dir = atan2(v.x, h.x);
+    }
+    direction[i] = dir;
+    offset_x[i] = h.y;
+    offset_y[i] = v.y;
+}
