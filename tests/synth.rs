@@ -631,7 +631,7 @@ fn synth_generate_validates_before_writing() {
         Error::Parameter(msg) => assert!(msg.contains("pendulum"), "{msg}"),
         other => panic!("{other}"),
     }
-    assert_eq!(synth::scene_names(), ["pendulum"]);
+    assert!(synth::scene_names().contains(&"pendulum"));
     for (key, value) in [
         ("speed", "-3"),
         ("speed", "fast"),

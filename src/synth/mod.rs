@@ -42,9 +42,11 @@
 //!
 //! [`scene_names`] lists them, [`render_scene`] renders one in memory and
 //! [`generate`] renders and writes a sequence folder (SPEC §4). Today:
-//! `pendulum` ([`pendulum`], paper 000).
+//! `pendulum` ([`pendulum`], paper 000) and `target3dof` ([`target3dof`],
+//! paper 002: the back of a truck translating in front of a bookshelf).
 
 pub mod pendulum;
+pub mod target3dof;
 
 use std::path::{Path, PathBuf};
 
@@ -58,6 +60,7 @@ use crate::image::{FloatImage, GrayImage};
 use crate::{Error, Result};
 
 pub use pendulum::{PendulumMotion, PendulumOptions, PendulumSwing, render_pendulum};
+pub use target3dof::{Target3dofOptions, Target3dofScene, render_target3dof};
 
 /// Super-sampling factor used by the scenes unless told otherwise.
 pub const DEFAULT_SUPERSAMPLE: usize = 4;
@@ -975,12 +978,13 @@ fn check_output_dir(dir: &Path) -> Result<()> {
 /// The scenes [`render_scene`] and [`generate`] know.
 #[must_use]
 pub fn scene_names() -> &'static [&'static str] {
-    &["pendulum"]
+    &["pendulum", "target3dof"]
 }
 
 /// Render scene `scene` in memory. `frames` overrides the scene's default
 /// length; `extra` holds scene options as `(key, value)` strings (for
-/// `pendulum`: see [`PendulumOptions::set`]). Unknown scenes, keys or values are
+/// `pendulum`: see [`PendulumOptions::set`]; for `target3dof`: see
+/// [`Target3dofOptions::set`]). Unknown scenes, keys or values are
 /// [`Error::Parameter`]s naming what is known.
 pub fn render_scene(
     scene: &str,
@@ -1001,6 +1005,19 @@ pub fn render_scene(
                 opts.set(key, value)?;
             }
             render_pendulum(&opts)
+        }
+        "target3dof" => {
+            let mut opts = Target3dofOptions {
+                seed,
+                ..Target3dofOptions::default()
+            };
+            if let Some(n) = frames {
+                opts.frames = n;
+            }
+            for (key, value) in extra {
+                opts.set(key, value)?;
+            }
+            render_target3dof(&opts)
         }
         _ => Err(Error::Parameter(format!(
             "unknown scene '{scene}' (known scenes: {})",
