@@ -47,7 +47,7 @@ enum Command {
     },
     /// Render a synthetic sequence with exact ground truth.
     Synth {
-        /// Scene name (pendulum).
+        /// Scene name: pendulum (000) or target3dof (002).
         scene: String,
         /// Output folder (must be absent or empty).
         out_dir: PathBuf,
@@ -57,12 +57,15 @@ enum Command {
         /// Seed of textures and noise.
         #[arg(long, default_value_t = 0)]
         seed: u64,
-        /// Peak image speed, px/frame (pendulum).
+        /// Peak speed: px/frame for pendulum, rad/s of angular speed for target3dof.
         #[arg(long)]
         speed: Option<String>,
         /// Gaussian noise σ in grey levels.
         #[arg(long)]
         noise: Option<String>,
+        /// Fraction of the target hidden by an occluding bar, 0–0.3 (target3dof).
+        #[arg(long)]
+        occlude: Option<String>,
         /// Scene option KEY=VALUE (repeatable), e.g. --set background=cluttered.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
@@ -182,13 +185,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Synth { scene, out_dir, frames, seed, speed, noise, set } => {
+        Command::Synth { scene, out_dir, frames, seed, speed, noise, occlude, set } => {
             let mut extra = Vec::new();
             if let Some(v) = speed {
                 extra.push(("speed".to_string(), v));
             }
             if let Some(v) = noise {
                 extra.push(("noise".to_string(), v));
+            }
+            if let Some(v) = occlude {
+                extra.push(("occlude".to_string(), v));
             }
             for kv in set {
                 let (k, v) = kv

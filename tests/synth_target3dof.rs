@@ -538,12 +538,11 @@ fn synth_target3dof_generate_writes_the_contract_files() {
 }
 
 #[test]
-fn synth_target3dof_renders_300_frames_in_seconds() {
-    let start = std::time::Instant::now();
+fn synth_target3dof_renders_a_full_300_frame_sequence() {
+    // Speed belongs in benchmarks; this checks that a full-length sequence
+    // with occlusion renders completely and every frame differs from the last.
     let seq = render_target3dof(&options(1.2, 0.2, 2.0, 300)).unwrap();
-    let secs = start.elapsed().as_secs_f64();
-    println!("300 frames 640x480 in {secs:.2} s");
     assert_eq!(seq.frames.len(), 300);
-    // Generous: the test profile on two busy cores; release is several times faster.
-    assert!(secs < 120.0, "{secs} s");
+    assert_eq!(seq.truth.len(), 300);
+    assert!(seq.frames.windows(2).all(|p| p[0] != p[1]));
 }
