@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use crate::backend::{CpuBackend, EarlyVision, FrameRequest, GpuBackend};
+use crate::backend::{CpuBackend, EarlyVision, FrameRequest, FrameStats, GpuBackend};
 use crate::early::compaction::{self, CompactionGpu, CompactionParams};
 use crate::early::cpf::{self, CpfGpu, CpfPyramids};
 use crate::early::gaussian::{self, GaussianParams};
@@ -225,6 +225,15 @@ pub struct BenchRow {
     pub gpu_over_cpu: Option<f64>,
 }
 
+/// GPU work per frame of the whole chain at one size.
+#[derive(Clone, Debug, Serialize)]
+pub struct ChainCost {
+    /// `WxH`.
+    pub size: String,
+    /// Dispatches and bytes across the bus for one frame.
+    pub per_frame: FrameStats,
+}
+
 /// A whole comparison run.
 #[derive(Clone, Debug, Serialize)]
 pub struct BenchReport {
@@ -232,8 +241,22 @@ pub struct BenchReport {
     pub adapter: String,
     /// CPU threads used by the CPU backend.
     pub cpu_threads: usize,
-    /// Rows in stage-major order.
+    /// Rows in size-major order.
     pub rows: Vec<BenchRow>,
+    /// Per-frame GPU cost of the chain at each size (empty without a GPU).
+    pub gpu_chain: Vec<ChainCost>,
+}
+
+/// Dispatches and bytes moved for one frame of the full chain on the GPU.
+pub fn chain_cost(ctx: &GpuContext, inp: &Inputs) -> Result<FrameStats> {
+    let (w, h) = inp.luma.size();
+    let mut backend = GpuBackend::new(ctx.clone());
+    let request = FrameRequest::full_chain(w, h);
+    // The second frame has a previous one, so the motion stages run too.
+    for f in &inp.frames[..2] {
+        backend.process(f, &request)?;
+    }
+    Ok(backend.last_frame_stats())
 }
 
 /// Run every stage at every size on both backends.
@@ -244,8 +267,12 @@ pub fn compare(sizes: &[(usize, usize)], stages: &[&str], budget: Duration, mut 
         Err(e) => format!("none ({e})"),
     };
     let mut rows = Vec::new();
+    let mut gpu_chain = Vec::new();
     for &(w, h) in sizes {
         let inp = Inputs::new(w, h)?;
+        if let Ok(ctx) = &gpu {
+            gpu_chain.push(ChainCost { size: format!("{w}x{h}"), per_frame: chain_cost(ctx, &inp)? });
+        }
         for &stage in stages {
             let mut cpu = cpu_body(stage, &inp)?;
             let cpu_fps = frames_per_second(&mut cpu, cpu_frames_per_call(stage), budget)?;
@@ -268,5 +295,5 @@ pub fn compare(sizes: &[(usize, usize)], stages: &[&str], budget: Duration, mut 
             rows.push(row);
         }
     }
-    Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows })
+    Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows, gpu_chain })
 }

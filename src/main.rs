@@ -294,6 +294,13 @@ fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) 
     if json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
+        for c in &report.gpu_chain {
+            let f = &c.per_frame;
+            println!(
+                "gpu chain {:>10}: {} dispatches, {} bytes up, {} bytes back per frame",
+                c.size, f.dispatches, f.bytes_uploaded, f.bytes_read_back
+            );
+        }
         println!("adapter: {}\ncpu threads: {}", report.adapter, report.cpu_threads);
     }
     Ok(())

@@ -20,7 +20,7 @@ const SLOTS: usize = 3;
 const DEFAULT_PREFETCH: u32 = 4096;
 
 /// Counts of the last frame's GPU work: dispatches and bytes across the bus.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct FrameStats {
     /// Compute dispatches recorded for the frame.
     pub dispatches: u32,
