@@ -7,6 +7,7 @@
 
 pub mod early;
 pub mod error;
+pub mod estimate;
 pub mod fit;
 pub mod formats;
 pub mod gpu;
