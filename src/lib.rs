@@ -10,6 +10,7 @@ pub mod bench;
 pub mod cao;
 pub mod early;
 pub mod error;
+pub mod estimate;
 pub mod fit;
 pub mod formats;
 pub mod gpu;

@@ -9,8 +9,10 @@
 //! diagnostic data), which [`FrameOutcome::to_result`] turns into the output
 //! line of SPEC §4.
 
+pub mod blue;
 pub mod motion_edge;
 
+pub use blue::{BlueParams, BlueTracker, TargetLocation, TargetPrediction};
 pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker};
 
 use crate::backend::FrameRequest;
