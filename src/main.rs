@@ -26,7 +26,7 @@ enum Command {
     Track {
         /// Sequence folder (camera.json, model.json or model.cao, init.json, frames/).
         seq_dir: PathBuf,
-        /// Tracker: motion-edge.
+        /// Tracker: motion-edge (000) or blue (002).
         #[arg(long)]
         tracker: String,
         /// Early-vision backend.

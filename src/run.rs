@@ -10,11 +10,11 @@ use crate::backend::{BackendKind, EarlyVision, make_backend};
 use crate::formats::{FrameResult, Status};
 use crate::sequence::{AtomicFile, Sequence};
 use crate::image::GrayImage;
-use crate::track::{FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
+use crate::track::{BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
 use crate::{Error, Result};
 
 /// The `--tracker` names pipetrack knows.
-pub const TRACKERS: &[&str] = &["motion-edge"];
+pub const TRACKERS: &[&str] = &["motion-edge", "blue"];
 
 /// Read tracker parameters of type `P` from a TOML file: the table named after
 /// the tracker (`[motion-edge]`) when there is one, else the whole file.
@@ -32,6 +32,14 @@ pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>
         .map_err(|e: toml::de::Error| Error::input(path, one_line(&e.to_string())))
 }
 
+/// A parameter error blamed on the config file when there is one.
+fn config_error(config: Option<&Path>, e: Error) -> Error {
+    match config {
+        Some(path) => Error::input(path, e.to_string()),
+        None => e,
+    }
+}
+
 fn one_line(s: &str) -> String {
     s.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join("; ")
 }
@@ -41,11 +49,19 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
     match name {
         "motion-edge" => {
             let params: MotionEdgeParams = read_config(config, name)?;
+            params.validate().map_err(|e| config_error(config, e))?;
             if seq.init.corners.is_empty() {
                 return Err(Error::input(seq.dir().join("init.json"), "motion-edge needs \"corners\" (the operator's points)"));
             }
             let tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), params)
                 .map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
+            Ok(Box::new(tracker))
+        }
+        "blue" => {
+            let params: BlueParams = read_config(config, name)?;
+            params.validate().map_err(|e| config_error(config, e))?;
+            let tracker = BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), params)
+                .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
             Ok(Box::new(tracker))
         }
         other => Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", ")))),

@@ -117,6 +117,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::{Diagnostics, FrameOutcome, Needs, Observations, Phase, Tracker};
+use crate::backend::{EdgeRequest, FrameRequest, ListSpec};
+use crate::early::compaction::MAX_CAP;
 use crate::early::{Feature, Window};
 use crate::estimate::{
     BlueProblem, CornerCovariance, LineLocation, PolynomialSrif, intersect_lines,
@@ -1203,6 +1205,25 @@ impl Tracker for BlueTracker {
 
     fn window_of_interest(&self, width: usize, height: usize) -> Window {
         BlueTracker::window_of_interest(self, width, height)
+    }
+
+    /// §2.3: Sobel on the raw frame, magnitude above `edge_threshold`, inside
+    /// the window of interest, at most `max_edge_points` by the seeded subsample.
+    fn request(&self, width: usize, height: usize) -> FrameRequest {
+        let cap = u32::try_from(self.params.max_edge_points).unwrap_or(u32::MAX).min(MAX_CAP);
+        FrameRequest {
+            edges: Some(EdgeRequest {
+                threshold: self.params.edge_threshold,
+                smoothed: false,
+                list: ListSpec {
+                    window: BlueTracker::window_of_interest(self, width, height),
+                    cap: Some(cap),
+                    // Fold the 64-bit seed into the compaction's 32 bits.
+                    seed: (self.params.sample_seed ^ (self.params.sample_seed >> 32)) as u32,
+                },
+            }),
+            ..FrameRequest::default()
+        }
     }
 
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {
