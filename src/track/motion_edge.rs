@@ -94,6 +94,19 @@
 //!   prediction itself ([`MissingMeasurement::Prediction`], kept as an
 //!   option: lines and corners coast at the smoother's velocity); on a
 //!   pendulum that overshoots every turning point, by the lagging trend.
+//! - **Lines without motion pixels turn with the object**: a held line is
+//!   not frozen. An edge that moves along itself gets (almost) no motion
+//!   pixels, but the object may still turn: on the pendulum the rectangle
+//!   turns with the arm (36° per swing at 3.9 px/frame) while its top and
+//!   bottom edges only slide along themselves, and a frozen top line made
+//!   the left corners slide along the left line (18 px by frame 30 on the
+//!   demo, then loss). Each frame, a line that is not fitted turns by the
+//!   point-weighted mean turn of the fitted lines from their held positions
+//!   (a rigid planar object's edges all turn alike), about the middle of the
+//!   path of its segment's midpoint over the frame — the point of a line
+//!   without normal motion when the object turns about a distant centre
+//!   (exact for an edge tangent to a circle about the pivot, with no
+//!   second-order drift). Without fitted lines nothing turns.
 //!
 //! # Initialisation and loss
 //! The operator's corners (`init.json`) are the model at frame 0. The tracker
@@ -576,6 +589,8 @@ pub struct MotionEdgeTracker {
 struct Measurement {
     labelling: Labelling,
     fitted: Vec<Option<LineFit>>,
+    /// The lines the unfitted lines were taken as (held and turned, or the model's).
+    fallback_lines: Vec<Option<Line>>,
     corners: Vec<[f64; 2]>,
     measured: Vec<bool>,
     deviation: Option<f64>,
@@ -723,16 +738,16 @@ impl MotionEdgeTracker {
                 *fit = fit.filter(|f| f.perpendicular_residual_variance() <= spread * spread);
             }
         }
-        let (corners, measured) = if self.holds_lines() {
-            intersect_corners(
-                &fitted,
-                &self.held_lines,
-                &self.last_measured,
-                &self.corner_lines,
-            )
+        let (corners, measured, fallback_lines) = if self.holds_lines() {
+            let held = self.turned_held_lines(&fitted);
+            let (corners, measured) =
+                intersect_corners(&fitted, &held, &self.last_measured, &self.corner_lines);
+            (corners, measured, held)
         } else {
             let model_lines: Vec<Option<Line>> = lines.iter().map(|l| l.map(|l| l.line)).collect();
-            intersect_corners(&fitted, &model_lines, model, &self.corner_lines)
+            let (corners, measured) =
+                intersect_corners(&fitted, &model_lines, model, &self.corner_lines);
+            (corners, measured, model_lines)
         };
         let deviation = corner_deviation(&corners, &measured, model);
         let contradicted = (0..self.edges.len()).find(|&k| {
@@ -742,11 +757,62 @@ impl MotionEdgeTracker {
         Measurement {
             labelling,
             fitted,
+            fallback_lines,
             corners,
             measured,
             deviation,
             contradicted,
         }
+    }
+
+    /// The held lines of the lines not fitted this frame, turned with the
+    /// object (module doc, "Lines without motion pixels turn with the
+    /// object"): each by the point-weighted mean turn of the fitted lines
+    /// from their held positions, about the middle of the path of its
+    /// segment's midpoint (the point of the line without normal motion over
+    /// the frame when the object turns about a distant centre). Fitted lines
+    /// keep their held position here (the fit replaces it).
+    fn turned_held_lines(&self, fitted: &[Option<LineFit>]) -> Vec<Option<Line>> {
+        let (mut weight, mut turn) = (0.0, 0.0);
+        for (fit, held) in fitted.iter().zip(&self.held_lines) {
+            if let (Some(fit), Some(held)) = (fit, held) {
+                let w = fit.count as f64;
+                weight += w;
+                turn += w * signed_turn(held.orientation(), fit.line.orientation());
+            }
+        }
+        if !(weight > 0.0) || turn == 0.0 {
+            return self.held_lines.clone();
+        }
+        let turn = turn / weight;
+        let midpoint = |corners: &[[f64; 2]], [i, j]: [usize; 2]| {
+            [0.5 * (corners[i][0] + corners[j][0]), 0.5 * (corners[i][1] + corners[j][1])]
+        };
+        let turned = |centres: &dyn Fn(usize) -> [f64; 2]| -> Vec<Option<Line>> {
+            self.held_lines
+                .iter()
+                .enumerate()
+                .map(|(k, held)| {
+                    let held = (*held)?;
+                    if fitted[k].is_some() {
+                        return Some(held);
+                    }
+                    let q = held.project(centres(k));
+                    let phi = held.orientation() + turn;
+                    Line::through(q, [q[0] + phi.cos(), q[1] + phi.sin()]).or(Some(held))
+                })
+                .collect()
+        };
+        // First about the segment's last midpoint, then about the middle of
+        // that midpoint's path to the midpoint between the new corners.
+        let old_mid = |k: usize| midpoint(&self.last_measured, self.edges[k]);
+        let first = turned(&old_mid);
+        let (corners, _) = intersect_corners(fitted, &first, &self.last_measured, &self.corner_lines);
+        let path_mid = |k: usize| {
+            let (a, b) = (old_mid(k), midpoint(&corners, self.edges[k]));
+            [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]
+        };
+        turned(&path_mid)
     }
 
     /// [`Self::measure`] starting from `start`, then re-labelled around the
@@ -946,11 +1012,12 @@ impl MotionEdgeTracker {
         self.outcome(frame, Status::Tracking, reported, m, None)
     }
 
-    /// Keep this frame's fitted lines for the frames in which they get no points.
+    /// Keep this frame's lines (fitted, else the fallback used) for the
+    /// frames in which they get no points.
     fn hold_fitted_lines(&mut self, m: &Measurement) {
-        for (held, fit) in self.held_lines.iter_mut().zip(&m.fitted) {
-            if let Some(fit) = fit {
-                *held = Some(fit.line);
+        for ((held, fit), fallback) in self.held_lines.iter_mut().zip(&m.fitted).zip(&m.fallback_lines) {
+            if let Some(line) = fit.map(|f| f.line).or(*fallback) {
+                *held = Some(line);
             }
         }
     }
@@ -1146,6 +1213,13 @@ fn corner_lines_of(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> Result<Vec<[us
             }
         })
         .collect()
+}
+
+/// The signed turn from orientation `from` to `to` (both undirected, in
+/// [0, π)), in [−π/2, π/2).
+fn signed_turn(from: f64, to: f64) -> f64 {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    (to - from + FRAC_PI_2).rem_euclid(PI) - FRAC_PI_2
 }
 
 /// Bounding box of `points` grown by `margin`, as a window clipped to the
