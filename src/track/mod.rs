@@ -11,7 +11,9 @@
 
 pub mod motion_edge;
 
-pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker};
+pub use motion_edge::{
+    LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker, Prediction,
+};
 
 use crate::backend::FrameRequest;
 use crate::early::{Feature, Window};
