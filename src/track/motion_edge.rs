@@ -165,6 +165,21 @@
 //! pixels of its orientation (eq. 3) in the window were labelled to no line,
 //! even after the second chance. Eq. 9 alone cannot see an object that
 //! jumped out of the ζ strips: no corner is measured, so none is too far.
+//! Nor can either see an object that jumped out of the window of interest:
+//! no motion pixels at all, which [`MissingMeasurement::LastMeasurement`]
+//! reads as the object at rest. So a third loss (extension, *vanished
+//! motion*): no line fitted right after a frame in which every corner was
+//! measured (in it and the frame before) and the slowest had moved
+//! `vanished_motion` px or more (or the frame before that: the jump frame's
+//! own "band" is the vacated outline, half a frame's motion back). Continuous motion does not stop within a
+//! frame: at a pendulum's turning point the last bands are seen moving well
+//! under 1 px/frame (below ~0.3 px/frame an edge's temporal difference no
+//! longer passes the threshold; measured: ≤ 0.75 px/frame). Only measured
+//! displacements count: after a frame without data the smoother's trend
+//! still carries the speed before the turning point. On the rendered
+//! pendulum whose rectangle jumps 80 px mid-swing this is what reports the
+//! loss; an object slower than `vanished_motion` that vanishes looks like
+//! one coming to rest, and is not reported.
 //! When lost, the tracker keeps predicting (fed as for a missing
 //! measurement) and writes an outcome every frame with status `lost`; it
 //! re-acquires like the initial acquisition, around the predicted corners,
@@ -279,6 +294,11 @@ pub struct MotionEdgeParams {
     /// Unlabelled pixels of a starved line's orientation that declare it
     /// contradicted, i.e. the object lost (module doc).
     pub lost_evidence: usize,
+    /// A tracking frame in which no line is fitted right after a frame in
+    /// which every corner was measured moving at least this, px/frame, loses
+    /// the track (module doc, "vanished motion"); infinity disables the
+    /// check. Default 1.
+    pub vanished_motion: f64,
     /// Line fit of step 3.
     pub line_fit: LineFitMethod,
     /// Re-labelling passes around the fitted lines after the first one
@@ -306,6 +326,7 @@ impl Default for MotionEdgeParams {
             min_magnitude: 10.0,
             missing: MissingMeasurement::LastMeasurement,
             lost_evidence: 50,
+            vanished_motion: 1.0,
             refine_iterations: 3,
             line_fit: LineFitMethod::Across,
             prediction: Prediction::MeasuredVelocity,
@@ -360,6 +381,12 @@ impl MotionEdgeParams {
         non_negative("window_margin", self.window_margin)?;
         positive("init_tolerance", self.init_tolerance)?;
         non_negative("min_magnitude", f64::from(self.min_magnitude))?;
+        if !(self.vanished_motion >= 0.0) {
+            return Err(Error::Parameter(format!(
+                "motion-edge: vanished_motion must be ≥ 0, got {}",
+                self.vanished_motion
+            )));
+        }
         if self.lost_evidence == 0 {
             return Err(Error::Parameter(
                 "motion-edge: lost_evidence must be at least 1".into(),
@@ -647,6 +674,11 @@ pub struct MotionEdgeTracker {
     last_measured: Vec<[f64; 2]>,
     /// Band-time position measured in the previous frame, per corner.
     previous_measured: Vec<Option<[f64; 2]>>,
+    /// The slowest corner's measured displacement in the last frame, px,
+    /// when every corner was measured in it and in the frame before.
+    measured_speed: Option<f64>,
+    /// `measured_speed` of the frame before.
+    earlier_measured_speed: Option<f64>,
     /// Per model line: its last fitted position (initially the operator's).
     held_lines: Vec<Option<Line>>,
 }
@@ -696,6 +728,8 @@ impl MotionEdgeTracker {
             trend: vec![[0.0; 2]; n],
             last_measured: corners,
             previous_measured: vec![None; n],
+            measured_speed: None,
+            earlier_measured_speed: None,
             held_lines,
         })
     }
@@ -1066,7 +1100,18 @@ impl MotionEdgeTracker {
                 "line {k} has {} motion pixels of its orientation elsewhere and too few on it",
                 m.labelling.unexplained[k]
             )),
-            _ => None,
+            _ => {
+                // The frame before may be the jump itself, whose band is
+                // the vacated outline half a frame back: also the one before.
+                let expected = self.measured_speed.unwrap_or(0.0).max(self.earlier_measured_speed.unwrap_or(0.0));
+                (m.fitted.iter().all(Option::is_none) && expected >= self.params.vanished_motion)
+                    .then(|| {
+                        format!(
+                            "motion vanished: no line has motion pixels after moving {expected:.1} px/frame (vanished_motion {} px/frame)",
+                            self.params.vanished_motion
+                        )
+                    })
+            }
         };
         if let Some(reason) = reason {
             self.phase = Phase::Lost;
@@ -1126,6 +1171,17 @@ impl MotionEdgeTracker {
     ) -> Vec<[f64; 2]> {
         let shift = if self.params.lag_correction { 0.5 } else { 0.0 };
         let holding = self.params.missing == MissingMeasurement::LastMeasurement;
+        self.earlier_measured_speed = self.measured_speed;
+        self.measured_speed = corners
+            .iter()
+            .zip(measured)
+            .zip(&self.previous_measured)
+            .map(|((c, &m), p)| match (m, p) {
+                (true, Some(p)) => Some((c[0] - p[0]).hypot(c[1] - p[1])),
+                _ => None,
+            })
+            .try_fold(f64::INFINITY, |slowest, speed| speed.map(|v| slowest.min(v)))
+            .filter(|v| v.is_finite());
         let mut reported = Vec::with_capacity(corners.len());
         for (i, smoother) in self.smoothers.iter().enumerate() {
             let trend = smoother.trend();
@@ -1452,6 +1508,10 @@ mod tests {
             },
             MotionEdgeParams {
                 min_points_per_line: 1,
+                ..Default::default()
+            },
+            MotionEdgeParams {
+                vanished_motion: f64::NAN,
                 ..Default::default()
             },
         ] {
