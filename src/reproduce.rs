@@ -7,8 +7,9 @@
 //! (deterministic, and the GPU gives the same lists) and reports the mean
 //! corner error over the frames tracked, as the paper's "mean data error".
 //! Two configurations run: pipetrack's defaults, and the paper's method as
-//! printed (regression fits of eq. 5–8, one labelling pass, fixed ζ, coasting
-//! on predictions), keeping only the half-frame lag correction.
+//! printed (regression fits of eq. 5–8, one labelling pass, fixed ζ, eq. 12
+//! predictions, coasting on predictions), keeping only the half-frame lag
+//! correction.
 
 use std::fmt::Write as _;
 
@@ -17,7 +18,7 @@ use crate::formats::{FrameResult, Status};
 use crate::run::track_frames;
 use crate::score::score;
 use crate::synth::pendulum::{PendulumOptions, render_pendulum};
-use crate::track::motion_edge::{LineFitMethod, MissingMeasurement};
+use crate::track::motion_edge::{LineFitMethod, MissingMeasurement, Prediction};
 use crate::track::{MotionEdgeParams, MotionEdgeTracker};
 use crate::{Error, Result};
 
@@ -56,6 +57,7 @@ pub fn paper_literal() -> MotionEdgeParams {
         refine_iterations: 0,
         band_tolerance: false,
         missing: MissingMeasurement::Prediction,
+        prediction: Prediction::Smoothed,
         ..MotionEdgeParams::default()
     }
 }

@@ -16,7 +16,7 @@ use pipetrack::early::Feature;
 use pipetrack::formats::Status;
 use pipetrack::track::{
     FrameOutcome, LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker,
-    Observations, Phase, Tracker,
+    Observations, Phase, Prediction, Tracker,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -368,12 +368,13 @@ fn clutter_alone_does_not_move_a_resting_model() {
 #[test]
 fn paper_literal_configuration_tracks_the_paper_speeds() {
     // Eq. 4–8 as printed: one labelling pass, fixed ζ, regression fits,
-    // coasting on predictions; only the lag correction kept.
+    // eq. 12 predictions, coasting on predictions; only the lag correction kept.
     let paper = MotionEdgeParams {
         line_fit: LineFitMethod::Regression,
         refine_iterations: 0,
         band_tolerance: false,
         missing: MissingMeasurement::Prediction,
+        prediction: Prediction::Smoothed,
         ..MotionEdgeParams::default()
     };
     for (i, speed) in [1.1, 3.9, 4.5].into_iter().enumerate() {

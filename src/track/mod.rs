@@ -13,7 +13,7 @@ pub mod blue;
 pub mod motion_edge;
 
 pub use blue::{BlueParams, BlueTracker, TargetLocation, TargetPrediction};
-pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker};
+pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker, Prediction};
 
 use crate::backend::FrameRequest;
 use crate::early::{Feature, Window};
