@@ -137,7 +137,7 @@ impl LineLocation {
         let (independent_mean, independent_spread) = match fit.regression {
             Regression::YOnX => (mean[0], sxx),
             Regression::XOnY => (mean[1], syy),
-            Regression::Orthogonal => return None,
+            Regression::Orthogonal | Regression::Across => return None,
         };
         if !(independent_spread > 0.0) {
             return None;
