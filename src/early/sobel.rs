@@ -149,23 +149,27 @@ struct SobelUniform {
 /// Gradient direction in `(−π, π]` and edge orientation θ in `[0, π)` of
 /// the gradient `(gx, gy)`, with the conventions and guards of the module
 /// documentation (the shader's arithmetic, step by step).
+///
+/// Branch-free, so a row of pixels vectorises: every candidate is computed
+/// and the shader's branches become selects. Where `gx = 0` the quotient
+/// `gy / gx` is ±∞ or NaN and everything derived from it is discarded.
+#[inline]
 #[must_use]
 pub fn gradient_angles(gx: f32, gy: f32) -> (f32, f32) {
+    let a = fast_atan(gy / gx);
+    // 000 eq. 2: θ = atan(∇y/∇x) + π/2, folded into [0, π).
+    let theta = a + FRAC_PI_2;
+    let theta = if theta < 0.0 || theta >= PI { 0.0 } else { theta };
+    let down = a - PI;
+    let down = if down <= -PI { PI } else { down };
+    let direction = if gx > 0.0 {
+        a
+    } else if gy >= 0.0 {
+        a + PI
+    } else {
+        down
+    };
     if gx != 0.0 {
-        let a = fast_atan(gy / gx);
-        // 000 eq. 2: θ = atan(∇y/∇x) + π/2, folded into [0, π).
-        let mut theta = a + FRAC_PI_2;
-        if theta < 0.0 || theta >= PI {
-            theta = 0.0;
-        }
-        let direction = if gx > 0.0 {
-            a
-        } else if gy >= 0.0 {
-            a + PI
-        } else {
-            let d = a - PI;
-            if d <= -PI { PI } else { d }
-        };
         (direction, theta)
     } else if gy != 0.0 {
         (if gy > 0.0 { FRAC_PI_2 } else { -FRAC_PI_2 }, 0.0)
