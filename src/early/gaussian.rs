@@ -87,12 +87,18 @@ fn blur_row(src: &[f32], dst: &mut [f32], half: &[f32]) {
         return;
     }
     (0..r).for_each(|x| edge(x, dst));
-    for x in r..n - r {
-        let mut sum = half[0] * src[x];
-        for (k, &w) in half.iter().enumerate().skip(1) {
-            sum += w * (src[x - k] + src[x + k]);
+    // Interior, tap-major so the inner loop runs along the row over
+    // equal-length slices and vectorises; each pixel still sums its taps in
+    // the order k = 0, 1, …, r, like the shader.
+    let inner = &mut dst[r..n - r];
+    for (d, &c) in inner.iter_mut().zip(&src[r..n - r]) {
+        *d = half[0] * c;
+    }
+    for (k, &w) in half.iter().enumerate().skip(1) {
+        let (left, right) = (&src[r - k..n - r - k], &src[r + k..n - r + k]);
+        for ((d, &l), &rr) in inner.iter_mut().zip(left).zip(right) {
+            *d += w * (l + rr);
         }
-        dst[x] = sum;
     }
     (n - r..n).for_each(|x| edge(x, dst));
 }
