@@ -68,8 +68,11 @@ impl GaussianUniform {
     }
 }
 
+simd_dispatch!(fn blur_row(src: &[f32], dst: &mut [f32], half: &[f32]) => blur_row_body);
+
 /// One 1-D pass along a row, clamp-to-edge; same arithmetic order as the shader.
-fn blur_row(src: &[f32], dst: &mut [f32], half: &[f32]) {
+#[inline(always)]
+fn blur_row_body(src: &[f32], dst: &mut [f32], half: &[f32]) {
     let n = src.len();
     let r = half.len() - 1;
     let last = n as isize - 1;
@@ -103,8 +106,11 @@ fn blur_row(src: &[f32], dst: &mut [f32], half: &[f32]) {
     (n - r..n).for_each(|x| edge(x, dst));
 }
 
+simd_dispatch!(fn blur_col_row(src: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], half: &[f32]) => blur_col_row_body);
+
 /// One output row of the vertical pass: `dst = w0·row(y) + Σ w_k (row(y−k) + row(y+k))`.
-fn blur_col_row(src: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], half: &[f32]) {
+#[inline(always)]
+fn blur_col_row_body(src: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], half: &[f32]) {
     let last = height as isize - 1;
     let row = |yy: isize| {
         let yy = yy.clamp(0, last) as usize;
