@@ -10,7 +10,7 @@ use crate::early::ingest::ingest_gray_into;
 use crate::early::log::log_cpu;
 use crate::early::sobel::{SobelOutput, sobel_cpu};
 use crate::early::zero_crossing::{Edgels, zero_crossings_cpu};
-use crate::early::{frame_sum, temporal_diff};
+use crate::early::temporal_diff;
 use crate::image::{FloatImage, GrayImage};
 use crate::Result;
 
@@ -93,8 +93,8 @@ impl EarlyVision for CpuBackend {
             let mut list = list_from(&mut self.spare.motion);
             if let Some(prev) = &self.previous {
                 // 000 eq. 1: G*_t − G*_{t+1}, thresholded; eq. 2 on the sum of both.
-                temporal_diff::temporal_diff_cpu(prev, &self.smoothed, &m.diff, &mut self.motion_mask)?;
-                frame_sum::frame_sum_cpu(prev, &self.smoothed, &mut self.sum)?;
+                // Fused: one pass over both frames writes the mask and the sum.
+                temporal_diff::temporal_diff_and_sum_cpu(prev, &self.smoothed, &m.diff, &mut self.motion_mask, &mut self.sum)?;
                 sobel_cpu(&self.sum, &mut self.sobel_sum);
                 compact_cpu(
                     &self.motion_mask,
