@@ -14,6 +14,9 @@ struct Params {
     _pad: u32,
 }
 
+const PI: f32 = 3.14159265358979;
+const HALF_PI: f32 = 1.57079632679490;
+
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> lap: array<f32>;
 @group(0) @binding(2) var<storage, read_write> strength: array<f32>;
@@ -41,6 +44,31 @@ fn axis(prev: f32, c: f32, next: f32) -> vec2<f32> {
     return vec2<f32>(0.0, 0.0);
 }
 
+// atan2(y, x) in (−π, π] by the odd degree-15 polynomial of
+// src/early/angle.rs (`fast_atan2`), the same operations in the same order,
+// so both twins round alike; atan2(0, 0) = 0 (the builtin's is undefined).
+fn fast_atan2(y: f32, x: f32) -> f32 {
+    let ax = abs(x);
+    let ay = abs(y);
+    let hi = max(ax, ay);
+    let lo = min(ax, ay);
+    var a = 0.0;
+    if (hi > 0.0) {
+        a = lo / hi;
+    }
+    let s = a * a;
+    let p = ((((((-0.004054058 * s + 0.021861229) * s - 0.055909886) * s + 0.096420044) * s - 0.13908534) * s
+        + 0.19946536) * s - 0.33329856) * s + 0.99999933;
+    var r = p * a;
+    if (ay > ax) {
+        r = HALF_PI - r;
+    }
+    if (x < 0.0) {
+        r = PI - r;
+    }
+    return select(r, -r, y < 0.0);
+}
+
 @compute @workgroup_size(16, 16)
 fn edgels(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= params.width || id.y >= params.height) {
@@ -57,12 +85,8 @@ fn edgels(@builtin(global_invocation_id) id: vec3<u32>) {
     let v = axis(lap[yu * w + id.x], c, lap[yd * w + id.x]);
     let s = sqrt(h.x * h.x + v.x * v.x);
     strength[i] = s;
-    // atan2(0, 0) is not defined on every GPU: no edgel, direction 0.
-    var dir = 0.0;
-    if (s > 0.0) {
-        dir = atan2(v.x, h.x);
-    }
-    direction[i] = dir;
+    // No edgel: gx = gy = 0 and fast_atan2(0, 0) = 0, as on the CPU.
+    direction[i] = fast_atan2(v.x, h.x);
     offset_x[i] = h.y;
     offset_y[i] = v.y;
 }

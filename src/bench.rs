@@ -105,7 +105,8 @@ pub fn cpu_body<'a>(stage: &str, inp: &'a Inputs) -> Result<Body<'a>> {
             let request = FrameRequest::full_chain(w, h);
             let mut i = 0;
             Box::new(move || {
-                backend.process(&inp.frames[i % inp.frames.len()], &request)?;
+                let features = backend.process(&inp.frames[i % inp.frames.len()], &request)?;
+                backend.recycle(features);
                 i += 1;
                 Ok(())
             })

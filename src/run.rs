@@ -166,6 +166,7 @@ where
             zero_crossings: features.zero_crossings.as_deref(),
         };
         let outcome = tracker.track(i, &obs);
+        backend.recycle(features);
         let result = outcome.to_result(t0.elapsed().as_secs_f64() * 1e3);
         sink(&frame, &outcome, &result)?;
     }

@@ -3,13 +3,14 @@
 
 use super::{EarlyVision, FrameFeatures, FrameRequest, Pyramids};
 use crate::early::compaction::compact_cpu;
-use crate::early::cpf::{self, CpfPyramids, EdgePyramids};
+use crate::early::Feature;
+use crate::early::cpf;
 use crate::early::gaussian::smooth_cpu;
 use crate::early::ingest::ingest_gray_into;
 use crate::early::log::log_cpu;
 use crate::early::sobel::{SobelOutput, sobel_cpu};
 use crate::early::zero_crossing::{Edgels, zero_crossings_cpu};
-use crate::early::{frame_sum, temporal_diff};
+use crate::early::temporal_diff;
 use crate::image::{FloatImage, GrayImage};
 use crate::Result;
 
@@ -27,8 +28,9 @@ pub struct CpuBackend {
     sobel_edges: SobelOutput,
     log: FloatImage,
     edgels: Edgels,
-    cpf: CpfPyramids,
-    edge_pyramids: EdgePyramids,
+    /// Lists and pyramids handed back by [`EarlyVision::recycle`], refilled
+    /// by the next frame (no per-frame allocation, no copy of the levels).
+    spare: FrameFeatures,
 }
 
 impl Default for CpuBackend {
@@ -53,8 +55,7 @@ impl CpuBackend {
             sobel_edges: SobelOutput::new(0, 0),
             log: FloatImage::new(0, 0),
             edgels: Edgels::new(0, 0),
-            cpf: CpfPyramids::default(),
-            edge_pyramids: EdgePyramids::default(),
+            spare: FrameFeatures::default(),
         }
     }
 }
@@ -68,8 +69,18 @@ impl EarlyVision for CpuBackend {
         self.previous = None;
     }
 
+    fn recycle(&mut self, features: FrameFeatures) {
+        self.spare = features;
+    }
+
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {
         let mut out = FrameFeatures::default();
+        // An empty list (reusing a recycled allocation when there is one).
+        fn list_from(spare: &mut Option<Vec<Feature>>) -> Vec<Feature> {
+            let mut list = spare.take().unwrap_or_default();
+            list.clear();
+            list
+        }
         if self.previous.as_ref().is_some_and(|p| p.size() != frame.size()) {
             self.previous = None;
         }
@@ -79,11 +90,11 @@ impl EarlyVision for CpuBackend {
         }
 
         if let Some(m) = &request.motion {
-            let mut list = Vec::new();
+            let mut list = list_from(&mut self.spare.motion);
             if let Some(prev) = &self.previous {
                 // 000 eq. 1: G*_t − G*_{t+1}, thresholded; eq. 2 on the sum of both.
-                temporal_diff::temporal_diff_cpu(prev, &self.smoothed, &m.diff, &mut self.motion_mask)?;
-                frame_sum::frame_sum_cpu(prev, &self.smoothed, &mut self.sum)?;
+                // Fused: one pass over both frames writes the mask and the sum.
+                temporal_diff::temporal_diff_and_sum_cpu(prev, &self.smoothed, &m.diff, &mut self.motion_mask, &mut self.sum)?;
                 sobel_cpu(&self.sum, &mut self.sobel_sum);
                 compact_cpu(
                     &self.motion_mask,
@@ -99,7 +110,7 @@ impl EarlyVision for CpuBackend {
         if let Some(e) = &request.edges {
             let src = if e.smoothed { &self.smoothed } else { &self.luma };
             sobel_cpu(src, &mut self.sobel_edges);
-            let mut list = Vec::new();
+            let mut list = list_from(&mut self.spare.edges);
             let s = &self.sobel_edges;
             compact_cpu(&s.magnitude, &s.direction, &s.magnitude, &e.list.compaction(e.threshold), &mut list)?;
             out.edges = Some(list);
@@ -108,20 +119,25 @@ impl EarlyVision for CpuBackend {
         if let Some(z) = &request.zero_crossings {
             log_cpu(&self.luma, &z.log, &mut self.tmp, &mut self.tmp2, &mut self.log)?;
             zero_crossings_cpu(&self.log, &z.crossings, &mut self.edgels);
-            let mut list = Vec::new();
+            let mut list = list_from(&mut self.spare.zero_crossings);
             let ed = &self.edgels;
             compact_cpu(&ed.strength, &ed.direction, &ed.strength, &z.list.compaction(0.0), &mut list)?;
             out.zero_crossings = Some(list);
         }
 
         if request.builds_pyramids() {
-            cpf::cpf_cpu(&self.luma, &mut self.cpf);
+            // Computed straight into the levels handed out (recycled ones
+            // when the caller gave them back): no copy of every level.
+            let (mut cpf_levels, mut edge_levels) = self.spare.pyramids.take().unwrap_or_default();
+            cpf::cpf_cpu(&self.luma, &mut cpf_levels);
             if request.edges.is_none() || request.edges.is_some_and(|e| e.smoothed) {
                 sobel_cpu(&self.luma, &mut self.sobel_edges);
             }
-            cpf::edge_pyramids_cpu(&self.sobel_edges.gx, &self.sobel_edges.gy, &mut self.edge_pyramids)?;
+            cpf::edge_pyramids_cpu(&self.sobel_edges.gx, &self.sobel_edges.gy, &mut edge_levels)?;
             if request.pyramids == Pyramids::Return {
-                out.pyramids = Some((self.cpf.clone(), self.edge_pyramids.clone()));
+                out.pyramids = Some((cpf_levels, edge_levels));
+            } else {
+                self.spare.pyramids = Some((cpf_levels, edge_levels));
             }
         }
 
@@ -133,5 +149,28 @@ impl EarlyVision for CpuBackend {
             }
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testimage::natural;
+
+    /// Recycled lists and pyramid levels are refilled, not appended to: a
+    /// backend fed its own features back answers as one that is not.
+    #[test]
+    fn recycling_features_changes_nothing() {
+        let (w, h) = (40, 30);
+        let base = natural(w + 3, h, 7);
+        let frames: Vec<GrayImage> = (0..3).map(|k| GrayImage::from_fn(w, h, |x, y| base.get(x + k, y))).collect();
+        let request = FrameRequest::full_chain(w, h);
+        let (mut fresh, mut recycling) = (CpuBackend::new(), CpuBackend::new());
+        for f in &frames {
+            let expected = fresh.process(f, &request).unwrap();
+            let got = recycling.process(f, &request).unwrap();
+            assert_eq!(got, expected);
+            recycling.recycle(got);
+        }
     }
 }

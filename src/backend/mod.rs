@@ -164,6 +164,13 @@ pub trait EarlyVision {
 
     /// Forget the previous frame: the next frame starts a new sequence.
     fn reset(&mut self);
+
+    /// Hand a frame's features back once read, so that the next
+    /// [`process`](Self::process) refills their lists and pyramid levels
+    /// instead of allocating new ones (optional: a backend may ignore it).
+    fn recycle(&mut self, features: FrameFeatures) {
+        drop(features);
+    }
 }
 
 /// Which backend to run.

@@ -1,7 +1,10 @@
 //! A fast arctangent shared by the CPU twins; `shaders/sobel.wgsl` carries
-//! the same polynomial (`fast_atan`), operation for operation, so GPU and CPU
+//! the same polynomial (`fast_atan`) and `shaders/zero_crossing.wgsl` its
+//! `fast_atan2`, operation for operation, so GPU and CPU
 //! orientations agree to a few ULPs while the CPU avoids libm's `atan`, which
-//! would otherwise dominate the Sobel stage's cost.
+//! would otherwise dominate the Sobel and zero-crossing stages' cost. Both
+//! functions are branch-free in effect (every `if` is a select), so loops
+//! calling them vectorise.
 
 use std::f32::consts::{FRAC_PI_2, PI};
 

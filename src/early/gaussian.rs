@@ -68,8 +68,11 @@ impl GaussianUniform {
     }
 }
 
+simd_dispatch!(fn blur_row(src: &[f32], dst: &mut [f32], half: &[f32]) => blur_row_body);
+
 /// One 1-D pass along a row, clamp-to-edge; same arithmetic order as the shader.
-fn blur_row(src: &[f32], dst: &mut [f32], half: &[f32]) {
+#[inline(always)]
+fn blur_row_body(src: &[f32], dst: &mut [f32], half: &[f32]) {
     let n = src.len();
     let r = half.len() - 1;
     let last = n as isize - 1;
@@ -87,18 +90,27 @@ fn blur_row(src: &[f32], dst: &mut [f32], half: &[f32]) {
         return;
     }
     (0..r).for_each(|x| edge(x, dst));
-    for x in r..n - r {
-        let mut sum = half[0] * src[x];
-        for (k, &w) in half.iter().enumerate().skip(1) {
-            sum += w * (src[x - k] + src[x + k]);
+    // Interior, tap-major so the inner loop runs along the row over
+    // equal-length slices and vectorises; each pixel still sums its taps in
+    // the order k = 0, 1, …, r, like the shader.
+    let inner = &mut dst[r..n - r];
+    for (d, &c) in inner.iter_mut().zip(&src[r..n - r]) {
+        *d = half[0] * c;
+    }
+    for (k, &w) in half.iter().enumerate().skip(1) {
+        let (left, right) = (&src[r - k..n - r - k], &src[r + k..n - r + k]);
+        for ((d, &l), &rr) in inner.iter_mut().zip(left).zip(right) {
+            *d += w * (l + rr);
         }
-        dst[x] = sum;
     }
     (n - r..n).for_each(|x| edge(x, dst));
 }
 
+simd_dispatch!(fn blur_col_row(src: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], half: &[f32]) => blur_col_row_body);
+
 /// One output row of the vertical pass: `dst = w0·row(y) + Σ w_k (row(y−k) + row(y+k))`.
-fn blur_col_row(src: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], half: &[f32]) {
+#[inline(always)]
+fn blur_col_row_body(src: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], half: &[f32]) {
     let last = height as isize - 1;
     let row = |yy: isize| {
         let yy = yy.clamp(0, last) as usize;

@@ -123,9 +123,12 @@ impl LogUniform {
     }
 }
 
+simd_dispatch!(fn log_row(src: &[f32], tg: &mut [f32], td: &mut [f32], k: &LogKernels) => log_row_body);
+
 /// Row pass of one row, clamp-to-edge: `tg = g ∗ src`, `td = g'' ∗ src`,
 /// accumulated `k = 0, 1, …, r` on the pair sums like the shader.
-fn log_row(src: &[f32], tg: &mut [f32], td: &mut [f32], k: &LogKernels) {
+#[inline(always)]
+fn log_row_body(src: &[f32], tg: &mut [f32], td: &mut [f32], k: &LogKernels) {
     let (g, d) = (&k.gauss, &k.second);
     let n = src.len();
     let r = k.radius();
@@ -170,9 +173,12 @@ fn log_row(src: &[f32], tg: &mut [f32], td: &mut [f32], k: &LogKernels) {
     (n - r..n).for_each(|x| edge(x, tg, td));
 }
 
+simd_dispatch!(fn log_col_row(tg: &[f32], td: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], k: &LogKernels) => log_col_row_body);
+
 /// Column pass for output row `y`: `dst = Σ d_k (tg(y−k) + tg(y+k)) + Σ g_k (td(y−k) + td(y+k))`,
 /// each sum accumulated separately (k = 0, 1, …, r) and added last, like the shader.
-fn log_col_row(tg: &[f32], td: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], k: &LogKernels) {
+#[inline(always)]
+fn log_col_row_body(tg: &[f32], td: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], k: &LogKernels) {
     let (g, d) = (&k.gauss, &k.second);
     let last = height as isize - 1;
     // Columns x0..x0+n of row yy (clamped to the image).

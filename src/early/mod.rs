@@ -4,6 +4,33 @@
 //! its parameters, its CPU twin, its GPU `encode`, and a standalone
 //! `*_gpu` function for tests and benches.
 
+/// `fn $name(args)` that runs `$body(args)` compiled for AVX2 where the CPU
+/// has it (std caches the detection) and for the baseline target otherwise.
+/// The row loops of the twins vectorise either way; AVX2 doubles the lanes.
+/// Results are bit-identical: the same IEEE operations in the same order,
+/// only wider (FMA is not enabled, and Rust never contracts `a * b + c`).
+/// `$body` should be `#[inline(always)]` so it is compiled inside the AVX2
+/// function.
+macro_rules! simd_dispatch {
+    ($(#[$m:meta])* fn $name:ident($($arg:ident: $ty:ty),* $(,)?) => $body:ident) => {
+        $(#[$m])*
+        fn $name($($arg: $ty),*) {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx2")]
+                fn wide($($arg: $ty),*) {
+                    $body($($arg),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: `wide` only needs AVX2, which the CPU was just found to have.
+                    return unsafe { wide($($arg),*) };
+                }
+            }
+            $body($($arg),*)
+        }
+    };
+}
+
 pub mod angle;
 pub mod compaction;
 pub mod cpf;

@@ -73,6 +73,42 @@ fn diff_row(prev: &[f32], cur: &[f32], out: &mut [f32], threshold: f32) {
     }
 }
 
+/// The motion mask of `prev → cur` into `mask` and the frame sum `prev + cur`
+/// (000 eq. 2's input, see [`super::frame_sum`]) into `sum`, in one pass over
+/// the two frames: the CPU backend's fusion of the two stages, each output
+/// equal to its stage's own twin.
+pub fn temporal_diff_and_sum_cpu(
+    prev: &FloatImage,
+    cur: &FloatImage,
+    params: &TemporalDiffParams,
+    mask: &mut FloatImage,
+    sum: &mut FloatImage,
+) -> Result<()> {
+    params.validate()?;
+    prev.check_same_size(cur, "temporal difference prev/cur")?;
+    let (w, h) = prev.size();
+    mask.resize(w, h);
+    sum.resize(w, h);
+    if w == 0 || h == 0 {
+        return Ok(());
+    }
+    let t = params.threshold;
+    let rows = |((p, c), (m, s)): ((&[f32], &[f32]), (&mut [f32], &mut [f32]))| {
+        diff_row(p, c, m, t);
+        super::frame_sum::sum_row(p, c, s);
+    };
+    if w * h >= PARALLEL_PIXELS {
+        (prev.data().par_chunks(w).zip(cur.data().par_chunks(w)))
+            .zip(mask.data_mut().par_chunks_mut(w).zip(sum.data_mut().par_chunks_mut(w)))
+            .for_each(rows);
+    } else {
+        (prev.data().chunks(w).zip(cur.data().chunks(w)))
+            .zip(mask.data_mut().chunks_mut(w).zip(sum.data_mut().chunks_mut(w)))
+            .for_each(rows);
+    }
+    Ok(())
+}
+
 /// CPU twin: write the motion mask of `prev → cur` into `out` (resized to
 /// match). `prev` and `cur` must have the same size ([`Error::Size`]).
 pub fn temporal_diff_cpu(prev: &FloatImage, cur: &FloatImage, params: &TemporalDiffParams, out: &mut FloatImage) -> Result<()> {
@@ -141,6 +177,22 @@ mod tests {
 
     fn img(w: usize, h: usize, v: &[f32]) -> FloatImage {
         FloatImage::from_vec(w, h, v.to_vec()).unwrap()
+    }
+
+    /// The fused pass equals the two stages' own twins, small and threaded sizes.
+    #[test]
+    fn fused_diff_and_sum_equal_the_separate_twins() {
+        for (w, h) in [(7, 5), (320, 240)] {
+            let a = crate::testimage::natural(w, h, 1).to_f32();
+            let b = crate::testimage::natural(w, h, 2).to_f32();
+            let p = TemporalDiffParams::default();
+            let (mut mask, mut sum) = (FloatImage::new(0, 0), FloatImage::new(0, 0));
+            temporal_diff_and_sum_cpu(&a, &b, &p, &mut mask, &mut sum).unwrap();
+            let mut expected = FloatImage::new(0, 0);
+            temporal_diff_cpu(&a, &b, &p, &mut expected).unwrap();
+            assert_eq!(mask, expected);
+            assert_eq!(sum, crate::early::frame_sum::frame_sum(&a, &b).unwrap());
+        }
     }
 
     #[test]

@@ -18,7 +18,9 @@
 //! keeps the pair on the left / above). Then `gx = b − a` of the kept
 //! horizontal crossing (0 if none), `gy` likewise, and:
 //! - `strength = sqrt(gx² + gy²)`, 0 where the pixel has no edgel;
-//! - `direction = atan2(gy, gx)` (y down), 0 where strength is 0 — the
+//! - `direction = atan2(gy, gx)` (y down; both twins evaluate the polynomial
+//!   [`super::angle::fast_atan2`], operation for operation), 0 where
+//!   strength is 0 — the
 //!   direction in which the LoG *increases* across the edge, i.e. from the
 //!   bright side towards the dark side (opposite the intensity gradient: an
 //!   intensity step up to the right gives direction π);
@@ -33,6 +35,7 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
+use super::angle::fast_atan2;
 use super::gaussian::PARALLEL_PIXELS;
 use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
 use crate::image::FloatImage;
@@ -135,35 +138,39 @@ struct ZeroCrossingUniform {
 }
 
 /// The crossing kept by the centre pixel `c` along one axis, from the pairs
-/// `(prev, c)` and `(c, next)`: `(b − a, offset)`, or `(0, 0)`. Mirrors the
-/// shader's `axis` operation for operation.
+/// `(prev, c)` and `(c, next)`: `(b − a, offset)`, or `(0, 0)`. The shader's
+/// `axis`, the same values from the same operations, but branch-free: the
+/// kept pair is selected first and divided once (where neither is kept the
+/// quotient may be NaN and is discarded), so a row of pixels vectorises.
 #[inline(always)]
 fn axis(prev: f32, c: f32, next: f32, min_slope: f32) -> (f32, f32) {
+    let ac = c.abs();
+    let c_pos = c >= 0.0;
     // Pair (prev, c): this pixel is the second one, nearer when |prev| > |c|.
-    let back_slope = (c - prev).abs();
-    let back = ((prev >= 0.0) != (c >= 0.0)) && back_slope >= min_slope && prev.abs() > c.abs();
+    let back_g = c - prev;
+    let back_slope = back_g.abs();
+    let back = ((prev >= 0.0) != c_pos) & (back_slope >= min_slope) & (prev.abs() > ac);
     // Pair (c, next): this pixel is the first one, nearer when |c| ≤ |next|.
-    let fwd_slope = (next - c).abs();
-    let fwd = ((c >= 0.0) != (next >= 0.0)) && fwd_slope >= min_slope && c.abs() <= next.abs();
-    if fwd && (!back || fwd_slope > back_slope) {
-        (next - c, c.abs() / fwd_slope)
-    } else if back {
-        (c - prev, -(c.abs() / back_slope))
-    } else {
-        (0.0, 0.0)
-    }
+    let fwd_g = next - c;
+    let fwd_slope = fwd_g.abs();
+    let fwd = (c_pos != (next >= 0.0)) & (fwd_slope >= min_slope) & (ac <= next.abs());
+    let take_fwd = fwd & (!back | (fwd_slope > back_slope));
+    let (g, slope) = if take_fwd { (fwd_g, fwd_slope) } else { (back_g, back_slope) };
+    // |c| / slope: the zero's distance from this pixel, forwards or backwards.
+    let t = ac / slope;
+    let o = if take_fwd { t } else { -t };
+    if take_fwd | back { (g, o) } else { (0.0, 0.0) }
 }
 
 /// One pixel's outputs `(strength, direction, offset_x, offset_y)` from its
-/// value and its 4 (clamped) neighbours.
+/// value and its 4 (clamped) neighbours. Branch-free; `fast_atan2(0, 0)` is
+/// 0, so the direction needs no guard where there is no edgel.
 #[inline(always)]
 fn edgel(c: f32, left: f32, right: f32, up: f32, down: f32, min_slope: f32) -> (f32, f32, f32, f32) {
     let (gx, ox) = axis(left, c, right, min_slope);
     let (gy, oy) = axis(up, c, down, min_slope);
     let strength = (gx * gx + gy * gy).sqrt();
-    // atan2(0, 0) is guarded explicitly, as in the shader.
-    let direction = if strength > 0.0 { gy.atan2(gx) } else { 0.0 };
-    (strength, direction, ox, oy)
+    (strength, fast_atan2(gy, gx), ox, oy)
 }
 
 /// Output rows of one image row `cur`, with the rows above and below
@@ -175,24 +182,35 @@ struct RowOut<'a> {
     offset_y: &'a mut [f32],
 }
 
-fn edgel_row(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: RowOut<'_>) {
+simd_dispatch!(fn edgel_row(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: RowOut<'_>) => edgel_row_body);
+
+/// One output row: the interior columns in one straight, vectorisable loop
+/// over equal-length slices (no clamping, no bounds checks), then the two
+/// border columns with their clamped neighbours.
+#[inline(always)]
+fn edgel_row_body(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: RowOut<'_>) {
     let w = cur.len();
+    let RowOut { strength, direction, offset_x, offset_y } = out;
     let mut put = |x: usize, left: f32, right: f32| {
-        let (s, d, ox, oy) = edgel(cur[x], left, right, up[x], down[x], min_slope);
-        out.strength[x] = s;
-        out.direction[x] = d;
-        out.offset_x[x] = ox;
-        out.offset_y[x] = oy;
+        (strength[x], direction[x], offset_x[x], offset_y[x]) = edgel(cur[x], left, right, up[x], down[x], min_slope);
     };
     if w == 1 {
         put(0, cur[0], cur[0]);
         return;
     }
     put(0, cur[0], cur[1]);
-    for x in 1..w - 1 {
-        put(x, cur[x - 1], cur[x + 1]);
-    }
     put(w - 1, cur[w - 2], cur[w - 1]);
+    if w < 3 {
+        return;
+    }
+    let n = w - 2;
+    let (l, c, r) = (&cur[..n], &cur[1..=n], &cur[2..n + 2]);
+    let (u, d) = (&up[1..=n], &down[1..=n]);
+    let (s, dir) = (&mut strength[1..=n], &mut direction[1..=n]);
+    let (ox, oy) = (&mut offset_x[1..=n], &mut offset_y[1..=n]);
+    for i in 0..n {
+        (s[i], dir[i], ox[i], oy[i]) = edgel(c[i], l[i], r[i], u[i], d[i], min_slope);
+    }
 }
 
 /// CPU twin: the edgels of the LoG image `log` into `out` (resized to match).
@@ -305,6 +323,34 @@ mod tests {
     use super::*;
     use crate::early::log::{LogParams, laplacian_of_gaussian};
     use std::f32::consts::PI;
+
+    /// The dispatched row (AVX2 where the CPU has it) equals the baseline
+    /// build of the same body bit for bit, on every plane.
+    #[test]
+    fn dispatched_rows_equal_baseline_rows_bitwise() {
+        let (w, h) = (41, 11);
+        let l = laplacian_of_gaussian(&crate::testimage::natural(w, h, 5).to_f32(), &LogParams::default()).unwrap();
+        let p = ZeroCrossingParams::default();
+        let fast = zero_crossings(&l, &p);
+        assert!(fast.count() > 0);
+        let mut base = Edgels::new(w, h);
+        let row = |y: usize| &l.data()[y * w..(y + 1) * w];
+        for y in 0..h {
+            let r = y * w..(y + 1) * w;
+            let Edgels { strength, direction, offset_x, offset_y } = &mut base;
+            let out = RowOut {
+                strength: &mut strength.data_mut()[r.clone()],
+                direction: &mut direction.data_mut()[r.clone()],
+                offset_x: &mut offset_x.data_mut()[r.clone()],
+                offset_y: &mut offset_y.data_mut()[r],
+            };
+            edgel_row_body(row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)), p.effective_min_slope(), out);
+        }
+        let bits = |e: &Edgels| -> Vec<u32> {
+            [&e.strength, &e.direction, &e.offset_x, &e.offset_y].iter().flat_map(|p| p.data().iter().map(|v| v.to_bits())).collect()
+        };
+        assert_eq!(bits(&fast), bits(&base));
+    }
 
     /// Columns 0..=4 are 0, 5..=9 are 100. The LoG is antisymmetric about
     /// x = 4.5 (L(9 − x) = −L(x), since LoG(100 − f) = −LoG(f)): positive on
