@@ -41,7 +41,7 @@
 //! 1. Prediction (6a): the motion models give (c_x, c_y, c_z) at this frame;
 //!    the model's visible edges (those bordering a face that faces the
 //!    camera, SPEC §4; every edge when the model has no faces) are projected.
-//! 1b. Coarse alignment (extension, [`BlueParams::align`]): the model is
+//!    Then coarse alignment (extension, [`BlueParams::align`]): the model is
 //!    shifted in the image by the translation (within ± the association
 //!    distance, 1-px grid) that the edge pixels support jointly: each pixel
 //!    votes, for every visible line of compatible orientation, for the
@@ -178,7 +178,7 @@ pub struct BlueParams {
     /// Re-association passes (step 7); 0: the paper's single pass. 3 lets an
     /// estimate pulled by clutter in the wide first strips walk back.
     pub refine_passes: usize,
-    /// Coarse alignment before association (step 1b, extension): the image
+    /// Coarse alignment before association (step 1, extension): the image
     /// shift of the predicted model within ± the association distance that
     /// the most compatible edge pixels support jointly (a Hough vote over all
     /// visible lines), after which the first association uses the narrow
@@ -810,7 +810,7 @@ impl BlueTracker {
         }
         let distance = self.association_distance();
         let mut pass = if predicted.is_valid() {
-            // Step 1b: coarse alignment, then the narrow first association.
+            // Step 1: coarse alignment, then the narrow first association.
             let aligned = if self.params.align {
                 self.align_shift(edges, &predicted, distance).map(|[sx, sy]| TargetLocation {
                     cx: predicted.cx + sx,
@@ -960,7 +960,7 @@ impl BlueTracker {
             .collect()
     }
 
-    /// Step 1b (extension, [`BlueParams::align`]): the image shift (s_x, s_y),
+    /// Coarse alignment of step 1 (extension, [`BlueParams::align`]): the image shift (s_x, s_y),
     /// |s_x|, |s_y| ≤ `radius`, of the model projected at `model` that the
     /// edge pixels support best. Every pixel votes, for each visible line of
     /// compatible orientation, for the shifts that put it on that line
