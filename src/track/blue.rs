@@ -41,6 +41,22 @@
 //! 1. Prediction (6a): the motion models give (c_x, c_y, c_z) at this frame;
 //!    the model's visible edges (those bordering a face that faces the
 //!    camera, SPEC §4; every edge when the model has no faces) are projected.
+//!    Then coarse alignment (extension, [`BlueParams::align`]): the model is
+//!    shifted in the image by the translation (within ± the association
+//!    distance, 1-px grid) that the edge pixels support jointly: each pixel
+//!    votes, for every visible line of compatible orientation, for the
+//!    shifts that would put it on that line. Only the target's own lines,
+//!    of many orientations, agree on one shift; a background edge supports
+//!    a whole line of shifts. Steps 2–6 then run around the shifted model
+//!    with the narrow [`BlueParams::refine_distance`]. Without it the first
+//!    association needs strips as wide as the prediction error (up to
+//!    10 px at 1.2 rad/s), and at long range, where the whole target is
+//!    26–36 px wide, such strips take in the target's other edges (door
+//!    divider, light boxes, bumper) and the bookshelf behind it: the fits
+//!    turn beyond the angle tolerance, are refused, no corner is left and
+//!    the frame is lost although the prediction was right (target3dof at
+//!    0.3 rad/s, frame 230); the same wide strips around a target that had
+//!    moved made re-acquisition fail.
 //! 2. Data association (§2.4): an edge pixel joins the visible model line
 //!    whose orientation is within [`BlueParams::angle_tolerance`] (modulo π)
 //!    and whose segment lies within the association distance (perpendicular,
@@ -162,8 +178,18 @@ pub struct BlueParams {
     /// Re-association passes (step 7); 0: the paper's single pass. 3 lets an
     /// estimate pulled by clutter in the wide first strips walk back.
     pub refine_passes: usize,
+    /// Coarse alignment before association (step 1, extension): the image
+    /// shift of the predicted model within ± the association distance that
+    /// the most compatible edge pixels support jointly (a Hough vote over all
+    /// visible lines), after which the first association uses the narrow
+    /// [`BlueParams::refine_distance`]. Off: the paper's single association
+    /// around the prediction with the wide distance.
+    pub align: bool,
     /// Pixels whose foot lies within this distance of a segment end are not
-    /// associated, px.
+    /// associated, px. 2: the 3×3 Sobel blurs the two lines of a corner into
+    /// each other over about a pixel, whatever the target's size; a margin
+    /// of 4 px left a 13-px model edge of the target at 5 m (26 px wide) too
+    /// few pixels to fit, and those corners were never measured.
     pub end_margin: f64,
     /// Fewest associated pixels to fit a line (≥ 3).
     pub min_points_per_line: usize,
@@ -199,7 +225,11 @@ pub struct BlueParams {
     /// `min_corners` remain (extension: the paper only down-weights), px.
     pub max_corner_inconsistency: f64,
     /// Floor on each |e_j| in eq. 12, px (a perfect fit does not make the
-    /// location exact).
+    /// location exact). 0.2: the corners of Sobel edges on rendered frames
+    /// are good to a few tenths of a pixel; a floor of 0.05 px let one
+    /// frame whose few corners happened to agree outweigh the motion
+    /// models' memory (eq. 14 weights by 1/C_l), and its error was
+    /// extrapolated into the next predictions.
     pub min_feature_std: f64,
     /// Margin of the window of interest beyond the association distance, px.
     pub window_margin: f64,
@@ -228,7 +258,8 @@ impl Default for BlueParams {
             acquire_distance: 30.0,
             refine_distance: 5.0,
             refine_passes: 3,
-            end_margin: 4.0,
+            align: true,
+            end_margin: 2.0,
             min_points_per_line: 10,
             min_point_std: 1.0 / 12f64.sqrt(),
             corner_covariance: CornerCovariance::LineLocation,
@@ -240,7 +271,7 @@ impl Default for BlueParams {
             min_corners: 2,
             max_inconsistency: 3.0,
             max_corner_inconsistency: 2.0,
-            min_feature_std: 0.05,
+            min_feature_std: 0.2,
             window_margin: 10.0,
             prior_speed: 30.0,
             prior_acceleration: 2.0,
@@ -779,7 +810,22 @@ impl BlueTracker {
         }
         let distance = self.association_distance();
         let mut pass = if predicted.is_valid() {
-            self.measure(edges, &predicted, &predicted, distance)
+            // Step 1: coarse alignment, then the narrow first association.
+            let aligned = if self.params.align {
+                self.align_shift(edges, &predicted, distance).map(|[sx, sy]| TargetLocation {
+                    cx: predicted.cx + sx,
+                    cy: predicted.cy + sy,
+                    cz: predicted.cz,
+                })
+            } else {
+                None
+            };
+            match aligned {
+                Some(model) => {
+                    self.measure(edges, &model, &predicted, self.params.refine_distance)
+                }
+                None => self.measure(edges, &predicted, &predicted, distance),
+            }
         } else {
             self.failed_pass(
                 &predicted,
@@ -897,6 +943,101 @@ impl BlueTracker {
         }
     }
 
+    /// The visible model lines projected at `location` (step 1).
+    fn predicted_lines(&self, location: &TargetLocation) -> Vec<Option<PredictedLine>> {
+        let vertices = self.vertices_at(location);
+        let visible = self.visible_edges(location);
+        self.edges
+            .iter()
+            .zip(&visible)
+            .map(|(&[i, j], &v)| {
+                if v {
+                    PredictedLine::between(vertices[i], vertices[j])
+                } else {
+                    None
+                }
+            })
+            .collect()
+    }
+
+    /// Coarse alignment of step 1 (extension, [`BlueParams::align`]): the image shift (s_x, s_y),
+    /// |s_x|, |s_y| ≤ `radius`, of the model projected at `model` that the
+    /// edge pixels support best. Every pixel votes, for each visible line of
+    /// compatible orientation, for the shifts that put it on that line
+    /// (foot inside the segment less the end margins): a line n·s = d in the
+    /// 1-px shift grid. The peak of the 3×3-summed votes is where many lines
+    /// of different orientations agree; a background edge supports only
+    /// shifts along one direction. `None` when no pixel votes.
+    fn align_shift(&self, edges: &[Feature], model: &TargetLocation, radius: f64) -> Option<[f64; 2]> {
+        let p = &self.params;
+        let lines: Vec<PredictedLine> = self.predicted_lines(model).into_iter().flatten().collect();
+        if lines.is_empty() || !(radius >= 0.0) {
+            return None;
+        }
+        let r = radius.ceil() as i64;
+        let n = (2 * r + 1) as usize;
+        let mut votes = vec![0u32; n * n];
+        for feature in edges {
+            if !(feature.magnitude >= p.edge_threshold) || !feature.theta.is_finite() {
+                continue;
+            }
+            let point = [f64::from(feature.x), f64::from(feature.y)];
+            let orientation =
+                wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2);
+            for line in &lines {
+                if orientation_difference(orientation, line.orientation) >= p.angle_tolerance {
+                    continue;
+                }
+                let d = line.line.signed_distance(point);
+                if d.abs() > radius * std::f64::consts::SQRT_2 + 1.0 {
+                    continue;
+                }
+                let s = line.along(point);
+                let (a, b) = (line.line.a, line.line.b);
+                let [ux, uy] = line.direction;
+                let mut vote = |ix: i64, iy: i64| {
+                    if ix.abs() > r || iy.abs() > r {
+                        return;
+                    }
+                    // The foot of the pixel on the shifted segment.
+                    let along = s - (ux * ix as f64 + uy * iy as f64);
+                    if along >= p.end_margin && along <= line.length - p.end_margin {
+                        votes[(iy + r) as usize * n + (ix + r) as usize] += 1;
+                    }
+                };
+                // Shifted line: a·(x − s_x) + b·(y − s_y) + c = 0 ⇔ a·s_x + b·s_y = d.
+                if a.abs() >= b.abs() {
+                    for iy in -r..=r {
+                        let sx = (d - b * iy as f64) / a;
+                        vote(sx.round() as i64, iy);
+                    }
+                } else {
+                    for ix in -r..=r {
+                        let sy = (d - a * ix as f64) / b;
+                        vote(ix, sy.round() as i64);
+                    }
+                }
+            }
+        }
+        let mut best: Option<(u32, i64, i64)> = None;
+        for iy in -r..=r {
+            for ix in -r..=r {
+                let mut sum = 0;
+                for jy in (iy - 1).max(-r)..=(iy + 1).min(r) {
+                    for jx in (ix - 1).max(-r)..=(ix + 1).min(r) {
+                        sum += votes[(jy + r) as usize * n + (jx + r) as usize];
+                    }
+                }
+                // Ties go to the smaller shift (the prediction is a prior).
+                let closer = |bx: i64, by: i64| ix * ix + iy * iy < bx * bx + by * by;
+                if sum > 0 && best.is_none_or(|(bs, bx, by)| sum > bs || (sum == bs && closer(bx, by))) {
+                    best = Some((sum, ix, iy));
+                }
+            }
+        }
+        best.map(|(_, ix, iy)| [ix as f64, iy as f64])
+    }
+
     /// Steps 2–6 with the model at `model` and association distance
     /// `distance`; `predicted` is only used for the corner deviation.
     fn measure(
@@ -908,19 +1049,7 @@ impl BlueTracker {
     ) -> Pass {
         let p = &self.params;
         let vertices = self.vertices_at(model);
-        let visible = self.visible_edges(model);
-        let lines: Vec<Option<PredictedLine>> = self
-            .edges
-            .iter()
-            .zip(&visible)
-            .map(|(&[i, j], &v)| {
-                if v {
-                    PredictedLine::between(vertices[i], vertices[j])
-                } else {
-                    None
-                }
-            })
-            .collect();
+        let lines = self.predicted_lines(model);
         // Step 2: data association (§2.4).
         let mut sums: Vec<LineSums> = lines
             .iter()
