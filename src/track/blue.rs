@@ -132,7 +132,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{Diagnostics, FrameOutcome, Needs, Observations, Phase, Tracker};
+use super::{Diagnostics, FrameOutcome, Observations, Phase, Tracker};
 use crate::backend::{EdgeRequest, FrameRequest, ListSpec};
 use crate::early::compaction::MAX_CAP;
 use crate::early::{Feature, Window};
@@ -1323,13 +1323,6 @@ const CORNER_GATE_SLACK_PX: f64 = 2.0;
 impl Tracker for BlueTracker {
     fn name(&self) -> &'static str {
         "blue"
-    }
-
-    fn needs(&self) -> Needs {
-        Needs {
-            edges: true,
-            ..Needs::default()
-        }
     }
 
     fn window_of_interest(&self, width: usize, height: usize) -> Window {

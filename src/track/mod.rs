@@ -31,17 +31,6 @@ pub struct Observations<'a> {
     pub zero_crossings: Option<&'a [Feature]>,
 }
 
-/// Which feature lists a tracker reads.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Needs {
-    /// Motion pixels (000).
-    pub motion: bool,
-    /// Edge pixels (002).
-    pub edges: bool,
-    /// LoG zero crossings (001).
-    pub zero_crossings: bool,
-}
-
 /// Where a tracker is in its cycle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Phase {
@@ -116,15 +105,12 @@ pub trait Tracker {
     /// The `--tracker` name (SPEC §3).
     fn name(&self) -> &'static str;
 
-    /// Which feature lists [`Tracker::track`] reads.
-    fn needs(&self) -> Needs;
-
     /// Where the next frame's features are needed, clipped to the image.
     fn window_of_interest(&self, width: usize, height: usize) -> Window;
 
     /// What early vision must compute for the next frame of a
-    /// `width`×`height` sequence: the lists of [`Tracker::needs`], inside
-    /// [`Tracker::window_of_interest`], with the tracker's own parameters.
+    /// `width`×`height` sequence: the feature lists [`Tracker::track`] reads,
+    /// inside [`Tracker::window_of_interest`], with the tracker's own parameters.
     fn request(&self, width: usize, height: usize) -> FrameRequest;
 
     /// Take the features of frame `frame` and report the frame's outcome.

@@ -187,7 +187,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{Diagnostics, FrameOutcome, Needs, Observations, Phase, Tracker};
+use super::{Diagnostics, FrameOutcome, Observations, Phase, Tracker};
 use crate::backend::{FrameRequest, ListSpec, MotionRequest};
 use crate::early::gaussian::GaussianParams;
 use crate::early::temporal_diff::TemporalDiffParams;
@@ -1260,13 +1260,6 @@ impl MotionEdgeTracker {
 impl Tracker for MotionEdgeTracker {
     fn name(&self) -> &'static str {
         "motion-edge"
-    }
-
-    fn needs(&self) -> Needs {
-        Needs {
-            motion: true,
-            ..Needs::default()
-        }
     }
 
     fn window_of_interest(&self, width: usize, height: usize) -> Window {
