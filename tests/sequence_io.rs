@@ -404,3 +404,24 @@ fn y4m_frames_are_checked_against_the_camera() {
     .collect::<pipetrack::Result<Vec<_>>>();
     assert!(input_error(garbage, "-").starts_with("not a YUV4MPEG2 stream"));
 }
+
+#[test]
+fn bundled_cube_cao_reads_as_a_closed_box() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cube.cao");
+    let model = pipetrack::cao::read_cao(&path).expect("assets/cube.cao parses");
+    assert_eq!(model.vertices.len(), 8);
+    assert_eq!(model.faces.len(), 6);
+    // A closed box: 12 distinct edges, every edge shared by exactly two faces.
+    assert_eq!(model.edges.len(), 12);
+    for e in &model.edges {
+        let shared = model
+            .faces
+            .iter()
+            .filter(|f| (0..f.len()).any(|i| {
+                let (a, b) = (f[i], f[(i + 1) % f.len()]);
+                (a, b) == (e[0], e[1]) || (b, a) == (e[0], e[1])
+            }))
+            .count();
+        assert_eq!(shared, 2, "edge {e:?}");
+    }
+}
