@@ -15,7 +15,7 @@ use crate::early::sobel::{self, SobelGpu, SobelOutput};
 use crate::early::temporal_diff::{self, TemporalDiffParams};
 use crate::early::zero_crossing::{self, Edgels, EdgelsGpu, ZeroCrossingParams};
 use crate::early::{Window, frame_sum};
-use crate::gpu::{GpuContext, GpuImage, Recorder, uniform_arena};
+use crate::gpu::{FrameArena, GpuContext, GpuImage, Recorder};
 use crate::image::{FloatImage, GrayImage};
 use crate::testimage::natural;
 use crate::{Error, Result};
@@ -141,7 +141,7 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
     let edg = EdgelsGpu::new(ctx, w, h);
     let pyr = CpfGpu::new(ctx, w, h);
     let list = CompactionGpu::new(ctx, w * h, Some(1500))?;
-    let arena = uniform_arena(ctx);
+    let arena = FrameArena::new(ctx);
     let stage: &'static str = STAGES.iter().copied().find(|s| *s == stage).ok_or_else(|| Error::Parameter(format!("unknown stage {stage:?}")))?;
     // Inputs that are outputs of earlier stages are computed once up front.
     crate::gpu::run_once(ctx, |rec| {

@@ -119,14 +119,6 @@ impl<T: Copy + Default> Image<T> {
     }
 }
 
-impl<U> Image<U> {
-    /// Width and height of any image, for size checks across pixel types.
-    #[must_use]
-    pub fn dims(&self) -> (usize, usize) {
-        (self.width, self.height)
-    }
-}
-
 /// An 8-bit grey frame.
 pub type GrayImage = Image<u8>;
 /// A 32-bit float image (intensities stay in the 0..255 scale of the input).

@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use crate::backend::{BackendKind, EarlyVision, make_backend};
 use crate::formats::{FrameResult, Status};
-use crate::sequence::{AtomicFile, Sequence};
+use crate::sequence::{AtomicFile, Sequence, StagedDir};
 use crate::image::GrayImage;
 use crate::track::{BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
 use crate::{Error, Result};
@@ -99,16 +99,15 @@ pub struct RunSummary {
 }
 
 /// Track `seq` and write one JSON line per frame to `out`; with
-/// `opts.overlay`, write one PNG per frame into that folder (staged in a
-/// sibling `.partial` folder and renamed at the end, so an interrupted run
-/// never leaves a folder that looks complete).
+/// `opts.overlay`, write one PNG per frame into that folder (a
+/// [`StagedDir`]: an interrupted run never leaves a folder that looks complete).
 pub fn track_sequence(seq: &Sequence, opts: &TrackOptions, out: &mut dyn Write, mut on_result: impl FnMut(&FrameResult)) -> Result<RunSummary> {
     let mut tracker = make_tracker(&opts.tracker, seq, opts.config.as_deref())?;
     let (mut backend, fallback) = make_backend(opts.backend);
     if let Some(reason) = &fallback {
         eprintln!("pipetrack: no GPU ({reason})");
     }
-    let overlay = opts.overlay.as_deref().map(OverlayDir::create).transpose()?;
+    let overlay = opts.overlay.as_deref().map(StagedDir::create).transpose()?;
     let (w, h) = (seq.camera.width as usize, seq.camera.height as usize);
     let frames = seq.frames();
     let bar = progress_bar(opts.progress, frames.len_hint());
@@ -120,7 +119,8 @@ pub fn track_sequence(seq: &Sequence, opts: &TrackOptions, out: &mut dyn Write, 
         if let Some(dir) = &overlay {
             let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
             let img = crate::overlay::draw_overlay(frame, &outcome.corners, &seq.model.edges, outcome.status, &labelled);
-            dir.write(outcome.frame, &img)?;
+            let path = dir.path().join(format!("{:06}.png", outcome.frame));
+            img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
         }
         tracked += usize::from(result.status == Status::Tracking);
         count += 1;
@@ -182,52 +182,6 @@ fn progress_bar(enabled: bool, len: Option<usize>) -> indicatif::ProgressBar {
         bar.set_style(style);
     }
     bar
-}
-
-/// An overlay folder being written: PNGs go to `<dir>.partial` until
-/// [`OverlayDir::finish`] renames it.
-struct OverlayDir {
-    dir: PathBuf,
-    partial: PathBuf,
-    finished: bool,
-}
-
-impl OverlayDir {
-    fn create(dir: &Path) -> Result<Self> {
-        if dir.exists() && std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.next().is_some() {
-            return Err(Error::input(dir, "overlay folder exists and is not empty"));
-        }
-        let mut name = dir.file_name().ok_or_else(|| Error::input(dir, "not a folder name"))?.to_os_string();
-        name.push(".partial");
-        let partial = dir.with_file_name(name);
-        if partial.exists() {
-            std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-        }
-        std::fs::create_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-        Ok(Self { dir: dir.to_path_buf(), partial, finished: false })
-    }
-
-    fn write(&self, frame: usize, img: &image::RgbImage) -> Result<()> {
-        let path = self.partial.join(format!("{frame:06}.png"));
-        img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))
-    }
-
-    fn finish(mut self) -> Result<()> {
-        if self.dir.exists() {
-            std::fs::remove_dir(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
-        }
-        std::fs::rename(&self.partial, &self.dir).map_err(|e| Error::io(&self.dir, e))?;
-        self.finished = true;
-        Ok(())
-    }
-}
-
-impl Drop for OverlayDir {
-    fn drop(&mut self) {
-        if !self.finished {
-            let _ = std::fs::remove_dir_all(&self.partial);
-        }
-    }
 }
 
 /// Track `seq` writing JSON Lines to `out_path` atomically (the file appears

@@ -650,6 +650,68 @@ impl Drop for AtomicFile {
     }
 }
 
+/// An output folder written in full or not at all: files go into a hidden
+/// sibling staging folder, which [`StagedDir::finish`] renames to the final
+/// name; dropped unfinished, the staging folder is removed. The final folder
+/// must be absent or empty, so sequences and overlays are never mixed.
+#[derive(Debug)]
+pub struct StagedDir {
+    dir: PathBuf,
+    staging: PathBuf,
+    finished: bool,
+}
+
+impl StagedDir {
+    /// Check that `dir` is absent or an empty folder and create its staging folder.
+    pub fn create(dir: &Path) -> Result<Self> {
+        if dir.exists() {
+            if !dir.is_dir() {
+                return Err(Error::input(dir, "exists and is not a folder"));
+            }
+            if fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.next().is_some() {
+                return Err(Error::input(dir, "output folder exists and is not empty; remove it or pick another"));
+            }
+        }
+        let name = dir.file_name().ok_or_else(|| Error::input(dir, "output folder has no name"))?.to_string_lossy();
+        let parent = match dir.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
+        let staging = parent.join(format!(".{name}.partial-{}", std::process::id()));
+        if staging.exists() {
+            fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        }
+        fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        Ok(Self { dir: dir.to_path_buf(), staging, finished: false })
+    }
+
+    /// The folder to write into until [`StagedDir::finish`].
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.staging
+    }
+
+    /// Move the staged folder to its final name.
+    pub fn finish(mut self) -> Result<()> {
+        if self.dir.exists() {
+            // Empty (checked in `create`): replace it.
+            fs::remove_dir(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
+        }
+        fs::rename(&self.staging, &self.dir).map_err(|e| Error::io(&self.dir, e))?;
+        self.finished = true;
+        Ok(())
+    }
+}
+
+impl Drop for StagedDir {
+    fn drop(&mut self) {
+        if !self.finished {
+            let _ = fs::remove_dir_all(&self.staging);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,7 +9,7 @@ use crate::early::cpf::{self, CpfGpu, EdgePyramidGpu};
 use crate::early::sobel::{self, SobelGpu};
 use crate::early::zero_crossing::{self, EdgelsGpu};
 use crate::early::{frame_sum, gaussian, ingest, log, temporal_diff};
-use crate::gpu::{GpuContext, GpuImage, Recorder, uniform_arena};
+use crate::gpu::{FrameArena, GpuContext, GpuImage, Recorder};
 use crate::image::GrayImage;
 use crate::{Error, Result};
 
@@ -36,14 +36,13 @@ pub struct FrameStats {
 #[must_use = "a submitted frame must be finished to get its features and free its slot"]
 pub struct Ticket {
     slot: usize,
-    frame: u64,
 }
 
 /// Device buffers of one frame slot, allocated on first need.
 struct Slot {
     width: usize,
     height: usize,
-    uniforms: wgpu::Buffer,
+    arena: FrameArena,
     packed: wgpu::Buffer,
     luma: GpuImage,
     tmp: GpuImage,
@@ -71,7 +70,7 @@ impl Slot {
         Self {
             width,
             height,
-            uniforms: uniform_arena(ctx),
+            arena: FrameArena::new(ctx),
             packed: ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("pipetrack.frame_bytes"),
                 size: ((width * height).div_ceil(4).max(1) * 4) as u64,
@@ -108,7 +107,6 @@ pub struct GpuBackend {
     next_slot: usize,
     /// Slot holding the previous frame's smoothed image, if any.
     previous: Option<usize>,
-    frames: u64,
     stats: FrameStats,
 }
 
@@ -131,7 +129,7 @@ impl GpuBackend {
             (gaussian::SHADER, "blur_rows"),
             (gaussian::SHADER, "blur_cols"),
         ]);
-        Self { ctx, slots: (0..SLOTS).map(|_| None).collect(), next_slot: 0, previous: None, frames: 0, stats: FrameStats::default() }
+        Self { ctx, slots: (0..SLOTS).map(|_| None).collect(), next_slot: 0, previous: None, stats: FrameStats::default() }
     }
 
     /// The context (device, queue, adapter name).
@@ -251,7 +249,7 @@ impl GpuBackend {
             other.map(|o| &o.smoothed)
         });
 
-        let mut rec = Recorder::new(&self.ctx, &s.uniforms);
+        let mut rec = Recorder::new(&self.ctx, &s.arena);
         ingest(&mut rec, s)?;
         if request.needs_smoothing() {
             gaussian::encode(&mut rec, &s.luma, &s.tmp, &s.smoothed, &request.smoothing)?;
@@ -308,13 +306,11 @@ impl GpuBackend {
         s.had_previous = had_previous;
         self.previous = if request.needs_smoothing() { Some(slot) } else { None };
         self.next_slot = (slot + 1) % SLOTS;
-        self.frames += 1;
-        Ok(Ticket { slot, frame: self.frames })
+        Ok(Ticket { slot })
     }
 
     /// Wait for a submitted frame and read back its lists.
     pub fn finish(&mut self, ticket: Ticket) -> Result<FrameFeatures> {
-        let _ = ticket.frame;
         let s = self.slots[ticket.slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
         let request = s.pending.take().ok_or_else(|| Error::Gpu("ticket already finished".into()))?;
         let mut out = FrameFeatures::default();

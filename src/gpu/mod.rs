@@ -11,7 +11,7 @@ mod recorder;
 pub use context::GpuContext;
 pub(crate) use context::ShaderDef;
 pub use recorder::GpuImage;
-pub(crate) use recorder::{Recorder, run_once, uniform_arena, workgroups_2d};
+pub(crate) use recorder::{FrameArena, Recorder, run_once, workgroups_2d};
 
 /// Workgroup edge of the 2-D image shaders (16×16 invocations).
 pub const TILE: u32 = 16;

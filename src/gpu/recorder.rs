@@ -1,6 +1,9 @@
 //! Recording many stage dispatches into one command encoder, and the
 //! device-resident image type they read and write.
 
+use std::collections::HashMap;
+use std::sync::Mutex;
+
 use wgpu::util::DeviceExt;
 
 use super::GpuContext;
@@ -123,28 +126,44 @@ pub(crate) fn workgroups_2d(width: usize, height: usize) -> [u32; 3] {
 pub(crate) struct Recorder<'a> {
     ctx: &'a GpuContext,
     encoder: wgpu::CommandEncoder,
-    uniform_buffer: &'a wgpu::Buffer,
+    arena: &'a FrameArena,
     uniforms: Vec<u8>,
     dispatches: u32,
 }
 
-/// A uniform buffer big enough for one [`Recorder`]'s parameter blocks; keep
-/// one per frame slot and reuse it.
-pub(crate) fn uniform_arena(ctx: &GpuContext) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("pipetrack.uniforms"),
-        size: UNIFORM_STRIDE * MAX_DISPATCHES,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
+/// What identifies a bind group of buffers: the pipeline, the uniform slot
+/// and the storage buffers bound.
+type BindKey = (&'static str, &'static str, u64, Vec<wgpu::Buffer>);
+
+/// Per-frame-slot GPU state a [`Recorder`] records against: a uniform buffer
+/// with room for every dispatch's parameter block, and the bind groups made
+/// for it. A frame slot records the same dispatches onto the same buffers
+/// frame after frame, so after the first frame no bind group is created on
+/// the per-frame path. Keep one per frame slot and reuse it.
+pub(crate) struct FrameArena {
+    uniforms: wgpu::Buffer,
+    bind_groups: Mutex<HashMap<BindKey, wgpu::BindGroup>>,
+}
+
+impl FrameArena {
+    /// A new arena on `ctx`'s device.
+    pub(crate) fn new(ctx: &GpuContext) -> Self {
+        let uniforms = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("pipetrack.uniforms"),
+            size: UNIFORM_STRIDE * MAX_DISPATCHES,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Self { uniforms, bind_groups: Mutex::default() }
+    }
 }
 
 impl<'a> Recorder<'a> {
-    /// Start recording; `uniform_buffer` comes from [`uniform_arena`] and must
-    /// not be in use by another recorder that has not yet been submitted.
-    pub(crate) fn new(ctx: &'a GpuContext, uniform_buffer: &'a wgpu::Buffer) -> Self {
+    /// Start recording; `arena` must not be in use by another recorder whose
+    /// work has not yet been submitted.
+    pub(crate) fn new(ctx: &'a GpuContext, arena: &'a FrameArena) -> Self {
         let encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pipetrack.frame") });
-        Self { ctx, encoder, uniform_buffer, uniforms: Vec::new(), dispatches: 0 }
+        Self { ctx, encoder, arena, uniforms: Vec::new(), dispatches: 0 }
     }
 
     /// Number of compute dispatches recorded so far.
@@ -153,7 +172,8 @@ impl<'a> Recorder<'a> {
     }
 
     /// Record one dispatch of `entry` in `shader` with uniform `params` and
-    /// storage `buffers` bound at 1, 2, …; empty grids are skipped.
+    /// storage `buffers` bound at 1, 2, …; empty grids are skipped. The bind
+    /// group is made once per arena and reused on later frames.
     pub(crate) fn dispatch<P: bytemuck::Pod>(
         &mut self,
         shader: &ShaderDef,
@@ -162,11 +182,28 @@ impl<'a> Recorder<'a> {
         buffers: &[&wgpu::Buffer],
         groups: [u32; 3],
     ) -> Result<()> {
-        let resources: Vec<wgpu::BindingResource<'_>> = buffers.iter().map(|b| b.as_entire_binding()).collect();
-        self.dispatch_with(shader, entry, params, &resources, groups)
+        if groups.contains(&0) {
+            return Ok(());
+        }
+        let (offset, size) = self.push_uniform(shader, params)?;
+        let pipeline = self.ctx.pipeline(shader, entry);
+        let key: BindKey = (shader.name, entry, offset, buffers.iter().map(|b| (*b).clone()).collect());
+        let bind_group = {
+            let mut cache = self.arena.bind_groups.lock().unwrap_or_else(|p| p.into_inner());
+            cache
+                .entry(key)
+                .or_insert_with(|| {
+                    let resources: Vec<wgpu::BindingResource<'_>> = buffers.iter().map(|b| b.as_entire_binding()).collect();
+                    self.make_bind_group(shader, &pipeline, offset, size, &resources)
+                })
+                .clone()
+        };
+        self.record(shader, &pipeline, &bind_group, groups);
+        Ok(())
     }
 
-    /// Like [`Recorder::dispatch`], with any binding resources (textures too) at 1, 2, ….
+    /// Like [`Recorder::dispatch`], with any binding resources (textures too)
+    /// at 1, 2, …; the bind group is made for this dispatch only.
     pub(crate) fn dispatch_with<P: bytemuck::Pod>(
         &mut self,
         shader: &ShaderDef,
@@ -178,6 +215,15 @@ impl<'a> Recorder<'a> {
         if groups.contains(&0) {
             return Ok(());
         }
+        let (offset, size) = self.push_uniform(shader, params)?;
+        let pipeline = self.ctx.pipeline(shader, entry);
+        let bind_group = self.make_bind_group(shader, &pipeline, offset, size, resources);
+        self.record(shader, &pipeline, &bind_group, groups);
+        Ok(())
+    }
+
+    /// Append `params` to this submission's uniform blocks: (offset, bound size).
+    fn push_uniform<P: bytemuck::Pod>(&mut self, shader: &ShaderDef, params: &P) -> Result<(u64, u64)> {
         let offset = self.uniforms.len() as u64;
         if offset / UNIFORM_STRIDE >= MAX_DISPATCHES {
             return Err(Error::Gpu(format!("more than {MAX_DISPATCHES} dispatches in one submission")));
@@ -188,13 +234,21 @@ impl<'a> Recorder<'a> {
         }
         self.uniforms.extend_from_slice(bytes);
         self.uniforms.resize((offset + UNIFORM_STRIDE) as usize, 0);
-        let size = (bytes.len() as u64).next_multiple_of(16);
+        Ok((offset, (bytes.len() as u64).next_multiple_of(16)))
+    }
 
-        let pipeline = self.ctx.pipeline(shader, entry);
+    fn make_bind_group(
+        &self,
+        shader: &ShaderDef,
+        pipeline: &wgpu::ComputePipeline,
+        offset: u64,
+        size: u64,
+        resources: &[wgpu::BindingResource<'_>],
+    ) -> wgpu::BindGroup {
         let mut entries = vec![wgpu::BindGroupEntry {
             binding: 0,
             resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                buffer: self.uniform_buffer,
+                buffer: &self.arena.uniforms,
                 offset,
                 size: wgpu::BufferSize::new(size),
             }),
@@ -202,18 +256,20 @@ impl<'a> Recorder<'a> {
         for (i, r) in resources.iter().enumerate() {
             entries.push(wgpu::BindGroupEntry { binding: i as u32 + 1, resource: r.clone() });
         }
-        let bind_group = self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(shader.name),
             layout: &pipeline.get_bind_group_layout(0),
             entries: &entries,
-        });
+        })
+    }
+
+    fn record(&mut self, shader: &ShaderDef, pipeline: &wgpu::ComputePipeline, bind_group: &wgpu::BindGroup, groups: [u32; 3]) {
         let mut pass = self.encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(shader.name), timestamp_writes: None });
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind_group, &[]);
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, bind_group, &[]);
         pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
         drop(pass);
         self.dispatches += 1;
-        Ok(())
     }
 
     /// Record a buffer-to-buffer copy.
@@ -226,7 +282,7 @@ impl<'a> Recorder<'a> {
     /// Write the uniform blocks and submit everything recorded as one command buffer.
     pub(crate) fn submit(self) -> wgpu::SubmissionIndex {
         if !self.uniforms.is_empty() {
-            self.ctx.queue.write_buffer(self.uniform_buffer, 0, &self.uniforms);
+            self.ctx.queue.write_buffer(&self.arena.uniforms, 0, &self.uniforms);
         }
         self.ctx.queue.submit([self.encoder.finish()])
     }
@@ -235,7 +291,7 @@ impl<'a> Recorder<'a> {
 /// Run `record` on a fresh recorder and wait for the GPU: the standalone path
 /// used by per-stage functions in tests and benches.
 pub(crate) fn run_once(ctx: &GpuContext, record: impl FnOnce(&mut Recorder<'_>) -> Result<()>) -> Result<()> {
-    let arena = uniform_arena(ctx);
+    let arena = FrameArena::new(ctx);
     let mut rec = Recorder::new(ctx, &arena);
     record(&mut rec)?;
     rec.submit();

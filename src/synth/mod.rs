@@ -48,7 +48,7 @@
 pub mod pendulum;
 pub mod target3dof;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -57,6 +57,7 @@ use rayon::prelude::*;
 use crate::early::Window;
 use crate::formats::{Camera, InitState, Model, TruthFrame};
 use crate::image::{FloatImage, GrayImage};
+use crate::sequence::StagedDir;
 use crate::{Error, Result};
 
 pub use pendulum::{PendulumMotion, PendulumOptions, PendulumSwing, render_pendulum};
@@ -887,32 +888,9 @@ impl SyntheticSequence {
     /// hidden sibling folder first and renamed to `dir` at the end, so an
     /// interrupted write never leaves a folder that looks complete.
     pub fn write(&self, dir: &Path) -> Result<()> {
-        check_output_dir(dir)?;
-        let name = dir
-            .file_name()
-            .ok_or_else(|| Error::input(dir, "output folder has no name"))?
-            .to_string_lossy()
-            .into_owned();
-        let parent = match dir.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
-        let staging = parent.join(format!(".{name}.partial-{}", std::process::id()));
-        if staging.exists() {
-            std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
-        }
-        let written = self.write_files(&staging).and_then(|()| {
-            if dir.exists() {
-                // An empty folder (checked above): replace it.
-                std::fs::remove_dir(dir).map_err(|e| Error::io(dir, e))?;
-            }
-            std::fs::rename(&staging, dir).map_err(|e| Error::io(dir, e))
-        });
-        if written.is_err() {
-            let _ = std::fs::remove_dir_all(&staging);
-        }
-        written
+        let staged = StagedDir::create(dir)?;
+        self.write_files(staged.path())?;
+        staged.finish()
     }
 
     fn write_files(&self, dir: &Path) -> Result<()> {
@@ -957,22 +935,30 @@ fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
     std::fs::write(path, text).map_err(|e| Error::io(path, e))
 }
 
-/// Error unless `dir` is absent or an empty folder.
-fn check_output_dir(dir: &Path) -> Result<()> {
-    if !dir.exists() {
-        return Ok(());
+/// Parse the string `value` of scene option `key`; the error names the
+/// scene, the key and what was expected (`what`).
+pub(crate) fn parse_option<T: std::str::FromStr>(scene: &str, key: &str, value: &str, what: &str) -> Result<T> {
+    value
+        .parse()
+        .map_err(|_| Error::Parameter(format!("{scene} option {key}: '{value}' is not {what}")))
+}
+
+/// Error unless `value` (named `name`, in `unit`) is finite and in `0..=max`.
+pub(crate) fn check_range(name: &str, value: f64, max: f64, unit: &str) -> Result<()> {
+    if value.is_finite() && (0.0..=max).contains(&value) {
+        Ok(())
+    } else {
+        Err(Error::Parameter(format!("{name} = {value}{unit} is not in 0..={max}")))
     }
-    if !dir.is_dir() {
-        return Err(Error::input(dir, "exists and is not a folder"));
+}
+
+/// Error unless a scene's frame count is in `1..=max`.
+pub(crate) fn check_frames(frames: usize, max: usize) -> Result<()> {
+    if (1..=max).contains(&frames) {
+        Ok(())
+    } else {
+        Err(Error::Parameter(format!("frames = {frames} is not in 1..={max}")))
     }
-    let mut entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
-    if entries.next().is_some() {
-        return Err(Error::input(
-            dir,
-            "output folder exists and is not empty (synth will not mix sequences); remove it or pick another",
-        ));
-    }
-    Ok(())
 }
 
 /// The scenes [`render_scene`] and [`generate`] know.
@@ -1037,8 +1023,11 @@ pub fn generate(
     seed: u64,
     extra: &[(String, String)],
 ) -> Result<SyntheticSequence> {
-    check_output_dir(out_dir)?;
+    // Checked before the (long) render; nothing appears under `out_dir`
+    // unless everything was written.
+    let staged = StagedDir::create(out_dir)?;
     let sequence = render_scene(scene, frames, seed, extra)?;
-    sequence.write(out_dir)?;
+    sequence.write_files(staged.path())?;
+    staged.finish()?;
     Ok(sequence)
 }

@@ -51,7 +51,7 @@
 
 use rayon::prelude::*;
 
-use super::{
+use super::{check_frames, check_range, parse_option, 
     Background, DEFAULT_SUPERSAMPLE, FillRule, SyntheticSequence, add_noise_and_quantise,
     frame_rng, render_background,
 };
@@ -186,17 +186,13 @@ impl PendulumOptions {
     /// `distractor` (true|false), `jump_at` (frame), `motion`
     /// (rotating|translating). Range checks happen in [`render_pendulum`].
     pub fn set(&mut self, key: &str, value: &str) -> Result<()> {
-        let bad = |what: &str| {
-            Error::Parameter(format!("pendulum option {key}: '{value}' is not {what}"))
-        };
+        let number = "a number";
         match key {
-            "speed" => self.speed = value.parse().map_err(|_| bad("a number"))?,
-            "noise" | "noise_sigma" => {
-                self.noise_sigma = value.parse().map_err(|_| bad("a number"))?;
-            }
+            "speed" => self.speed = parse_option("pendulum", key, value, number)?,
+            "noise" | "noise_sigma" => self.noise_sigma = parse_option("pendulum", key, value, number)?,
             "background" => self.background = value.parse()?,
-            "distractor" => self.distractor = value.parse().map_err(|_| bad("true or false"))?,
-            "jump_at" => self.jump_at = Some(value.parse().map_err(|_| bad("a frame index"))?),
+            "distractor" => self.distractor = parse_option("pendulum", key, value, "true or false")?,
+            "jump_at" => self.jump_at = Some(parse_option("pendulum", key, value, "a frame index")?),
             "motion" => self.motion = value.parse()?,
             _ => {
                 return Err(Error::Parameter(format!(
@@ -210,24 +206,9 @@ impl PendulumOptions {
 
     /// Error unless every option is in its documented range.
     pub fn validate(&self) -> Result<()> {
-        if !(1..=MAX_FRAMES).contains(&self.frames) {
-            return Err(Error::Parameter(format!(
-                "frames = {} is not in 1..={MAX_FRAMES}",
-                self.frames
-            )));
-        }
-        if !(self.speed.is_finite() && (0.0..=MAX_SPEED).contains(&self.speed)) {
-            return Err(Error::Parameter(format!(
-                "speed = {} px/frame is not in 0..={MAX_SPEED}",
-                self.speed
-            )));
-        }
-        if !(self.noise_sigma.is_finite() && (0.0..=MAX_NOISE_SIGMA).contains(&self.noise_sigma)) {
-            return Err(Error::Parameter(format!(
-                "noise sigma = {} is not in 0..={MAX_NOISE_SIGMA}",
-                self.noise_sigma
-            )));
-        }
+        check_frames(self.frames, MAX_FRAMES)?;
+        check_range("speed", self.speed, MAX_SPEED, " px/frame")?;
+        check_range("noise sigma", self.noise_sigma, MAX_NOISE_SIGMA, "")?;
         if let Some(j) = self.jump_at
             && !(1..self.frames).contains(&j)
         {

@@ -116,7 +116,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-use super::{
+use super::{check_frames, check_range, parse_option, 
     Background, Canvas, DEFAULT_SUPERSAMPLE, Face, FillRule, SyntheticSequence,
     add_noise_and_quantise, frame_rng, render_background,
 };
@@ -240,15 +240,11 @@ impl Target3dofOptions {
     /// (bookshelf|flat|textured|cluttered). Range checks happen in
     /// [`Target3dofOptions::validate`].
     pub fn set(&mut self, key: &str, value: &str) -> Result<()> {
-        let bad = |what: &str| {
-            Error::Parameter(format!("target3dof option {key}: '{value}' is not {what}"))
-        };
+        let number = "a number";
         match key {
-            "speed" => self.speed = value.parse().map_err(|_| bad("a number"))?,
-            "occlude" => self.occlude = value.parse().map_err(|_| bad("a number"))?,
-            "noise" | "noise_sigma" => {
-                self.noise_sigma = value.parse().map_err(|_| bad("a number"))?;
-            }
+            "speed" => self.speed = parse_option("target3dof", key, value, number)?,
+            "occlude" => self.occlude = parse_option("target3dof", key, value, number)?,
+            "noise" | "noise_sigma" => self.noise_sigma = parse_option("target3dof", key, value, number)?,
             "background" => self.background = value.parse()?,
             _ => {
                 return Err(Error::Parameter(format!(
@@ -262,24 +258,10 @@ impl Target3dofOptions {
 
     /// Error unless every option is in its documented range.
     pub fn validate(&self) -> Result<()> {
-        if !(1..=MAX_FRAMES).contains(&self.frames) {
-            return Err(Error::Parameter(format!(
-                "frames = {} is not in 1..={MAX_FRAMES}",
-                self.frames
-            )));
-        }
-        let check = |name: &str, v: f64, max: f64, unit: &str| {
-            if v.is_finite() && (0.0..=max).contains(&v) {
-                Ok(())
-            } else {
-                Err(Error::Parameter(format!(
-                    "{name} = {v}{unit} is not in 0..={max}"
-                )))
-            }
-        };
-        check("speed", self.speed, MAX_SPEED, " rad/s")?;
-        check("occlude", self.occlude, MAX_OCCLUDE, "")?;
-        check("noise sigma", self.noise_sigma, MAX_NOISE_SIGMA, "")
+        check_frames(self.frames, MAX_FRAMES)?;
+        check_range("speed", self.speed, MAX_SPEED, " rad/s")?;
+        check_range("occlude", self.occlude, MAX_OCCLUDE, "")?;
+        check_range("noise sigma", self.noise_sigma, MAX_NOISE_SIGMA, "")
     }
 }
 
