@@ -6,7 +6,7 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use pipetrack::GpuContext;
-use pipetrack::bench::{Inputs, STAGES, cpu_body, cpu_frames_per_call, gpu_body, gpu_frames_per_call};
+use pipetrack::cli::bench::{Inputs, STAGES, cpu_body, cpu_frames_per_call, gpu_body, gpu_frames_per_call};
 
 const SIZES: &[(usize, usize)] = &[(256, 242), (640, 480), (1280, 720)];
 

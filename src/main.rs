@@ -8,8 +8,8 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use pipetrack::backend::BackendKind;
-use pipetrack::run::{self, TrackOptions};
-use pipetrack::sequence::Sequence;
+use pipetrack::track::run::{self, TrackOptions};
+use pipetrack::io::Sequence;
 use pipetrack::synth;
 
 /// Model-based visual tracking with GPU early vision.
@@ -209,7 +209,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Score { seq_dir, pred } => {
             let seq = Sequence::open(&seq_dir, false)?;
             let truth = seq.require_truth()?;
-            let score = pipetrack::score::score_file(truth, &pred)?;
+            let score = pipetrack::cli::score::score_file(truth, &pred)?;
             println!("{score}");
             Ok(())
         }
@@ -223,9 +223,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 c => vec![c],
             };
             for c in configs {
-                let tables = pipetrack::reproduce::run_tables(c, |done, total| eprint!("\r{c}: {done}/{total} runs"))?;
+                let tables = pipetrack::cli::reproduce::run_tables(c, |done, total| eprint!("\r{c}: {done}/{total} runs"))?;
                 eprintln!();
-                println!("{}", pipetrack::reproduce::markdown(c, &tables));
+                println!("{}", pipetrack::cli::reproduce::markdown(c, &tables));
             }
             Ok(())
         }
@@ -252,7 +252,7 @@ fn demo() -> anyhow::Result<()> {
     };
     let pred_path = root.join("track.jsonl");
     let summary = run::track_to_file(&seq, &opts, &pred_path)?;
-    let score = pipetrack::score::score_file(seq.require_truth()?, &pred_path)?;
+    let score = pipetrack::cli::score::score_file(seq.require_truth()?, &pred_path)?;
     println!("pipetrack demo: pendulum, 120 frames at 3.9 px/frame, tracker motion-edge on {}", summary.backend);
     println!("sequence: {}", seq_dir.display());
     println!("output:   {}", pred_path.display());
@@ -263,7 +263,7 @@ fn demo() -> anyhow::Result<()> {
 }
 
 fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) -> anyhow::Result<()> {
-    let all = pipetrack::bench::STAGES;
+    let all = pipetrack::cli::bench::STAGES;
     let chosen: Vec<&str> = if stages.is_empty() {
         all.to_vec()
     } else {
@@ -283,7 +283,7 @@ fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) 
     if !json {
         println!("{:<14} {:>10} {:>12} {:>12} {:>9}", "stage", "size", "cpu fps", "gpu fps", "gpu/cpu");
     }
-    let report = pipetrack::bench::compare(sizes, &chosen, budget, |row| {
+    let report = pipetrack::cli::bench::compare(sizes, &chosen, budget, |row| {
         if !json {
             let gpu = row.gpu_fps.map_or("-".to_string(), |g| format!("{g:.1}"));
             let ratio = row.gpu_over_cpu.map_or("-".to_string(), |r| format!("{r:.2}"));

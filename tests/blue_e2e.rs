@@ -1,6 +1,6 @@
 //! End to end: the `blue` tracker (paper 002) on rendered `target3dof`
 //! sequences (bookshelf background, 300 frames, 0.85 m → 4.9 m), through the
-//! real per-frame loop ([`pipetrack::run::track_frames`]) and a backend.
+//! real per-frame loop ([`pipetrack::track::run::track_frames`]) and a backend.
 //!
 //! Acceptance: at 0.3 and 1.2 rad/s, and at 1.2 rad/s with 30 % of the
 //! target occluded, every frame has status `tracking` and the mean vertex
@@ -13,8 +13,8 @@
 mod common;
 
 use pipetrack::backend::{CpuBackend, EarlyVision, GpuBackend};
-use pipetrack::formats::{FrameResult, Status};
-use pipetrack::score::score;
+use pipetrack::io::formats::{FrameResult, Status};
+use pipetrack::cli::score::score;
 use pipetrack::synth::target3dof::{Target3dofOptions, render_target3dof};
 use pipetrack::track::{BlueParams, BlueTracker};
 
@@ -48,7 +48,7 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) {
     let size = (seq.camera.width as usize, seq.camera.height as usize);
     let mut results: Vec<FrameResult> = Vec::new();
     let mut lost: Vec<String> = Vec::new();
-    pipetrack::run::track_frames(
+    pipetrack::track::run::track_frames(
         &mut tracker,
         backend,
         seq.frames.iter().cloned().map(Ok),

@@ -28,8 +28,8 @@ use pipetrack::estimate::{
     AlphaBetaGamma, BlueProblem, CornerCovariance, LineLocation, PolynomialSrif, intersect_lines,
     invert_spd,
 };
-use pipetrack::fit::{LineSums, fit_x_on_y, fit_y_on_x};
-use pipetrack::formats::{Camera, InitState, Model, Pose, Status};
+use pipetrack::estimate::line_fit::{LineSums, fit_x_on_y, fit_y_on_x};
+use pipetrack::io::formats::{Camera, InitState, Model, Pose, Status};
 use pipetrack::track::blue::rotation_from_axis_angle;
 use pipetrack::track::{BlueParams, BlueTracker, Observations, Tracker};
 use rand::seq::SliceRandom;

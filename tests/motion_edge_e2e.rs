@@ -16,10 +16,10 @@
 mod common;
 
 use pipetrack::backend::{BackendKind, CpuBackend, EarlyVision, GpuBackend};
-use pipetrack::formats::{FrameResult, Status};
-use pipetrack::run::{TrackOptions, track_frames, track_sequence};
-use pipetrack::score::{Score, score};
-use pipetrack::sequence::Sequence;
+use pipetrack::io::formats::{FrameResult, Status};
+use pipetrack::track::run::{TrackOptions, track_frames, track_sequence};
+use pipetrack::cli::score::{Score, score};
+use pipetrack::io::Sequence;
 use pipetrack::synth::pendulum::{PendulumOptions, render_pendulum};
 use pipetrack::track::{MotionEdgeParams, MotionEdgeTracker};
 

@@ -13,7 +13,7 @@
 //! window of interest are handed over, row-major, as the backend does.
 
 use pipetrack::early::Feature;
-use pipetrack::formats::Status;
+use pipetrack::io::formats::Status;
 use pipetrack::track::{
     FrameOutcome, LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker,
     Observations, Phase, Prediction, Tracker,

@@ -6,8 +6,8 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use pipetrack::Error;
-use pipetrack::formats::Camera;
-use pipetrack::sequence::{FrameSource, Sequence};
+use pipetrack::io::formats::Camera;
+use pipetrack::io::{FrameSource, Sequence};
 
 /// A sequence folder under the temp dir, removed when dropped.
 struct Folder(PathBuf);
@@ -408,7 +408,7 @@ fn y4m_frames_are_checked_against_the_camera() {
 #[test]
 fn bundled_cube_cao_reads_as_a_closed_box() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cube.cao");
-    let model = pipetrack::cao::read_cao(&path).expect("assets/cube.cao parses");
+    let model = pipetrack::io::cao::read_cao(&path).expect("assets/cube.cao parses");
     assert_eq!(model.vertices.len(), 8);
     assert_eq!(model.faces.len(), 6);
     // A closed box: 12 distinct edges, every edge shared by exactly two faces.

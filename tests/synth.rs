@@ -9,9 +9,9 @@
 use std::path::{Path, PathBuf};
 
 use pipetrack::Error;
-use pipetrack::formats::{Camera, InitState, Model, Status, TruthFrame};
+use pipetrack::io::formats::{Camera, InitState, Model, Status, TruthFrame};
 use pipetrack::image::{FloatImage, GrayImage};
-use pipetrack::overlay::{self, draw_overlay};
+use pipetrack::io::overlay::{self, draw_overlay};
 use pipetrack::synth::pendulum::{self, HEIGHT, JUMP_OFFSET_PX, TARGET_GREY, WIDTH};
 use pipetrack::synth::{
     self, BACKGROUND_GREY, Background, Canvas, Face, FillRule, PendulumMotion, PendulumOptions,

@@ -13,7 +13,7 @@
 
 use std::path::{Path, PathBuf};
 
-use pipetrack::formats::{Camera, InitState, Model, Pose, TruthFrame};
+use pipetrack::io::formats::{Camera, InitState, Model, Pose, TruthFrame};
 use pipetrack::image::GrayImage;
 use pipetrack::synth::target3dof::{self, HEIGHT, MAX_RANGE_M, MIN_RANGE_M, OCCLUDER_GREY, WIDTH};
 use pipetrack::synth::{self, Target3dofOptions, Target3dofScene, render_target3dof};

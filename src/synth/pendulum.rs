@@ -55,7 +55,7 @@ use super::{check_frames, check_range, parse_option,
     Background, DEFAULT_SUPERSAMPLE, FillRule, SyntheticSequence, add_noise_and_quantise,
     frame_rng, render_background,
 };
-use crate::formats::{Camera, InitState, Model, TruthFrame};
+use crate::io::formats::{Camera, InitState, Model, TruthFrame};
 use crate::image::{FloatImage, GrayImage};
 use crate::{Error, Result};
 

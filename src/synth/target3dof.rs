@@ -121,7 +121,7 @@ use super::{check_frames, check_range, parse_option,
     add_noise_and_quantise, frame_rng, render_background,
 };
 use crate::early::Window;
-use crate::formats::{Camera, InitState, Model, Pose, TruthFrame};
+use crate::io::formats::{Camera, InitState, Model, Pose, TruthFrame};
 use crate::image::{FloatImage, GrayImage};
 use crate::{Error, Result};
 

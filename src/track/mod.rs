@@ -11,13 +11,15 @@
 
 pub mod blue;
 pub mod motion_edge;
+pub mod run;
 
 pub use blue::{BlueParams, BlueTracker, TargetLocation, TargetPrediction};
 pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker, Prediction};
+pub use run::{RunSummary, TRACKERS, TrackOptions, make_tracker, read_config, track_frames, track_sequence, track_to_file};
 
 use crate::backend::FrameRequest;
 use crate::early::{Feature, Window};
-use crate::formats::{FrameResult, Pose, Status};
+use crate::io::formats::{FrameResult, Pose, Status};
 
 /// The feature lists of one frame, as far as the backend computed them.
 /// A tracker reads the lists it asked for and treats a missing one as empty.

@@ -11,7 +11,7 @@
 
 use image::{Rgb, RgbImage};
 
-use crate::formats::Status;
+use crate::io::formats::Status;
 use crate::image::GrayImage;
 
 /// Model colour while tracking.

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::backend::{BackendKind, EarlyVision, make_backend};
-use crate::formats::{FrameResult, Status};
-use crate::sequence::{AtomicFile, Sequence, StagedDir};
+use crate::io::formats::{FrameResult, Status};
+use crate::io::{AtomicFile, Sequence, StagedDir};
 use crate::image::GrayImage;
 use crate::track::{BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
 use crate::{Error, Result};
@@ -118,7 +118,7 @@ pub fn track_sequence(seq: &Sequence, opts: &TrackOptions, out: &mut dyn Write, 
         writeln!(out).map_err(|e| Error::io("output", e))?;
         if let Some(dir) = &overlay {
             let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
-            let img = crate::overlay::draw_overlay(frame, &outcome.corners, &seq.model.edges, outcome.status, &labelled);
+            let img = crate::io::overlay::draw_overlay(frame, &outcome.corners, &seq.model.edges, outcome.status, &labelled);
             let path = dir.path().join(format!("{:06}.png", outcome.frame));
             img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
         }

@@ -17,7 +17,7 @@
 //! 2. [`label_motion_pixels`]: a motion pixel is labelled to the line it best
 //!    matches (smallest |d|) among the lines with |θ_model − θ_data| < δ
 //!    (eq. 3, compared modulo π) and |d| < ζ (eq. 4); otherwise discarded.
-//! 3. [`fit_model_lines`]: least squares per line ([`crate::fit`]). A line
+//! 3. [`fit_model_lines`]: least squares per line ([`crate::estimate::line_fit`]). A line
 //!    with fewer than `min_points_per_line` points (a pendulum's turning
 //!    point, an edge moving along itself) is not updated (step 4).
 //! 4. [`intersect_corners`]: each corner is the intersection of its two
@@ -28,7 +28,7 @@
 //!    (eq. 10–11) and predicts the next frame with eq. 12 (or, by default,
 //!    from the corner's measured displacement: "Prediction under
 //!    acceleration" below)
-//!    ([`crate::predict`]; form used: x̂_{t+1} = a_t + b_t =
+//!    ([`crate::estimate::smoothing`]; form used: x̂_{t+1} = a_t + b_t =
 //!    (2 + α/β)·S1_t − (1 + α/β)·S2_t, Brown's double exponential smoothing
 //!    of Montgomery et al. [17], which matches the legible coefficients of
 //!    the garbled eq. 12). Predictions are made every cycle, with or without
@@ -66,13 +66,13 @@
 //!   corners. The paper's remedy is to regress on the axis the line runs
 //!   along; the default fit ([`LineFitMethod::Across`]) does that exactly:
 //!   eq. 5–6 in the frame of the predicted model line, the offset across it
-//!   regressed on the position along it ([`crate::fit::fit_line_across`]),
+//!   regressed on the position along it ([`crate::estimate::line_fit::fit_line_across`]),
 //!   so the band's thickness is error in the dependent coordinate only, at
 //!   any slope. With the trimmed ends (below) the band is cut perpendicular
 //!   to the model line, which makes the slope unbiased however thick the
 //!   band. A band more than about 8 px thick (perpendicular standard
 //!   deviation above 2.5 px) is fitted as the two edges that bound it, the
-//!   edge at t−1 and at t ([`crate::fit::fit_band_across`]: one slope within
+//!   edge at t−1 and at t ([`crate::estimate::line_fit::fit_band_across`]: one slope within
 //!   the two halves), so the band's width is not noise in the slope. On real
 //!   frames at 16 px/frame the 35 px edges keep ~17 px after trimming inside
 //!   a ~14 px wide band: the orthogonal fit (`Orthogonal`, the previous
@@ -192,11 +192,11 @@ use crate::backend::{FrameRequest, ListSpec, MotionRequest};
 use crate::early::gaussian::GaussianParams;
 use crate::early::temporal_diff::TemporalDiffParams;
 use crate::early::{Feature, Window};
-use crate::fit::{
+use crate::estimate::line_fit::{
     Line, LineFit, LineSums, fit_band_across, fit_line, fit_line_orthogonal, orientation_difference,
 };
-use crate::formats::Status;
-use crate::predict::DoubleExponentialSmoother;
+use crate::io::formats::Status;
+use crate::estimate::smoothing::DoubleExponentialSmoother;
 use crate::{Error, Result};
 
 /// What a corner without a measurement feeds its smoother.
@@ -237,7 +237,7 @@ pub enum LineFitMethod {
     Orthogonal,
     /// Eq. 5–6 in the predicted line's frame: the offset across the model
     /// line regressed on the position along it
-    /// ([`crate::fit::fit_line_across`]). Unbiased on bands of any thickness
+    /// ([`crate::estimate::line_fit::fit_line_across`]). Unbiased on bands of any thickness
     /// and slope, also as thick as they are long. Default.
     #[default]
     Across,
@@ -643,7 +643,7 @@ pub fn corner_deviation(
 
 /// A band of labelled pixels whose perpendicular standard deviation about
 /// the pooled fit exceeds this is fitted as two edges (the edge at t−1 and at
-/// t, [`crate::fit::fit_band_across`]), px: a band about 8 px wide or more,
+/// t, [`crate::estimate::line_fit::fit_band_across`]), px: a band about 8 px wide or more,
 /// where the two edges' responses (each ±2 px) are resolved.
 const BAND_SPLIT_STD_PX: f64 = 2.5;
 /// Blur allowance added to a frame's motion when trimming line ends, px.

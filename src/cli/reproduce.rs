@@ -14,9 +14,9 @@
 use std::fmt::Write as _;
 
 use crate::backend::CpuBackend;
-use crate::formats::{FrameResult, Status};
-use crate::run::track_frames;
-use crate::score::score;
+use crate::io::formats::{FrameResult, Status};
+use crate::track::run::track_frames;
+use crate::cli::score::score;
 use crate::synth::pendulum::{PendulumOptions, render_pendulum};
 use crate::track::motion_edge::{LineFitMethod, MissingMeasurement, Prediction};
 use crate::track::{MotionEdgeParams, MotionEdgeTracker};

@@ -18,8 +18,8 @@
 use std::fmt;
 use std::path::Path;
 
-use crate::formats::{FrameResult, Status, TruthFrame};
-use crate::sequence::read_jsonl;
+use crate::io::formats::{FrameResult, Status, TruthFrame};
+use crate::io::read_jsonl;
 use crate::{Error, Result};
 
 /// Error figures over the scored frames, in pixels.

@@ -1,7 +1,7 @@
 //! The file formats of SPEC §4 (contract) as serde types: `camera.json`,
 //! `model.json`, `init.json`, lines of `truth.jsonl` and of the tracker's
 //! JSON Lines output. Loading and validating a whole sequence folder is
-//! [`crate::sequence`]'s job; these types only describe the fields.
+//! [`crate::io`]'s job; these types only describe the fields.
 
 use serde::{Deserialize, Serialize};
 

@@ -139,10 +139,10 @@ use crate::early::{Feature, Window};
 use crate::estimate::{
     BlueProblem, CornerCovariance, LineLocation, PolynomialSrif, intersect_lines,
 };
-use crate::fit::{
+use crate::estimate::line_fit::{
     Line, LineSums, fit_x_on_y, fit_y_on_x, orientation_difference, wrap_orientation,
 };
-use crate::formats::{Camera, InitState, Model, Pose, Status};
+use crate::io::formats::{Camera, InitState, Model, Pose, Status};
 use crate::{Error, Result};
 
 /// Parameters of the blue tracker (paper 002), all with defaults, so a

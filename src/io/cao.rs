@@ -33,7 +33,7 @@
 use std::collections::HashSet;
 use std::path::Path;
 
-use crate::formats::Model;
+use crate::io::formats::Model;
 use crate::{Error, Result};
 
 /// Read and convert a `.cao` file.

@@ -1,0 +1,214 @@
+//! Output files and folders that never look complete before they are.
+
+use std::fs::{self, File};
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+
+use crate::{Error, Result};
+
+/// A file written under `<path>.partial` and renamed to `path` by
+/// [`AtomicFile::finish`]. Dropped without `finish` (an error, a panic that
+/// unwinds), it deletes the partial file, so a half-written output never
+/// sits under the final name. A process killed outright leaves at most a
+/// `.partial` file. Note that `std::process::exit` runs no destructors:
+/// drop or finish the file before exiting.
+///
+/// Writes are buffered. Meant for regular files (`--out FILE.jsonl`,
+/// overlay PNGs), not for devices or pipes.
+pub struct AtomicFile {
+    path: PathBuf,
+    partial: PathBuf,
+    writer: Option<BufWriter<File>>,
+}
+
+impl AtomicFile {
+    /// Create (or truncate) `<path>.partial` for writing.
+    pub fn create(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref().to_path_buf();
+        let mut name = path.file_name().ok_or_else(|| Error::input(&path, "not a file name"))?.to_os_string();
+        name.push(".partial");
+        let partial = path.with_file_name(name);
+        let file = File::create(&partial)
+            .map_err(|e| Error::input(&path, format!("cannot create (as {}): {e}", partial.display())))?;
+        Ok(Self { path, partial, writer: Some(BufWriter::new(file)) })
+    }
+
+    /// Write `bytes` to `path` atomically (through `<path>.partial`).
+    pub fn write_all_to(path: impl AsRef<Path>, bytes: &[u8]) -> Result<()> {
+        let mut f = Self::create(path)?;
+        f.write_all(bytes).map_err(|e| Error::io(&f.partial, e))?;
+        f.finish()
+    }
+
+    /// The final path.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The path written until [`finish`](Self::finish).
+    #[must_use]
+    pub fn partial_path(&self) -> &Path {
+        &self.partial
+    }
+
+    /// Flush, sync to disk, and rename the partial file to the final path.
+    /// On failure the partial file is deleted.
+    pub fn finish(mut self) -> Result<()> {
+        let result = self.commit();
+        if result.is_err() {
+            let _ = fs::remove_file(&self.partial);
+        }
+        result
+    }
+
+    fn commit(&mut self) -> Result<()> {
+        let Some(writer) = self.writer.take() else {
+            return Ok(());
+        };
+        let file = writer.into_inner().map_err(|e| Error::io(&self.partial, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(&self.partial, e))?;
+        drop(file);
+        fs::rename(&self.partial, &self.path).map_err(|e| Error::io(&self.path, e))
+    }
+
+    fn writer(&mut self) -> io::Result<&mut BufWriter<File>> {
+        self.writer.as_mut().ok_or_else(|| io::Error::other("AtomicFile already finished"))
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.writer()?.write(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.writer()?.flush()
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if let Some(writer) = self.writer.take() {
+            drop(writer);
+            let _ = fs::remove_file(&self.partial);
+        }
+    }
+}
+
+/// An output folder written in full or not at all: files go into a hidden
+/// sibling staging folder, which [`StagedDir::finish`] renames to the final
+/// name; dropped unfinished, the staging folder is removed. The final folder
+/// must be absent or empty, so sequences and overlays are never mixed.
+#[derive(Debug)]
+pub struct StagedDir {
+    dir: PathBuf,
+    staging: PathBuf,
+    finished: bool,
+}
+
+impl StagedDir {
+    /// Check that `dir` is absent or an empty folder and create its staging folder.
+    pub fn create(dir: &Path) -> Result<Self> {
+        if dir.exists() {
+            if !dir.is_dir() {
+                return Err(Error::input(dir, "exists and is not a folder"));
+            }
+            if fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.next().is_some() {
+                return Err(Error::input(dir, "output folder exists and is not empty; remove it or pick another"));
+            }
+        }
+        let name = dir.file_name().ok_or_else(|| Error::input(dir, "output folder has no name"))?.to_string_lossy();
+        let parent = match dir.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
+        let staging = parent.join(format!(".{name}.partial-{}", std::process::id()));
+        if staging.exists() {
+            fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        }
+        fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        Ok(Self { dir: dir.to_path_buf(), staging, finished: false })
+    }
+
+    /// The folder to write into until [`StagedDir::finish`].
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.staging
+    }
+
+    /// Move the staged folder to its final name.
+    pub fn finish(mut self) -> Result<()> {
+        if self.dir.exists() {
+            // Empty (checked in `create`): replace it.
+            fs::remove_dir(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
+        }
+        fs::rename(&self.staging, &self.dir).map_err(|e| Error::io(&self.dir, e))?;
+        self.finished = true;
+        Ok(())
+    }
+}
+
+impl Drop for StagedDir {
+    fn drop(&mut self) {
+        if !self.finished {
+            let _ = fs::remove_dir_all(&self.staging);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp_path(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("pipetrack-atomic-{}-{name}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        dir.join("out.jsonl")
+    }
+
+    #[test]
+    fn atomic_file_appears_only_on_finish() {
+        let path = temp_path("finish");
+        let _ = fs::remove_file(&path);
+        let mut f = AtomicFile::create(&path).unwrap();
+        assert_eq!(f.partial_path(), path.with_file_name("out.jsonl.partial"));
+        writeln!(f, "{{\"frame\":0}}").unwrap();
+        f.flush().unwrap();
+        assert!(!path.exists(), "nothing under the final name before finish");
+        assert!(path.with_file_name("out.jsonl.partial").exists());
+        f.finish().unwrap();
+        assert_eq!(fs::read_to_string(&path).unwrap(), "{\"frame\":0}\n");
+        assert!(!path.with_file_name("out.jsonl.partial").exists());
+        fs::remove_dir_all(path.parent().unwrap()).unwrap();
+    }
+
+    #[test]
+    fn atomic_file_dropped_unfinished_leaves_nothing_and_keeps_old_output() {
+        let path = temp_path("drop");
+        fs::write(&path, "old complete output\n").unwrap();
+        {
+            let mut f = AtomicFile::create(&path).unwrap();
+            f.write_all(b"half of a new").unwrap();
+        }
+        assert!(!path.with_file_name("out.jsonl.partial").exists());
+        assert_eq!(fs::read_to_string(&path).unwrap(), "old complete output\n");
+        AtomicFile::write_all_to(&path, b"new\n").unwrap();
+        assert_eq!(fs::read_to_string(&path).unwrap(), "new\n");
+        fs::remove_dir_all(path.parent().unwrap()).unwrap();
+    }
+
+    #[test]
+    fn atomic_file_in_missing_folder_is_an_input_error() {
+        let path = std::env::temp_dir().join("pipetrack-no-such-dir-xyz").join("out.jsonl");
+        match AtomicFile::create(&path) {
+            Err(Error::Input { path: p, message }) => {
+                assert_eq!(p, path);
+                assert!(message.starts_with("cannot create"), "{message}");
+            }
+            other => panic!("expected an input error, got {:?}", other.err()),
+        }
+    }
+}

@@ -1,0 +1,268 @@
+//! Frames of a sequence: the frame files of a folder in natural order,
+//! decoding to grey, and [`FrameSource`], which streams them (from `frames/`
+//! or a Y4M stream on stdin) one at a time, each checked against the camera.
+
+use std::cmp::Ordering;
+use std::fs::{self};
+use std::io::{self, Read};
+use std::path::{Path, PathBuf};
+
+
+use super::formats::Camera;
+use super::json::*;
+use super::sequence::FRAME_EXTENSIONS;
+use super::y4m::Y4mReader;
+use crate::image::{GrayImage, luma};
+use crate::{Error, Result};
+
+/// The frame images in `frames_dir`, in natural name order (digit runs
+/// compare as numbers, so `2.png` < `10.png`; zero-padded names sort as
+/// usual). Files without a frame extension, hidden files and folders are
+/// ignored; an empty or missing folder is an error naming it.
+pub fn list_frames(frames_dir: &Path) -> Result<Vec<PathBuf>> {
+    let entries = match fs::read_dir(frames_dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => {
+            return Err(Error::input(frames_dir, "missing: put the frames there or pass --frames - for a Y4M stream"));
+        }
+        Err(e) => return Err(Error::input(frames_dir, format!("cannot read folder: {e}"))),
+    };
+    let mut named = Vec::new();
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::input(frames_dir, format!("cannot read folder: {e}")))?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let path = entry.path();
+        let is_frame = !name.starts_with('.')
+            && path
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| FRAME_EXTENSIONS.iter().any(|f| f.eq_ignore_ascii_case(e)))
+            && fs::metadata(&path).is_ok_and(|m| m.is_file());
+        if is_frame {
+            named.push((name, path));
+        }
+    }
+    if named.is_empty() {
+        return Err(Error::input(frames_dir, "no frames: expected PNG, PGM or JPEG files"));
+    }
+    named.sort_by(|a, b| natural_cmp(&a.0, &b.0));
+    Ok(named.into_iter().map(|(_, p)| p).collect())
+}
+
+/// Compare names with digit runs taken as numbers (`frame2` < `frame10`);
+/// ties (e.g. `01` vs `1`) fall back to plain string order.
+fn natural_cmp(a: &str, b: &str) -> Ordering {
+    let (mut x, mut y) = (a.as_bytes(), b.as_bytes());
+    loop {
+        match (x.first(), y.first()) {
+            (None, None) => return a.cmp(b),
+            (None, Some(_)) => return Ordering::Less,
+            (Some(_), None) => return Ordering::Greater,
+            (Some(c), Some(d)) if c.is_ascii_digit() && d.is_ascii_digit() => {
+                let run = |s: &[u8]| s.iter().take_while(|c| c.is_ascii_digit()).count();
+                let (nx, ny) = (run(x), run(y));
+                let strip = |s: &[u8]| {
+                    let zeros = s.iter().take_while(|&&c| c == b'0').count();
+                    s[zeros..].to_vec()
+                };
+                let (vx, vy) = (strip(&x[..nx]), strip(&y[..ny]));
+                let ord = vx.len().cmp(&vy.len()).then_with(|| vx.cmp(&vy));
+                if ord != Ordering::Equal {
+                    return ord;
+                }
+                x = &x[nx..];
+                y = &y[ny..];
+            }
+            (Some(c), Some(d)) => {
+                if c != d {
+                    return c.cmp(d);
+                }
+                x = &x[1..];
+                y = &y[1..];
+            }
+        }
+    }
+}
+
+fn size_mismatch(frame: &Path, w: usize, h: usize, camera: &Camera, camera_path: &Path) -> Error {
+    let camera_name =
+        camera_path.file_name().map_or_else(|| camera_path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    Error::input(
+        frame,
+        format!(
+            "frame is {w}x{h} but {camera_name} (and so every frame) is {}x{}: frames of changing size",
+            camera.width, camera.height
+        ),
+    )
+}
+
+/// Read only the header of the first frame to fail early on a wrong size.
+pub(crate) fn check_frame_header(path: &Path, camera: &Camera, camera_path: &Path) -> Result<()> {
+    let (w, h) = ::image::ImageReader::open(path)
+        .map_err(|e| open_error(path, &e))?
+        .with_guessed_format()
+        .map_err(|e| open_error(path, &e))?
+        .into_dimensions()
+        .map_err(|e| Error::input(path, format!("corrupt image: {e}")))?;
+    if (w, h) != (camera.width, camera.height) {
+        return Err(size_mismatch(path, w as usize, h as usize, camera, camera_path));
+    }
+    Ok(())
+}
+
+pub(crate) fn open_error(path: &Path, e: &io::Error) -> Error {
+    if e.kind() == io::ErrorKind::NotFound {
+        Error::input(path, MISSING)
+    } else {
+        Error::input(path, format!("cannot read: {e}"))
+    }
+}
+
+/// Decode an image file to an 8-bit grey frame: grey as is (16-bit scaled
+/// to 8), colour through BT.601 luma ([`luma`], the weights the GPU ingest
+/// uses) rounded to the nearest integer, alpha ignored.
+pub fn decode_gray(path: &Path) -> Result<GrayImage> {
+    let img = ::image::ImageReader::open(path)
+        .map_err(|e| open_error(path, &e))?
+        .with_guessed_format()
+        .map_err(|e| open_error(path, &e))?
+        .decode()
+        .map_err(|e| Error::input(path, format!("corrupt image: {e}")))?;
+    dynamic_to_gray(img)
+}
+
+/// Convert any decoded image to grey as [`decode_gray`] describes.
+pub fn dynamic_to_gray(img: ::image::DynamicImage) -> Result<GrayImage> {
+    use ::image::DynamicImage as D;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let rgb_luma = |p: &[u8]| luma(p[0], p[1], p[2]).round() as u8;
+    let data = match img {
+        D::ImageLuma8(buf) => buf.into_raw(),
+        D::ImageLumaA8(buf) => buf.as_raw().chunks_exact(2).map(|p| p[0]).collect(),
+        D::ImageRgb8(buf) => buf.as_raw().chunks_exact(3).map(rgb_luma).collect(),
+        D::ImageRgba8(buf) => buf.as_raw().chunks_exact(4).map(rgb_luma).collect(),
+        img @ (D::ImageLuma16(_) | D::ImageLumaA16(_)) => img.to_luma8().into_raw(),
+        other => other.to_rgb8().as_raw().chunks_exact(3).map(rgb_luma).collect(),
+    };
+    GrayImage::from_vec(w, h, data)
+}
+
+/// Frames of a sequence, one decoded at a time, each checked against the
+/// camera size. An iterator of `Result<GrayImage>`; after the first error it
+/// ends. Errors name the frame file (or `-` for stdin).
+pub struct FrameSource {
+    kind: SourceKind,
+    camera: Camera,
+    camera_path: PathBuf,
+    delivered: usize,
+    failed: bool,
+}
+
+enum SourceKind {
+    Files(Vec<PathBuf>),
+    Y4m { pending: Option<(Box<dyn Read + Send>, PathBuf)>, reader: Option<Y4mReader<Box<dyn Read + Send>>> },
+}
+
+impl FrameSource {
+    /// Frames from image files, in the given order.
+    #[must_use]
+    pub fn files(paths: Vec<PathBuf>, camera: Camera, camera_path: PathBuf) -> Self {
+        Self { kind: SourceKind::Files(paths), camera, camera_path, delivered: 0, failed: false }
+    }
+
+    /// Frames from a YUV4MPEG2 stream named `name` in errors (`-` for
+    /// stdin). The header is read with the first frame.
+    #[must_use]
+    pub fn y4m(input: impl Read + Send + 'static, name: &Path, camera: Camera, camera_path: PathBuf) -> Self {
+        let kind = SourceKind::Y4m { pending: Some((Box::new(input), name.to_path_buf())), reader: None };
+        Self { kind, camera, camera_path, delivered: 0, failed: false }
+    }
+
+    /// Frames delivered so far (the index of the next frame).
+    #[must_use]
+    pub fn delivered(&self) -> usize {
+        self.delivered
+    }
+
+    /// Number of frames, when known (image files, not streams).
+    #[must_use]
+    pub fn len_hint(&self) -> Option<usize> {
+        match &self.kind {
+            SourceKind::Files(paths) => Some(paths.len()),
+            SourceKind::Y4m { .. } => None,
+        }
+    }
+
+    /// The next frame: `None` after the last one (or after an error).
+    pub fn next_frame(&mut self) -> Option<Result<GrayImage>> {
+        if self.failed {
+            return None;
+        }
+        let result = self.read_next();
+        match &result {
+            Some(Ok(_)) => self.delivered += 1,
+            Some(Err(_)) => self.failed = true,
+            None => {}
+        }
+        result
+    }
+
+    fn read_next(&mut self) -> Option<Result<GrayImage>> {
+        let (cw, ch) = (self.camera.width as usize, self.camera.height as usize);
+        match &mut self.kind {
+            SourceKind::Files(paths) => {
+                let path = paths.get(self.delivered)?;
+                Some(decode_gray(path).and_then(|img| {
+                    if img.size() == (cw, ch) {
+                        Ok(img)
+                    } else {
+                        Err(size_mismatch(path, img.width(), img.height(), &self.camera, &self.camera_path))
+                    }
+                }))
+            }
+            SourceKind::Y4m { pending, reader } => {
+                if let Some((input, name)) = pending.take() {
+                    let r = match Y4mReader::with_name(input, &name) {
+                        Ok(r) => r,
+                        Err(e) => return Some(Err(e)),
+                    };
+                    let h = r.header();
+                    if (h.width, h.height) != (cw, ch) {
+                        return Some(Err(size_mismatch(&name, h.width, h.height, &self.camera, &self.camera_path)));
+                    }
+                    *reader = Some(r);
+                }
+                let r = reader.as_mut()?;
+                match r.next_frame() {
+                    Ok(Some(img)) => Some(Ok(img)),
+                    Ok(None) if r.frames_read() == 0 => {
+                        Some(Err(Error::input(r.name(), "the stream has a header but no frames")))
+                    }
+                    Ok(None) => None,
+                    Err(e) => Some(Err(e)),
+                }
+            }
+        }
+    }
+}
+
+impl Iterator for FrameSource {
+    type Item = Result<GrayImage>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        self.next_frame()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn natural_order_compares_digit_runs_as_numbers() {
+        let mut names = vec!["10.png", "2.png", "000001.png", "1.png", "b.png", "a10.png", "a9.png"];
+        names.sort_by(|a, b| natural_cmp(a, b));
+        assert_eq!(names, ["000001.png", "1.png", "2.png", "10.png", "a9.png", "a10.png", "b.png"]);
+        assert_eq!(natural_cmp("000010.png", "000009.png"), Ordering::Greater);
+    }
+}

@@ -1,0 +1,132 @@
+//! JSON and JSON Lines with one-line, file-naming errors.
+
+use std::fs::{self, File};
+use std::io::{self, BufRead, BufReader};
+use std::path::Path;
+
+use serde::de::DeserializeOwned;
+
+use super::frames::*;
+use crate::{Error, Result};
+
+pub(crate) const MISSING: &str = "missing";
+
+fn read_text(path: &Path) -> Result<String> {
+    fs::read_to_string(path).map_err(|e| match e.kind() {
+        io::ErrorKind::NotFound => Error::input(path, MISSING),
+        io::ErrorKind::InvalidData => Error::input(path, "not a text file (invalid UTF-8)"),
+        _ => Error::input(path, format!("cannot read: {e}")),
+    })
+}
+
+/// Read a whole JSON file into `T`. A missing file, an empty one, malformed
+/// JSON (with line and column), a `NaN`/`Infinity` token (which JSON does
+/// not have) or a wrong field are input errors naming `path`.
+pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = read_text(path)?;
+    if text.trim().is_empty() {
+        return Err(Error::input(path, "empty file"));
+    }
+    serde_json::from_str(&text).map_err(|e| Error::input(path, describe_json_error(&text, &e, None)))
+}
+
+/// Read a JSON Lines file: one `T` per non-blank line, each with its
+/// 1-based line number. Errors name `path` and the line. An empty file is
+/// an error.
+pub fn read_jsonl<T: DeserializeOwned>(path: &Path) -> Result<Vec<(usize, T)>> {
+    let file = File::open(path).map_err(|e| open_error(path, &e))?;
+    let mut out = Vec::new();
+    for (i, line) in BufReader::new(file).lines().enumerate() {
+        let n = i + 1;
+        let line = line.map_err(|e| match e.kind() {
+            io::ErrorKind::InvalidData => Error::input(path, format!("line {n}: not text (invalid UTF-8)")),
+            _ => Error::input(path, format!("line {n}: cannot read: {e}")),
+        })?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let value = serde_json::from_str(&line)
+            .map_err(|e| Error::input(path, format!("line {n}: {}", describe_json_error(&line, &e, Some(n)))))?;
+        out.push((n, value));
+    }
+    if out.is_empty() {
+        return Err(Error::input(path, "empty file: expected one JSON object per line"));
+    }
+    Ok(out)
+}
+
+/// One-line description of a serde_json error in `text`. With `line`
+/// (JSON Lines), the position is given as a column only.
+fn describe_json_error(text: &str, e: &serde_json::Error, line: Option<usize>) -> String {
+    let position =
+        |l: usize, c: usize| if line.is_some() { format!("column {c}") } else { format!("line {l} column {c}") };
+    if let Some((token, l, c)) = find_non_json_number(text) {
+        return format!("{token} at {}: JSON has no NaN or Infinity, every number must be finite", position(l, c));
+    }
+    let full = e.to_string();
+    let message = full.rfind(" at line ").map_or(full.as_str(), |i| &full[..i]);
+    let kind = match e.classify() {
+        serde_json::error::Category::Data => "wrong content",
+        _ => "malformed JSON",
+    };
+    format!("{kind} at {}: {message}", position(e.line(), e.column()))
+}
+
+/// The first bare `NaN`, `Infinity` or `inf` token outside strings (any
+/// case), with its 1-based line and column.
+fn find_non_json_number(text: &str) -> Option<(String, usize, usize)> {
+    let (mut in_string, mut escaped) = (false, false);
+    let (mut line, mut col) = (1, 0);
+    let mut word = String::new();
+    let mut word_at = (1, 1);
+    for c in text.chars().chain(std::iter::once(' ')) {
+        col += 1;
+        if in_string {
+            match (escaped, c) {
+                (true, _) => escaped = false,
+                (false, '\\') => escaped = true,
+                (false, '"') => in_string = false,
+                _ => {}
+            }
+        } else if c.is_ascii_alphabetic() {
+            if word.is_empty() {
+                word_at = (line, col);
+            }
+            word.push(c);
+        } else {
+            if ["nan", "infinity", "inf"].contains(&word.to_ascii_lowercase().as_str()) {
+                return Some((word, word_at.0, word_at.1));
+            }
+            word.clear();
+            in_string = c == '"';
+        }
+        if c == '\n' {
+            line += 1;
+            col = 0;
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finds_nan_and_infinity_outside_strings() {
+        assert_eq!(find_non_json_number(r#"{"fx": NaN}"#), Some(("NaN".into(), 1, 8)));
+        assert_eq!(find_non_json_number("{\"a\": 1,\n \"b\": -Infinity}"), Some(("Infinity".into(), 2, 8)));
+        assert_eq!(find_non_json_number(r#"{"name": "NaN \" inf", "x": 1e5, "t": true}"#), None);
+    }
+
+    #[test]
+    fn json_errors_are_one_line_with_position() {
+        let text = "{\"a\": 1,\n \"b\" 2}";
+        let e = serde_json::from_str::<serde_json::Value>(text).unwrap_err();
+        let msg = describe_json_error(text, &e, None);
+        assert!(msg.starts_with("malformed JSON at line 2 column 6: expected `:`"), "{msg}");
+        assert!(!msg.contains('\n'));
+        let msg = describe_json_error(r#"{"fx": nan}"#, &e, Some(3));
+        assert_eq!(msg, "nan at column 8: JSON has no NaN or Infinity, every number must be finite");
+    }
+}

@@ -1,0 +1,214 @@
+//! Sequence folders (SPEC §4): reading and validating `camera.json`, the
+//! model (`model.json`, else `model.cao`), `init.json` and the optional
+//! `truth.jsonl`, and handing out the frames as a stream.
+//!
+//! Every problem with a user's file is an [`Error::Input`] whose one-line
+//! message names the file (and the line, for JSON Lines) and says what is
+//! wrong, ready for the command line to print.
+
+use std::fs::{self};
+use std::io::{self};
+use std::path::{Path, PathBuf};
+
+
+use super::cao;
+use super::formats::{Camera, InitState, Model, TruthFrame};
+use super::frames::*;
+use super::json::*;
+use super::y4m::STDIN_NAME;
+use crate::{Error, Result};
+
+/// `camera.json`.
+pub const CAMERA_FILE: &str = "camera.json";
+/// `model.json` (wins over `model.cao`).
+pub const MODEL_JSON_FILE: &str = "model.json";
+/// `model.cao`, ViSP's format, read when there is no `model.json`.
+pub const MODEL_CAO_FILE: &str = "model.cao";
+/// `init.json`.
+pub const INIT_FILE: &str = "init.json";
+/// `truth.jsonl` (optional).
+pub const TRUTH_FILE: &str = "truth.jsonl";
+/// The folder of frame images.
+pub const FRAMES_DIR: &str = "frames";
+/// Frame file extensions (compared case-insensitively).
+pub const FRAME_EXTENSIONS: [&str; 4] = ["png", "pgm", "jpg", "jpeg"];
+
+/// A validated sequence folder. Frames are not loaded: [`Sequence::frames`]
+/// streams them.
+///
+/// `open` guarantees: the camera has a positive size, finite positive focal
+/// lengths and a finite principal point; the model's indices are in range
+/// (see [`Model::validate`]); `init` has a pose or one corner per model
+/// vertex, and one param per joint or none; every truth line passes the same
+/// checks and truth frame numbers strictly increase and (for a frames folder)
+/// name existing frames; the frames folder is non-empty and its first frame
+/// has the camera's size.
+#[derive(Clone, Debug)]
+pub struct Sequence {
+    /// Intrinsics and image size.
+    pub camera: Camera,
+    /// The object.
+    pub model: Model,
+    /// The state at frame 0.
+    pub init: InitState,
+    /// Ground truth, one entry per line of `truth.jsonl`, when the file exists.
+    pub truth: Option<Vec<TruthFrame>>,
+    dir: PathBuf,
+    model_path: PathBuf,
+    frames: FrameList,
+}
+
+#[derive(Clone, Debug)]
+enum FrameList {
+    Files(Vec<PathBuf>),
+    Stdin,
+}
+
+impl Sequence {
+    /// Read and validate the sequence folder `dir`. With `frames_from_stdin`
+    /// the frames come as a Y4M stream on stdin (`--frames -`) and any
+    /// `frames/` folder is ignored; otherwise `frames/` must hold at least
+    /// one PNG, PGM or JPEG file. Files in the folder other than those of
+    /// SPEC §4 are ignored.
+    pub fn open(dir: &Path, frames_from_stdin: bool) -> Result<Self> {
+        check_folder(dir)?;
+        let camera_path = dir.join(CAMERA_FILE);
+        let camera: Camera = read_json(&camera_path)?;
+        camera.validate(&camera_path)?;
+
+        let (model, model_path) = read_model(dir)?;
+
+        let init_path = dir.join(INIT_FILE);
+        let init: InitState = read_json(&init_path)?;
+        init.validate(&init_path, &model, &model_path)?;
+
+        let frames = if frames_from_stdin {
+            FrameList::Stdin
+        } else {
+            let paths = list_frames(&dir.join(FRAMES_DIR))?;
+            check_frame_header(&paths[0], &camera, &camera_path)?;
+            FrameList::Files(paths)
+        };
+
+        let truth_path = dir.join(TRUTH_FILE);
+        let truth = if truth_path.exists() {
+            let frame_count = match &frames {
+                FrameList::Files(paths) => Some(paths.len()),
+                FrameList::Stdin => None,
+            };
+            Some(read_truth(&truth_path, &model, &model_path, frame_count)?)
+        } else {
+            None
+        };
+
+        Ok(Self { camera, model, init, truth, dir: dir.to_path_buf(), model_path, frames })
+    }
+
+    /// The sequence folder.
+    #[must_use]
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The model file that was read (`model.json` or `model.cao`).
+    #[must_use]
+    pub fn model_path(&self) -> &Path {
+        &self.model_path
+    }
+
+    /// Where `truth.jsonl` is (whether or not it exists).
+    #[must_use]
+    pub fn truth_path(&self) -> PathBuf {
+        self.dir.join(TRUTH_FILE)
+    }
+
+    /// The ground truth, or an input error naming `truth.jsonl` when the
+    /// folder has none (for `score`).
+    pub fn require_truth(&self) -> Result<&[TruthFrame]> {
+        self.truth.as_deref().ok_or_else(|| Error::input(self.truth_path(), "missing: scoring needs ground truth"))
+    }
+
+    /// The frame files in order, or `None` when frames come from stdin.
+    #[must_use]
+    pub fn frame_paths(&self) -> Option<&[PathBuf]> {
+        match &self.frames {
+            FrameList::Files(paths) => Some(paths),
+            FrameList::Stdin => None,
+        }
+    }
+
+    /// Number of frames, when known (not for stdin).
+    #[must_use]
+    pub fn frame_count(&self) -> Option<usize> {
+        self.frame_paths().map(<[PathBuf]>::len)
+    }
+
+    /// Whether frames come from a Y4M stream on stdin.
+    #[must_use]
+    pub fn reads_stdin(&self) -> bool {
+        matches!(self.frames, FrameList::Stdin)
+    }
+
+    /// Stream the frames, decoding one per call; each must have the
+    /// camera's size. Call once per run: for stdin the stream is consumed.
+    #[must_use]
+    pub fn frames(&self) -> FrameSource {
+        let camera_path = self.dir.join(CAMERA_FILE);
+        match &self.frames {
+            FrameList::Files(paths) => FrameSource::files(paths.clone(), self.camera, camera_path),
+            FrameList::Stdin => FrameSource::y4m(io::stdin(), Path::new(STDIN_NAME), self.camera, camera_path),
+        }
+    }
+}
+
+fn check_folder(dir: &Path) -> Result<()> {
+    let mut entries = match fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Err(Error::input(dir, "no such folder")),
+        Err(_) if dir.is_file() => return Err(Error::input(dir, "not a folder: give a sequence folder")),
+        Err(e) => return Err(Error::input(dir, format!("cannot read folder: {e}"))),
+    };
+    if entries.next().is_none() {
+        return Err(Error::input(
+            dir,
+            "empty folder: a sequence needs camera.json, model.json (or model.cao), init.json and frames/",
+        ));
+    }
+    Ok(())
+}
+
+fn read_model(dir: &Path) -> Result<(Model, PathBuf)> {
+    let json_path = dir.join(MODEL_JSON_FILE);
+    let cao_path = dir.join(MODEL_CAO_FILE);
+    if json_path.exists() || !cao_path.exists() {
+        let model: Model = read_json(&json_path).map_err(|e| match e {
+            Error::Input { path, message } if message == MISSING => {
+                Error::input(path, "missing (and there is no model.cao either)")
+            }
+            other => other,
+        })?;
+        model.validate(&json_path)?;
+        Ok((model, json_path))
+    } else {
+        Ok((cao::read_cao(&cao_path)?, cao_path))
+    }
+}
+
+fn read_truth(path: &Path, model: &Model, model_path: &Path, frame_count: Option<usize>) -> Result<Vec<TruthFrame>> {
+    let lines: Vec<(usize, TruthFrame)> = read_jsonl(path)?;
+    let mut previous: Option<usize> = None;
+    for (line, t) in &lines {
+        t.validate(path, *line, model, model_path)?;
+        if let Some(p) = previous.filter(|&p| t.frame <= p) {
+            return Err(Error::input(
+                path,
+                format!("line {line}: frame {} after frame {p}: frames must be in increasing order", t.frame),
+            ));
+        }
+        if let Some(n) = frame_count.filter(|&n| t.frame >= n) {
+            return Err(Error::input(path, format!("line {line}: frame {} but the sequence has {n} frames", t.frame)));
+        }
+        previous = Some(t.frame);
+    }
+    Ok(lines.into_iter().map(|(_, t)| t).collect())
+}
