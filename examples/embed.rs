@@ -47,7 +47,12 @@ fn main() -> Result<()> {
         // The frame moves one pixel to the left each time.
         let frame = pipetrack::GrayImage::from_fn(w, h, |x, y| scene.get(x + k, y));
         queue.write_texture(
-            wgpu::TexelCopyTextureInfo { texture: &texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
             frame.data(),
             wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(w as u32), rows_per_image: Some(h as u32) },
             wgpu::Extent3d { width: w as u32, height: h as u32, depth_or_array_layers: 1 },

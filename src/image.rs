@@ -20,10 +20,7 @@ impl<T: Copy + Default> Image<T> {
     /// Wrap `data` (row-major) as a `width`×`height` image.
     pub fn from_vec(width: usize, height: usize, data: Vec<T>) -> Result<Self> {
         if data.len() != width * height {
-            return Err(Error::Size(format!(
-                "{} values for a {width}x{height} image",
-                data.len()
-            )));
+            return Err(Error::Size(format!("{} values for a {width}x{height} image", data.len())));
         }
         Ok(Self { width, height, data })
     }

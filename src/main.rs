@@ -8,9 +8,9 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use pipetrack::backend::BackendKind;
-use pipetrack::track::run::{self, TrackOptions};
 use pipetrack::io::Sequence;
 use pipetrack::synth;
+use pipetrack::track::run::{self, TrackOptions};
 
 /// Model-based visual tracking with GPU early vision.
 #[derive(Parser)]
@@ -134,7 +134,12 @@ fn main() -> ExitCode {
             let bad_input = e.chain().any(|c| {
                 matches!(
                     c.downcast_ref::<pipetrack::Error>(),
-                    Some(pipetrack::Error::Input { .. } | pipetrack::Error::Io { .. } | pipetrack::Error::Parameter(_) | pipetrack::Error::Size(_))
+                    Some(
+                        pipetrack::Error::Input { .. }
+                            | pipetrack::Error::Io { .. }
+                            | pipetrack::Error::Parameter(_)
+                            | pipetrack::Error::Size(_)
+                    )
                 )
             });
             ExitCode::from(if bad_input { EXIT_BAD_INPUT } else { 1 })
@@ -164,7 +169,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 None => false,
                 Some("-") => true,
                 Some(other) => {
-                    return Err(pipetrack::Error::Parameter(format!("--frames takes only '-' (Y4M on stdin), not {other:?}")).into());
+                    return Err(pipetrack::Error::Parameter(format!(
+                        "--frames takes only '-' (Y4M on stdin), not {other:?}"
+                    ))
+                    .into());
                 }
             };
             let seq = Sequence::open(&seq_dir, from_stdin)?;
@@ -216,14 +224,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Demo => demo(),
         Command::Reproduce { tracker, config } => {
             if tracker != "motion-edge" {
-                return Err(pipetrack::Error::Parameter(format!("no tables to reproduce for tracker {tracker:?} (motion-edge)")).into());
+                return Err(pipetrack::Error::Parameter(format!(
+                    "no tables to reproduce for tracker {tracker:?} (motion-edge)"
+                ))
+                .into());
             }
             let configs: Vec<&str> = match config.as_str() {
                 "both" => vec!["default", "paper"],
                 c => vec![c],
             };
             for c in configs {
-                let tables = pipetrack::cli::reproduce::run_tables(c, |done, total| eprint!("\r{c}: {done}/{total} runs"))?;
+                let tables =
+                    pipetrack::cli::reproduce::run_tables(c, |done, total| eprint!("\r{c}: {done}/{total} runs"))?;
                 eprintln!();
                 println!("{}", pipetrack::cli::reproduce::markdown(c, &tables));
             }

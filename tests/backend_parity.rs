@@ -4,10 +4,10 @@
 //! texture input) and `CpuBackend`.
 mod common;
 
+use pipetrack::GrayImage;
 use pipetrack::backend::{CpuBackend, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, ListSpec, Pyramids};
 use pipetrack::early::{Feature, Window};
 use pipetrack::testimage::natural;
-use pipetrack::GrayImage;
 
 /// Angle and magnitude tolerance of listed features (Sobel/LoG rounding).
 const FEATURE_ATOL: f32 = 1e-3;
@@ -24,12 +24,19 @@ fn same_lists(what: &str, cpu: &[Feature], gpu: &[Feature]) {
         let dt = (c.theta - g.theta).abs();
         let dt = dt.min((dt - std::f32::consts::TAU).abs());
         assert!(dt <= FEATURE_ATOL, "{what}: element {i} theta {} vs {}", c.theta, g.theta);
-        assert!((c.magnitude - g.magnitude).abs() <= FEATURE_ATOL * c.magnitude.abs().max(1.0), "{what}: element {i} magnitude");
+        assert!(
+            (c.magnitude - g.magnitude).abs() <= FEATURE_ATOL * c.magnitude.abs().max(1.0),
+            "{what}: element {i} magnitude"
+        );
     }
 }
 
 fn same_features(what: &str, cpu: &FrameFeatures, gpu: &FrameFeatures) {
-    for (name, c, g) in [("motion", &cpu.motion, &gpu.motion), ("edges", &cpu.edges, &gpu.edges), ("zero_crossings", &cpu.zero_crossings, &gpu.zero_crossings)] {
+    for (name, c, g) in [
+        ("motion", &cpu.motion, &gpu.motion),
+        ("edges", &cpu.edges, &gpu.edges),
+        ("zero_crossings", &cpu.zero_crossings, &gpu.zero_crossings),
+    ] {
         assert_eq!(c.is_some(), g.is_some(), "{what}/{name}: presence differs");
         if let (Some(c), Some(g)) = (c, g) {
             same_lists(&format!("{what}/{name}"), c, g);
@@ -52,7 +59,8 @@ fn gpu_and_cpu_backends_agree_on_the_full_chain() {
         let mut request = FrameRequest::full_chain(w, h);
         request.pyramids = Pyramids::Return;
         // An off-centre window and a cap on one list, as trackers ask.
-        request.edges.as_mut().unwrap().list = ListSpec { window: Window { x0: 3, y0: 5, x1: w as u32 / 2 + 1, y1: h as u32 }, cap: Some(300), seed: 4 };
+        request.edges.as_mut().unwrap().list =
+            ListSpec { window: Window { x0: 3, y0: 5, x1: w as u32 / 2 + 1, y1: h as u32 }, cap: Some(300), seed: 4 };
         let mut cpu = CpuBackend::new();
         let mut gpu = GpuBackend::new(ctx.clone());
         for (i, f) in frames.iter().enumerate() {
@@ -108,7 +116,12 @@ fn texture_frames_equal_byte_frames() {
     let mut by_texture = GpuBackend::new(ctx.clone());
     for f in &frames {
         ctx.queue().write_texture(
-            wgpu::TexelCopyTextureInfo { texture: &texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
             f.data(),
             wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(w as u32), rows_per_image: Some(h as u32) },
             size,

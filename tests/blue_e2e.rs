@@ -13,8 +13,8 @@
 mod common;
 
 use pipetrack::backend::{CpuBackend, EarlyVision, GpuBackend};
-use pipetrack::io::formats::{FrameResult, Status};
 use pipetrack::cli::score::score;
+use pipetrack::io::formats::{FrameResult, Status};
 use pipetrack::synth::target3dof::{Target3dofOptions, render_target3dof};
 use pipetrack::track::{BlueParams, BlueTracker};
 
@@ -23,28 +23,16 @@ struct Case {
     occlude: f64,
 }
 
-const CASES: [Case; 3] = [
-    Case { speed: 0.3, occlude: 0.0 },
-    Case { speed: 1.2, occlude: 0.0 },
-    Case { speed: 1.2, occlude: 0.3 },
-];
+const CASES: [Case; 3] =
+    [Case { speed: 0.3, occlude: 0.0 }, Case { speed: 1.2, occlude: 0.0 }, Case { speed: 1.2, occlude: 0.3 }];
 
 /// Track the case on `backend`; assert the acceptance criteria.
 fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) {
-    let opts = Target3dofOptions {
-        frames: 300,
-        speed: case.speed,
-        occlude: case.occlude,
-        ..Target3dofOptions::default()
-    };
+    let opts =
+        Target3dofOptions { frames: 300, speed: case.speed, occlude: case.occlude, ..Target3dofOptions::default() };
     let seq = render_target3dof(&opts).expect("render target3dof");
-    let mut tracker = BlueTracker::new(
-        seq.camera,
-        seq.model.clone(),
-        seq.init.clone(),
-        BlueParams::default(),
-    )
-    .expect("blue tracker");
+    let mut tracker =
+        BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), BlueParams::default()).expect("blue tracker");
     let size = (seq.camera.width as usize, seq.camera.height as usize);
     let mut results: Vec<FrameResult> = Vec::new();
     let mut lost: Vec<String> = Vec::new();
@@ -55,11 +43,7 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) {
         size,
         |_, outcome, result| {
             if outcome.status != Status::Tracking {
-                lost.push(format!(
-                    "{} ({})",
-                    outcome.frame,
-                    outcome.diagnostics.lost_reason.as_deref().unwrap_or("?")
-                ));
+                lost.push(format!("{} ({})", outcome.frame, outcome.diagnostics.lost_reason.as_deref().unwrap_or("?")));
             }
             results.push(result.clone());
             Ok(())
@@ -70,15 +54,8 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) {
     let stats = s.stats.expect("scored frames");
     let mut worst = s.frame_errors.clone();
     worst.sort_by(|a, b| b.1.total_cmp(&a.1));
-    let worst: Vec<String> = worst
-        .iter()
-        .take(5)
-        .map(|(f, e)| format!("{f}: {e:.2} px"))
-        .collect();
-    let label = format!(
-        "{backend_name}, {} rad/s, occlude {}",
-        case.speed, case.occlude
-    );
+    let worst: Vec<String> = worst.iter().take(5).map(|(f, e)| format!("{f}: {e:.2} px")).collect();
+    let label = format!("{backend_name}, {} rad/s, occlude {}", case.speed, case.occlude);
     eprintln!(
         "{label}: {} of {} frames tracked, mean {:.3} px, max {:.3} px",
         s.tracked, s.frames, stats.mean, stats.max

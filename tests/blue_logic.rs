@@ -24,11 +24,10 @@
 //! end-to-end seeds, `BLUE_PARAMS='lambda = 0.7'` (TOML) the parameters.
 
 use pipetrack::early::Feature;
-use pipetrack::estimate::{
-    AlphaBetaGamma, BlueProblem, CornerCovariance, LineLocation, PolynomialSrif, intersect_lines,
-    invert_spd,
-};
 use pipetrack::estimate::line_fit::{LineSums, fit_x_on_y, fit_y_on_x};
+use pipetrack::estimate::{
+    AlphaBetaGamma, BlueProblem, CornerCovariance, LineLocation, PolynomialSrif, intersect_lines, invert_spd,
+};
 use pipetrack::io::formats::{Camera, InitState, Model, Pose, Status};
 use pipetrack::track::blue::rotation_from_axis_angle;
 use pipetrack::track::{BlueParams, BlueTracker, Observations, Tracker};
@@ -70,27 +69,19 @@ fn batch_eq_14(samples: &[(f64, f64)], lambda: f64, t: usize) -> [f64; 3] {
 fn srif_equals_batch_eq_14() {
     let mut rng = ChaCha8Rng::seed_from_u64(14);
     for lambda in [0.6, 0.8, 0.95] {
-        let samples: Vec<(f64, f64)> = (0..40)
-            .map(|_| (rng.random_range(-50.0..50.0), rng.random_range(0.2..4.0)))
-            .collect();
+        let samples: Vec<(f64, f64)> =
+            (0..40).map(|_| (rng.random_range(-50.0..50.0), rng.random_range(0.2..4.0))).collect();
         let mut srif = PolynomialSrif::<3>::new(lambda, 0.0).expect("lambda");
         for (t, &(c, var)) in samples.iter().enumerate() {
             srif.update(t as f64, c, var);
             if t < 2 {
-                assert!(
-                    srif.coefficients().is_none(),
-                    "3 coefficients need 3 samples"
-                );
+                assert!(srif.coefficients().is_none(), "3 coefficients need 3 samples");
                 continue;
             }
             // Relative coefficients a'(τ = n − t) → absolute a(n) of eq. 13.
             let r = srif.coefficients().expect("determined");
             let tf = t as f64;
-            let recursive = [
-                r[0] - r[1] * tf + r[2] * tf * tf,
-                r[1] - 2.0 * r[2] * tf,
-                r[2],
-            ];
+            let recursive = [r[0] - r[1] * tf + r[2] * tf * tf, r[1] - 2.0 * r[2] * tf, r[2]];
             let batch = batch_eq_14(&samples, lambda, t);
             for k in 0..3 {
                 let scale = batch[k].abs().max(1e-3 * batch[0].abs()).max(1e-9);
@@ -129,10 +120,7 @@ fn srif_one_step_predictor_equals_alpha_beta_gamma_eq_16_to_18() {
         let mut srif = PolynomialSrif::<3>::new(lambda, 0.0).expect("lambda");
         let mut abg = AlphaBetaGamma::from_lambda(lambda);
         let (alpha, beta, gamma) = (abg.alpha, abg.beta, abg.gamma);
-        let (n0, n1) = (
-            alpha + beta + gamma / 4.0,
-            -2.0 * alpha - beta + gamma / 4.0,
-        );
+        let (n0, n1) = (alpha + beta + gamma / 4.0, -2.0 * alpha - beta + gamma / 4.0);
         let (d1, d2, d3) = (n0 - 3.0, n1 + 3.0, alpha - 1.0);
         let l = lambda;
         let (mut y16, mut y17) = (vec![0.0; n_samples], vec![0.0; n_samples]);
@@ -145,9 +133,7 @@ fn srif_one_step_predictor_equals_alpha_beta_gamma_eq_16_to_18() {
             // Eq. 16: (−1 + λz⁻¹)³ ȳ = (λ − 1)(3 − 3(1+λ)z⁻¹ + (1+λ+λ²)z⁻²) x.
             y16[n] = 3.0 * l * at(&y16, n, 1) - 3.0 * l * l * at(&y16, n, 2)
                 + l * l * l * at(&y16, n, 3)
-                + (1.0 - l)
-                    * (3.0 * x[n] - 3.0 * (1.0 + l) * at(&x, n, 1)
-                        + (1.0 + l + l * l) * at(&x, n, 2));
+                + (1.0 - l) * (3.0 * x[n] - 3.0 * (1.0 + l) * at(&x, n, 1) + (1.0 + l + l * l) * at(&x, n, 2));
             // Eq. 17.
             y17[n] = -d1 * at(&y17, n, 1) - d2 * at(&y17, n, 2) - d3 * at(&y17, n, 3)
                 + n0 * x[n]
@@ -157,16 +143,11 @@ fn srif_one_step_predictor_equals_alpha_beta_gamma_eq_16_to_18() {
                 for (name, other) in [("α-β-γ", p_abg), ("eq. 16", y16[n]), ("eq. 17", y17[n])] {
                     let diff = (p_srif - other).abs();
                     worst = worst.max(diff);
-                    assert!(
-                        diff < 1e-7 * 100.0,
-                        "λ {lambda} n {n}: SRIF {p_srif} vs {name} {other}"
-                    );
+                    assert!(diff < 1e-7 * 100.0, "λ {lambda} n {n}: SRIF {p_srif} vs {name} {other}");
                 }
             }
         }
-        eprintln!(
-            "λ {lambda}: largest difference SRIF vs α-β-γ / eq. 16 / eq. 17 over n ≥ 200: {worst:.2e}"
-        );
+        eprintln!("λ {lambda}: largest difference SRIF vs α-β-γ / eq. 16 / eq. 17 over n ≥ 200: {worst:.2e}");
     }
 }
 
@@ -213,18 +194,9 @@ fn corner_covariance_eq_6_matches_monte_carlo() {
         }
         if predicted_true.is_none() {
             // Eq. 6 with the true point variances.
-            let (ta, tb) = (
-                LineLocation {
-                    point_variance: s1 * s1,
-                    ..la
-                },
-                LineLocation {
-                    point_variance: s2 * s2,
-                    ..lb
-                },
-            );
-            predicted_true =
-                intersect_lines(&ta, &tb, CornerCovariance::LineLocation).map(|c| c.covariance);
+            let (ta, tb) =
+                (LineLocation { point_variance: s1 * s1, ..la }, LineLocation { point_variance: s2 * s2, ..lb });
+            predicted_true = intersect_lines(&ta, &tb, CornerCovariance::LineLocation).map(|c| c.covariance);
         }
         positions.push(c.position);
     }
@@ -242,9 +214,7 @@ fn corner_covariance_eq_6_matches_monte_carlo() {
         }
     }
     let rel = |a: &[[f64; 2]; 2], b: &[[f64; 2]; 2]| {
-        let num: f64 = (0..4)
-            .map(|k| (a[k / 2][k % 2] - b[k / 2][k % 2]).powi(2))
-            .sum();
+        let num: f64 = (0..4).map(|k| (a[k / 2][k % 2] - b[k / 2][k % 2]).powi(2)).sum();
         let den: f64 = (0..4).map(|k| b[k / 2][k % 2].powi(2)).sum();
         (num / den).sqrt()
     };
@@ -252,21 +222,10 @@ fn corner_covariance_eq_6_matches_monte_carlo() {
     eprintln!(
         "Monte Carlo {mc:?}\n eq. 6 (true σ) {truth:?}\n eq. 6 (eq. 4 σ, mean) {predicted_mean:?}\n paper Σ = σ² {paper_mean:?}"
     );
-    assert!(
-        (mean[0] - 200.0).abs() < 0.01 && (mean[1] - 130.0).abs() < 0.01,
-        "unbiased: {mean:?}"
-    );
-    assert!(
-        rel(&truth, &mc) < 0.05,
-        "eq. 6 with true σ: {}",
-        rel(&truth, &mc)
-    );
+    assert!((mean[0] - 200.0).abs() < 0.01 && (mean[1] - 130.0).abs() < 0.01, "unbiased: {mean:?}");
+    assert!(rel(&truth, &mc) < 0.05, "eq. 6 with true σ: {}", rel(&truth, &mc));
     // Eq. 4 divides by n, so E[σ̂²] = σ²·(n − 2)/n: 3 % and 5 % low here.
-    assert!(
-        rel(&predicted_mean, &mc) < 0.10,
-        "eq. 6 with eq. 4 σ: {}",
-        rel(&predicted_mean, &mc)
-    );
+    assert!(rel(&predicted_mean, &mc) < 0.10, "eq. 6 with eq. 4 σ: {}", rel(&predicted_mean, &mc));
     assert!(paper_mean[0][0] > 3.0 * mc[0][0] && paper_mean[1][1] > 3.0 * mc[1][1]);
 }
 
@@ -287,12 +246,7 @@ fn blue_beats_unweighted_fit_with_a_bookshelf_edge() {
     let (c10, s10) = (10f64.to_radians().cos(), 10f64.to_radians().sin());
     let model: Vec<[f64; 2]> = [[-0.1, -0.07], [0.1, -0.07], [0.1, 0.07], [-0.1, 0.07]]
         .iter()
-        .map(|p| {
-            [
-                (c10 * p[0] - s10 * p[1]) / z0,
-                (s10 * p[0] + c10 * p[1]) / z0,
-            ]
-        })
+        .map(|p| [(c10 * p[0] - s10 * p[1]) / z0, (s10 * p[0] + c10 * p[1]) / z0])
         .collect();
     let truth = [320.0, 240.0, 1.0 / 0.95];
     let image = |x: &[f64; 3], u: &[f64; 2]| [x[0] + x[2] * px * u[0], x[1] + x[2] * py * u[1]];
@@ -311,37 +265,22 @@ fn blue_beats_unweighted_fit_with_a_bookshelf_edge() {
             for i in 2..n - 2 {
                 let s = i as f64 / n as f64;
                 let e = 0.4 * normal(&mut rng);
-                sums.add(
-                    p[0] + s * dx + e * outward[0],
-                    p[1] + s * dy + e * outward[1],
-                );
+                sums.add(p[0] + s * dx + e * outward[0], p[1] + s * dy + e * outward[1]);
                 if side == 3 {
                     // Bookshelf edge 5 px outside the left side.
                     let e = 5.0 + 0.4 * normal(&mut rng);
-                    sums.add(
-                        p[0] + s * dx + e * outward[0],
-                        p[1] + s * dy + e * outward[1],
-                    );
+                    sums.add(p[0] + s * dx + e * outward[0], p[1] + s * dy + e * outward[1]);
                 }
             }
-            let fit = if dx.abs() >= dy.abs() {
-                fit_y_on_x(&sums)
-            } else {
-                fit_x_on_y(&sums)
-            };
+            let fit = if dx.abs() >= dy.abs() { fit_y_on_x(&sums) } else { fit_x_on_y(&sums) };
             fits.push(LineLocation::new(&sums, fit.expect("fit"), 1.0 / 12.0).expect("line"));
         }
         let mut problem = BlueProblem::<3>::new();
         for v in 0..4 {
             // Vertex v joins sides v − 1 and v.
-            let c = intersect_lines(&fits[(v + 3) % 4], &fits[v], CornerCovariance::LineLocation)
-                .expect("corner");
+            let c = intersect_lines(&fits[(v + 3) % 4], &fits[v], CornerCovariance::LineLocation).expect("corner");
             let u = model[v];
-            assert!(problem.add(
-                [[1.0, 0.0, px * u[0]], [0.0, 1.0, py * u[1]]],
-                c.position,
-                c.covariance
-            ));
+            assert!(problem.add([[1.0, 0.0, px * u[0]], [0.0, 1.0, py * u[1]]], c.position, c.covariance));
         }
         let blue = problem.solve(0.0).expect("blue").estimate;
         let plain = problem.solve_unweighted().expect("ls").estimate;
@@ -360,10 +299,7 @@ fn blue_beats_unweighted_fit_with_a_bookshelf_edge() {
         err_plain += vertex_error(&plain) / trials as f64;
     }
     eprintln!("mean vertex error: BLUE {err_blue:.3} px, unweighted {err_plain:.3} px");
-    assert!(
-        err_blue < 0.5 * err_plain,
-        "BLUE {err_blue} vs unweighted {err_plain}"
-    );
+    assert!(err_blue < 0.5 * err_plain, "BLUE {err_blue} vs unweighted {err_plain}");
     assert!(err_blue < 1.0, "BLUE {err_blue}");
 }
 
@@ -376,23 +312,15 @@ const U0: f64 = 319.5;
 const V0: f64 = 239.5;
 
 fn camera() -> Camera {
-    Camera {
-        width: WIDTH as u32,
-        height: HEIGHT as u32,
-        fx: F,
-        fy: F,
-        cx: U0,
-        cy: V0,
-    }
+    Camera { width: WIDTH as u32, height: HEIGHT as u32, fx: F, fy: F, cx: U0, cy: V0 }
 }
 
 /// A 0.2 × 0.15 × 0.1 m box centred on its origin; vertex i has coordinate
 /// signs from its bits (x: bit 0, y: bit 1, z: bit 2).
 fn box_model() -> Model {
     let half = [0.1, 0.075, 0.05];
-    let vertices: Vec<[f64; 3]> = (0..8)
-        .map(|i| std::array::from_fn(|a| if (i >> a) & 1 == 1 { half[a] } else { -half[a] }))
-        .collect();
+    let vertices: Vec<[f64; 3]> =
+        (0..8).map(|i| std::array::from_fn(|a| if (i >> a) & 1 == 1 { half[a] } else { -half[a] })).collect();
     let mut edges = Vec::new();
     for i in 0..8usize {
         for a in 0..3 {
@@ -416,14 +344,7 @@ fn box_model() -> Model {
             faces.push(face);
         }
     }
-    Model {
-        name: "box".into(),
-        units: "m".into(),
-        vertices,
-        edges,
-        faces,
-        joints: Vec::new(),
-    }
+    Model { name: "box".into(), units: "m".into(), vertices, edges, faces, joints: Vec::new() }
 }
 
 const ROTATION: [f64; 3] = [0.4, -0.5, 0.1];
@@ -455,21 +376,14 @@ fn camera_vertices(model: &Model, t: [f64; 3]) -> Vec<[f64; 3]> {
 fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
     let mut p = points.to_vec();
     p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
-        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-    };
+    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
     let mut hull: Vec<[f64; 2]> = Vec::new();
     for pass in 0..2 {
         let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
+        let iter: Box<dyn Iterator<Item = &[f64; 2]>> =
+            if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
         for &q in iter {
-            while hull.len() >= start + 2
-                && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0
-            {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
                 hull.pop();
             }
             hull.push(q);
@@ -488,13 +402,7 @@ fn inside_convex(hull: &[[f64; 2]], p: [f64; 2]) -> bool {
 
 /// Pixels within 1 px of segment p–q, θ = its normal (sign: away from
 /// `centre`) with ±2° noise.
-fn edge_band(
-    p: [f64; 2],
-    q: [f64; 2],
-    centre: [f64; 2],
-    rng: &mut ChaCha8Rng,
-    out: &mut Vec<(u32, u32, f64)>,
-) {
+fn edge_band(p: [f64; 2], q: [f64; 2], centre: [f64; 2], rng: &mut ChaCha8Rng, out: &mut Vec<(u32, u32, f64)>) {
     let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
     let len = dx.hypot(dy);
     if len < 1.0 {
@@ -502,10 +410,7 @@ fn edge_band(
     }
     let (tx, ty) = (dx / len, dy / len);
     let mut normal = [-ty, tx];
-    let mid = [
-        0.5 * (p[0] + q[0]) - centre[0],
-        0.5 * (p[1] + q[1]) - centre[1],
-    ];
+    let mid = [0.5 * (p[0] + q[0]) - centre[0], 0.5 * (p[1] + q[1]) - centre[1]];
     if normal[0] * mid[0] + normal[1] * mid[1] < 0.0 {
         normal = [ty, -tx];
     }
@@ -520,11 +425,7 @@ fn edge_band(
             let s = rx * tx + ry * ty;
             let d = rx * normal[0] + ry * normal[1];
             if d.abs() <= 1.0 && (0.0..=len).contains(&s) {
-                out.push((
-                    x as u32,
-                    y as u32,
-                    theta + 2f64.to_radians() * normal_sample(rng),
-                ));
+                out.push((x as u32, y as u32, theta + 2f64.to_radians() * normal_sample(rng)));
             }
         }
     }
@@ -576,17 +477,11 @@ struct Run {
 fn run_box(speed: f64, occlusion: bool, seed: u64) -> Run {
     let omega = speed / 180.0;
     let model = box_model();
-    let seed = std::env::var("BLUE_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(seed);
+    let seed = std::env::var("BLUE_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(seed);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let shelf = bookshelf(&mut rng);
     let init = InitState {
-        pose: Some(Pose {
-            rotation: ROTATION,
-            translation: truth_translation(0, omega),
-        }),
+        pose: Some(Pose { rotation: ROTATION, translation: truth_translation(0, omega) }),
         params: Vec::new(),
         corners: Vec::new(),
     };
@@ -604,37 +499,20 @@ fn run_box(speed: f64, occlusion: bool, seed: u64) -> Run {
         let img: Vec<[f64; 2]> = cam.iter().map(|&p| project(p)).collect();
         let hull = convex_hull(&img);
         let centre = project(t);
-        let (bx0, bx1) = img
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-                (a.min(p[0]), b.max(p[0]))
-            });
-        let (by0, by1) = img
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-                (a.min(p[1]), b.max(p[1]))
-            });
+        let (bx0, bx1) = img.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[0]), b.max(p[0])));
+        let (by0, by1) = img.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[1]), b.max(p[1])));
         let bar = occlusion.then(|| {
             let (mid, half) = (0.5 * (bx0 + bx1), 0.2 * (bx1 - bx0));
             (mid - half, mid + half)
         });
-        let in_bar = |x: f64, y: f64| {
-            bar.is_some_and(|(a, b)| x >= a && x <= b && y >= by0 - 20.0 && y <= by1 + 20.0)
-        };
+        let in_bar = |x: f64, y: f64| bar.is_some_and(|(a, b)| x >= a && x <= b && y >= by0 - 20.0 && y <= by1 + 20.0);
         // Visible edges: a face faces the camera when n·X < 0.
         let r = rotation_from_axis_angle(ROTATION);
         let mut visible = vec![false; model.edges.len()];
         for face in &model.faces {
             let (a, b, c) = (cam[face[0]], cam[face[1]], cam[face[2]]);
-            let (u, v) = (
-                [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-                [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-            );
-            let nrm = [
-                u[1] * v[2] - u[2] * v[1],
-                u[2] * v[0] - u[0] * v[2],
-                u[0] * v[1] - u[1] * v[0],
-            ];
+            let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+            let nrm = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
             if nrm[0] * a[0] + nrm[1] * a[1] + nrm[2] * a[2] < 0.0 {
                 for (k, &[i, j]) in model.edges.iter().enumerate() {
                     let m = face.len();
@@ -665,13 +543,7 @@ fn run_box(speed: f64, occlusion: bool, seed: u64) -> Run {
         }
         // Background: shelf and noise, hidden by the box and the bar.
         let noise: Vec<(u32, u32, f64)> = (0..400)
-            .map(|_| {
-                (
-                    rng.random_range(0..WIDTH as u32),
-                    rng.random_range(0..HEIGHT as u32),
-                    rng.random_range(-PI..PI),
-                )
-            })
+            .map(|_| (rng.random_range(0..WIDTH as u32), rng.random_range(0..HEIGHT as u32), rng.random_range(-PI..PI)))
             .collect();
         let no_clutter = std::env::var_os("BLUE_NOCLUTTER").is_some();
         for &p in shelf.iter().chain(&noise).filter(|_| !no_clutter) {
@@ -683,8 +555,7 @@ fn run_box(speed: f64, occlusion: bool, seed: u64) -> Run {
         if let Some((a, b)) = bar {
             // The bar's own two vertical edges.
             for x in [a.round(), b.round()] {
-                for y in (by0 - 20.0).max(0.0) as u32..(by1 + 20.0).min(HEIGHT as f64 - 1.0) as u32
-                {
+                for y in (by0 - 20.0).max(0.0) as u32..(by1 + 20.0).min(HEIGHT as f64 - 1.0) as u32 {
                     pixels.push((x.max(0.0) as u32, y, 0.0));
                 }
             }
@@ -696,12 +567,7 @@ fn run_box(speed: f64, occlusion: bool, seed: u64) -> Run {
             .filter(|&(x, y, _)| x >= window.x0 && x < window.x1 && y >= window.y0 && y < window.y1)
             .map(|(x, y, theta)| {
                 let wrapped = (theta + PI).rem_euclid(2.0 * PI) - PI;
-                Feature {
-                    x,
-                    y,
-                    theta: wrapped as f32,
-                    magnitude: 200.0,
-                }
+                Feature { x, y, theta: wrapped as f32, magnitude: 200.0 }
             })
             .collect();
         if features.len() > cap {
@@ -709,51 +575,25 @@ fn run_box(speed: f64, occlusion: bool, seed: u64) -> Run {
             features.truncate(cap);
         }
         features.sort_by_key(|f| (f.y, f.x));
-        let outcome = tracker.track(
-            n,
-            &Observations {
-                edges: Some(&features),
-                ..Observations::default()
-            },
-        );
+        let outcome = tracker.track(n, &Observations { edges: Some(&features), ..Observations::default() });
         assert_eq!(outcome.frame, n);
         if std::env::var_os("BLUE_DEBUG").is_some() {
-            let err = outcome
-                .corners
-                .iter()
-                .zip(&img)
-                .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
-                .fold(0.0, f64::max);
+            let err =
+                outcome.corners.iter().zip(&img).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).fold(0.0, f64::max);
             let pred = tracker.predict_ahead(0.0);
-            let vis: Vec<u8> = tracker
-                .visible_edges(&pred.location)
-                .iter()
-                .map(|&b| u8::from(b))
-                .collect();
+            let vis: Vec<u8> = tracker.visible_edges(&pred.location).iter().map(|&b| u8::from(b)).collect();
             let tv: Vec<u8> = visible.iter().map(|&b| u8::from(b)).collect();
             eprintln!(
                 "visible tracker {vis:?} truth {tv:?} img {:?}",
-                img.iter()
-                    .map(|p| [p[0].round(), p[1].round()])
-                    .collect::<Vec<_>>()
+                img.iter().map(|p| [p[0].round(), p[1].round()]).collect::<Vec<_>>()
             );
             eprintln!(
                 "frame {n}: {:?} err {err:.2} dev {:?} pts {:?} fitted {:?} corners {:?} feats {} win {:?} pred {:?}",
                 outcome.status,
                 outcome.diagnostics.max_corner_deviation,
                 outcome.diagnostics.points_per_line,
-                outcome
-                    .diagnostics
-                    .line_fitted
-                    .iter()
-                    .filter(|b| **b)
-                    .count(),
-                outcome
-                    .diagnostics
-                    .corner_measured
-                    .iter()
-                    .filter(|b| **b)
-                    .count(),
+                outcome.diagnostics.line_fitted.iter().filter(|b| **b).count(),
+                outcome.diagnostics.corner_measured.iter().filter(|b| **b).count(),
                 features.len(),
                 window,
                 pred.location
@@ -819,11 +659,7 @@ fn box_in_front_of_a_bookshelf_at_1_2_rad_per_s() {
 fn box_partly_occluded_at_1_2_rad_per_s() {
     let run = run_box(500.0 * 1.2 / 30.0, true, 30);
     report("1.2 rad/s, occluded", &run);
-    assert!(
-        (0.25..=0.4).contains(&run.hidden_fraction),
-        "hidden {}",
-        run.hidden_fraction
-    );
+    assert!((0.25..=0.4).contains(&run.hidden_fraction), "hidden {}", run.hidden_fraction);
     assert!(run.mean_error <= 1.0 && run.lost_frames == 0 && run.max_error <= 5.0);
 }
 
@@ -834,15 +670,8 @@ fn box_partly_occluded_at_1_2_rad_per_s() {
 fn lost_frames_keep_predicting_and_reacquire() {
     let model = box_model();
     let t0 = truth_translation(0, 0.0);
-    let init = InitState {
-        pose: Some(Pose {
-            rotation: ROTATION,
-            translation: t0,
-        }),
-        ..InitState::default()
-    };
-    let mut tracker =
-        BlueTracker::new(camera(), model.clone(), init, BlueParams::default()).expect("tracker");
+    let init = InitState { pose: Some(Pose { rotation: ROTATION, translation: t0 }), ..InitState::default() };
+    let mut tracker = BlueTracker::new(camera(), model.clone(), init, BlueParams::default()).expect("tracker");
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let render = |rng: &mut ChaCha8Rng| {
         let cam = camera_vertices(&model, t0);
@@ -853,12 +682,7 @@ fn lost_frames_keep_predicting_and_reacquire() {
         }
         let mut f: Vec<Feature> = px
             .into_iter()
-            .map(|(x, y, th)| Feature {
-                x,
-                y,
-                theta: ((th + PI).rem_euclid(2.0 * PI) - PI) as f32,
-                magnitude: 200.0,
-            })
+            .map(|(x, y, th)| Feature { x, y, theta: ((th + PI).rem_euclid(2.0 * PI) - PI) as f32, magnitude: 200.0 })
             .collect();
         f.sort_by_key(|f| (f.y, f.x));
         (f, img)
@@ -875,18 +699,8 @@ fn lost_frames_keep_predicting_and_reacquire() {
     }
     let (f, img) = render(&mut rng);
     let out = tracker.update(15, &f);
-    assert_eq!(
-        out.status,
-        Status::Tracking,
-        "{:?}",
-        out.diagnostics.lost_reason
-    );
-    let err = out
-        .corners
-        .iter()
-        .zip(&img)
-        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
-        .fold(0.0, f64::max);
+    assert_eq!(out.status, Status::Tracking, "{:?}", out.diagnostics.lost_reason);
+    let err = out.corners.iter().zip(&img).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).fold(0.0, f64::max);
     assert!(err < 1.0, "re-acquired with vertex error {err}");
     // Servo-cycle prediction: defined between frames.
     let ahead = tracker.predict_ahead(0.5);

@@ -56,7 +56,16 @@ fn synth_track_score_round_trip() {
     let root = scratch("ok");
     let seq = good_sequence(&root);
     let pred = root.join("pred.jsonl");
-    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--out", pred.to_str().unwrap()]);
+    let out = pipetrack(&[
+        "track",
+        seq.to_str().unwrap(),
+        "--tracker",
+        "motion-edge",
+        "--backend",
+        "cpu",
+        "--out",
+        pred.to_str().unwrap(),
+    ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = std::fs::read_to_string(&pred).unwrap();
     assert_eq!(text.lines().count(), 6);
@@ -70,7 +79,14 @@ fn synth_track_score_round_trip() {
     let out = pipetrack(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let s = String::from_utf8_lossy(&out.stdout);
-    for key in ["mean corner error", "median corner error", "p95 corner error", "max corner error", "frames tracked", "first lost frame"] {
+    for key in [
+        "mean corner error",
+        "median corner error",
+        "p95 corner error",
+        "max corner error",
+        "frames tracked",
+        "first lost frame",
+    ] {
         assert!(s.contains(key), "score output lacks {key}: {s}");
     }
 }
@@ -80,7 +96,16 @@ fn stdout_output_and_overlays() {
     let root = scratch("stdout");
     let seq = good_sequence(&root);
     let overlay = root.join("overlay");
-    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--overlay", overlay.to_str().unwrap()]);
+    let out = pipetrack(&[
+        "track",
+        seq.to_str().unwrap(),
+        "--tracker",
+        "motion-edge",
+        "--backend",
+        "cpu",
+        "--overlay",
+        overlay.to_str().unwrap(),
+    ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 6);
     let pngs = std::fs::read_dir(&overlay).unwrap().count();
@@ -148,7 +173,8 @@ fn malformed_json() {
 fn nan_intrinsics() {
     let root = scratch("nan");
     let seq = good_sequence(&root);
-    std::fs::write(seq.join("camera.json"), r#"{"width":256,"height":242,"fx":NaN,"fy":300,"cx":127.5,"cy":120.5}"#).unwrap();
+    std::fs::write(seq.join("camera.json"), r#"{"width":256,"height":242,"fx":NaN,"fy":300,"cx":127.5,"cy":120.5}"#)
+        .unwrap();
     expect_bad_input(&root, &seq, &["camera.json", "NaN"]);
 }
 
@@ -189,11 +215,29 @@ fn unknown_tracker_and_bad_config() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("nonesuch"));
     let cfg = root.join("bad.toml");
     std::fs::write(&cfg, "[motion-edge]\nzeta = -3.0\n").unwrap();
-    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--config", cfg.to_str().unwrap()]);
+    let out = pipetrack(&[
+        "track",
+        seq.to_str().unwrap(),
+        "--tracker",
+        "motion-edge",
+        "--backend",
+        "cpu",
+        "--config",
+        cfg.to_str().unwrap(),
+    ]);
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     let cfg2 = root.join("typo.toml");
     std::fs::write(&cfg2, "zetta = 3.0\n").unwrap();
-    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--config", cfg2.to_str().unwrap()]);
+    let out = pipetrack(&[
+        "track",
+        seq.to_str().unwrap(),
+        "--tracker",
+        "motion-edge",
+        "--backend",
+        "cpu",
+        "--config",
+        cfg2.to_str().unwrap(),
+    ]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("typo.toml"));
 }
@@ -214,7 +258,8 @@ fn score_rejects_short_predictions() {
     let root = scratch("score");
     let seq = good_sequence(&root);
     let pred = root.join("short.jsonl");
-    std::fs::write(&pred, "{\"frame\":0,\"status\":\"tracking\",\"corners\":[[0,0],[1,0],[1,1],[0,1]],\"ms\":1}\n").unwrap();
+    std::fs::write(&pred, "{\"frame\":0,\"status\":\"tracking\",\"corners\":[[0,0],[1,0],[1,1],[0,1]],\"ms\":1}\n")
+        .unwrap();
     let out = pipetrack(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("short.jsonl"));

@@ -16,11 +16,11 @@
 mod common;
 
 use pipetrack::backend::{BackendKind, CpuBackend, EarlyVision, GpuBackend};
-use pipetrack::io::formats::{FrameResult, Status};
-use pipetrack::track::run::{TrackOptions, track_frames, track_sequence};
 use pipetrack::cli::score::{Score, score};
 use pipetrack::io::Sequence;
+use pipetrack::io::formats::{FrameResult, Status};
 use pipetrack::synth::pendulum::{PendulumOptions, render_pendulum};
+use pipetrack::track::run::{TrackOptions, track_frames, track_sequence};
 use pipetrack::track::{MotionEdgeParams, MotionEdgeTracker};
 
 /// The paper's peak image speeds, px/frame.
@@ -38,8 +38,9 @@ fn pendulum(speed: f64) -> PendulumOptions {
 fn track(opts: &PendulumOptions, backend: &mut dyn EarlyVision) -> (Vec<FrameResult>, Score) {
     let seq = render_pendulum(opts).expect("render");
     let (w, h) = (seq.camera.width as usize, seq.camera.height as usize);
-    let mut tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), MotionEdgeParams::default())
-        .expect("tracker");
+    let mut tracker =
+        MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), MotionEdgeParams::default())
+            .expect("tracker");
     let mut results = Vec::with_capacity(seq.frames.len());
     track_frames(&mut tracker, backend, seq.frames.iter().cloned().map(Ok), (w, h), |_, _, r| {
         results.push(r.clone());
@@ -61,7 +62,11 @@ fn check(label: &str, speed: f64, results: &[FrameResult], s: &Score, mean_limit
     if let Some(r) = results.iter().find(|r| r.status != Status::Tracking) {
         panic!("{label} {speed} px/frame: frame {} is {:?} (first lost {:?})", r.frame, r.status, s.first_lost);
     }
-    assert!(stats.mean <= mean_limit, "{label} {speed} px/frame: mean corner error {:.3} px > {mean_limit}", stats.mean);
+    assert!(
+        stats.mean <= mean_limit,
+        "{label} {speed} px/frame: mean corner error {:.3} px > {mean_limit}",
+        stats.mean
+    );
     assert!(stats.max <= max_limit, "{label} {speed} px/frame: worst frame {:.3} px > {max_limit}", stats.max);
 }
 
@@ -103,11 +108,18 @@ fn a_jump_away_is_lost_and_every_frame_still_gets_a_line() {
     // The object jumps 80 px down at frame 40, mid-swing (3.9 px/frame).
     let jump = 40;
     let opts = PendulumOptions { jump_at: Some(jump), ..pendulum(3.9) };
-    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("motion_edge_e2e_jump_{}", std::process::id()));
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("motion_edge_e2e_jump_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     render_pendulum(&opts).expect("render").write(&dir).expect("write sequence");
     let seq = Sequence::open(&dir, false).expect("open sequence");
-    let opts = TrackOptions { tracker: "motion-edge".into(), backend: BackendKind::Cpu, config: None, overlay: None, progress: false };
+    let opts = TrackOptions {
+        tracker: "motion-edge".into(),
+        backend: BackendKind::Cpu,
+        config: None,
+        overlay: None,
+        progress: false,
+    };
     let mut out = Vec::new();
     let summary = track_sequence(&seq, &opts, &mut out, |_| {}).expect("track runs to the end");
     let _ = std::fs::remove_dir_all(&dir);

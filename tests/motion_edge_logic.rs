@@ -15,8 +15,8 @@
 use pipetrack::early::Feature;
 use pipetrack::io::formats::Status;
 use pipetrack::track::{
-    FrameOutcome, LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker,
-    Observations, Phase, Prediction, Tracker,
+    FrameOutcome, LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker, Observations, Phase,
+    Prediction, Tracker,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -68,14 +68,8 @@ fn motion_features(
     let all: Vec<[f64; 2]> = before.iter().chain(after).copied().collect();
     let lo = |k: usize| all.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min) - 6.0;
     let hi = |k: usize| all.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max) + 6.0;
-    let (x0, x1) = (
-        (lo(0).floor().max(window.x0 as f64)) as u32,
-        (hi(0).ceil().min(window.x1 as f64 - 1.0)) as u32,
-    );
-    let (y0, y1) = (
-        (lo(1).floor().max(window.y0 as f64)) as u32,
-        (hi(1).ceil().min(window.y1 as f64 - 1.0)) as u32,
-    );
+    let (x0, x1) = ((lo(0).floor().max(window.x0 as f64)) as u32, (hi(0).ceil().min(window.x1 as f64 - 1.0)) as u32);
+    let (y0, y1) = ((lo(1).floor().max(window.y0 as f64)) as u32, (hi(1).ceil().min(window.y1 as f64 - 1.0)) as u32);
     let sum = |p: [f64; 2]| CONTRAST * (coverage(before, p) + coverage(after, p));
     let mut pixels: Vec<(u32, u32, f32, f32)> = Vec::new();
     if x0 <= x1 && y0 <= y1 && lo(0) < window.x1 as f64 && lo(1) < window.y1 as f64 {
@@ -107,22 +101,12 @@ fn motion_features(
         }
         let x = rng.random_range(window.x0..window.x1);
         let y = rng.random_range(window.y0..window.y1);
-        pixels.push((
-            x,
-            y,
-            rng.random_range(0.0..PI) as f32,
-            rng.random_range(10.0..300.0) as f32,
-        ));
+        pixels.push((x, y, rng.random_range(0.0..PI) as f32, rng.random_range(10.0..300.0) as f32));
     }
     // Row-major, one entry per pixel, as compaction lists them.
     pixels.sort_by_key(|&(x, y, _, _)| (y, x));
     pixels.dedup_by_key(|&mut (x, y, _, _)| (x, y));
-    features.extend(pixels.into_iter().map(|(x, y, theta, magnitude)| Feature {
-        x,
-        y,
-        theta,
-        magnitude,
-    }));
+    features.extend(pixels.into_iter().map(|(x, y, theta, magnitude)| Feature { x, y, theta, magnitude }));
     features
 }
 
@@ -131,46 +115,25 @@ fn square(centre: [f64; 2], side: f64, angle: f64) -> Vec<[f64; 2]> {
     let h = side / 2.0;
     [[-h, -h], [h, -h], [h, h], [-h, h]]
         .iter()
-        .map(|&[x, y]| {
-            [
-                centre[0] + x * angle.cos() - y * angle.sin(),
-                centre[1] + x * angle.sin() + y * angle.cos(),
-            ]
-        })
+        .map(|&[x, y]| [centre[0] + x * angle.cos() - y * angle.sin(), centre[1] + x * angle.sin() + y * angle.cos()])
         .collect()
 }
 
 const SQUARE_EDGES: [[usize; 2]; 4] = [[0, 1], [1, 2], [2, 3], [3, 0]];
 
 fn corner_error(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
-        .sum::<f64>()
-        / a.len() as f64
+    a.iter().zip(b).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).sum::<f64>() / a.len() as f64
 }
 
 /// Run the tracker over the truth `polygons` (frame 0 first); frame 0 gets no
 /// motion pixels. Returns every outcome.
-fn run(
-    polygons: &[Vec<[f64; 2]>],
-    params: MotionEdgeParams,
-    clutter: usize,
-    seed: u64,
-) -> Vec<FrameOutcome> {
+fn run(polygons: &[Vec<[f64; 2]>], params: MotionEdgeParams, clutter: usize, seed: u64) -> Vec<FrameOutcome> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut tracker = MotionEdgeTracker::new(polygons[0].clone(), SQUARE_EDGES.to_vec(), params)
-        .expect("valid model");
+    let mut tracker = MotionEdgeTracker::new(polygons[0].clone(), SQUARE_EDGES.to_vec(), params).expect("valid model");
     let mut outcomes = vec![tracker.update(0, &[])];
     for t in 1..polygons.len() {
         let motion = motion_features(&polygons[t - 1], &polygons[t], &tracker, clutter, &mut rng);
-        let outcome = tracker.track(
-            t,
-            &Observations {
-                motion: Some(&motion),
-                ..Observations::default()
-            },
-        );
+        let outcome = tracker.track(t, &Observations { motion: Some(&motion), ..Observations::default() });
         outcomes.push(outcome);
     }
     outcomes
@@ -183,24 +146,14 @@ fn translating(speed: f64, frames: usize) -> Vec<Vec<[f64; 2]>> {
     let dir = MOTION_DIRECTION;
     (0..frames)
         .map(|t| {
-            square(
-                [
-                    300.0 + speed * dir[0] * t as f64,
-                    300.0 + speed * dir[1] * t as f64,
-                ],
-                80.0,
-                20f64.to_radians(),
-            )
+            square([300.0 + speed * dir[0] * t as f64, 300.0 + speed * dir[1] * t as f64], 80.0, 20f64.to_radians())
         })
         .collect()
 }
 
 fn mean_error_after(outcomes: &[FrameOutcome], truth: &[Vec<[f64; 2]>], warm_up: usize) -> f64 {
-    let errors: Vec<f64> = outcomes[warm_up..]
-        .iter()
-        .zip(&truth[warm_up..])
-        .map(|(o, t)| corner_error(&o.corners, t))
-        .collect();
+    let errors: Vec<f64> =
+        outcomes[warm_up..].iter().zip(&truth[warm_up..]).map(|(o, t)| corner_error(&o.corners, t)).collect();
     errors.iter().sum::<f64>() / errors.len() as f64
 }
 
@@ -215,13 +168,7 @@ fn moving_square_is_tracked_within_half_a_pixel_at_paper_and_higher_speeds() {
         let truth = translating(speed, 50);
         let outcomes = run(&truth, MotionEdgeParams::default(), 60, 7 + i as u64);
         for o in &outcomes {
-            assert_eq!(
-                o.status,
-                Status::Tracking,
-                "speed {speed}: frame {} {:?}",
-                o.frame,
-                o.diagnostics
-            );
+            assert_eq!(o.status, Status::Tracking, "speed {speed}: frame {} {:?}", o.frame, o.diagnostics);
         }
         assert_eq!(outcomes.last().map(|o| o.phase), Some(Phase::Tracking));
         let mean = mean_error_after(&outcomes, &truth, WARM_UP);
@@ -236,60 +183,26 @@ fn moving_square_is_tracked_within_half_a_pixel_at_paper_and_higher_speeds() {
 fn lag_correction_removes_the_half_frame_lag() {
     let speed = 8.0;
     let truth = translating(speed, 40);
-    let corrected = mean_error_after(
-        &run(&truth, MotionEdgeParams::default(), 0, 1),
-        &truth,
-        WARM_UP,
-    );
-    let paper = MotionEdgeParams {
-        lag_correction: false,
-        ..MotionEdgeParams::default()
-    };
+    let corrected = mean_error_after(&run(&truth, MotionEdgeParams::default(), 0, 1), &truth, WARM_UP);
+    let paper = MotionEdgeParams { lag_correction: false, ..MotionEdgeParams::default() };
     let uncorrected = mean_error_after(&run(&truth, paper, 0, 1), &truth, WARM_UP);
-    println!(
-        "v = {speed}: uncorrected {uncorrected:.3} px (v/2 = {}), corrected {corrected:.3} px",
-        speed / 2.0
-    );
+    println!("v = {speed}: uncorrected {uncorrected:.3} px (v/2 = {}), corrected {corrected:.3} px", speed / 2.0);
     // Lines fitted to motion pixels sit half a frame back: error ≈ v/2.
-    assert!(
-        (uncorrected - speed / 2.0).abs() < 0.5,
-        "uncorrected error {uncorrected:.3}, expected ≈ {}",
-        speed / 2.0
-    );
-    assert!(
-        corrected < 0.1 * speed / 2.0,
-        "corrected error {corrected:.3} not ≪ v/2"
-    );
+    assert!((uncorrected - speed / 2.0).abs() < 0.5, "uncorrected error {uncorrected:.3}, expected ≈ {}", speed / 2.0);
+    assert!(corrected < 0.1 * speed / 2.0, "corrected error {corrected:.3} not ≪ v/2");
 }
 
 #[test]
 fn pendulum_swing_with_turning_points_keeps_tracking() {
     // x(t) = 400 + 60·sin(0.075·t): peak 4.5 px/frame, turning points every 42 frames.
-    let truth: Vec<Vec<[f64; 2]>> = (0..120)
-        .map(|t| {
-            square(
-                [400.0 + 60.0 * (0.075 * t as f64).sin(), 300.0],
-                80.0,
-                10f64.to_radians(),
-            )
-        })
-        .collect();
+    let truth: Vec<Vec<[f64; 2]>> =
+        (0..120).map(|t| square([400.0 + 60.0 * (0.075 * t as f64).sin(), 300.0], 80.0, 10f64.to_radians())).collect();
     let outcomes = run(&truth, MotionEdgeParams::default(), 60, 3);
     for o in &outcomes {
-        assert_eq!(
-            o.status,
-            Status::Tracking,
-            "frame {} {:?}",
-            o.frame,
-            o.diagnostics
-        );
+        assert_eq!(o.status, Status::Tracking, "frame {} {:?}", o.frame, o.diagnostics);
     }
     let mean = mean_error_after(&outcomes, &truth, WARM_UP);
-    let worst = outcomes
-        .iter()
-        .zip(&truth)
-        .map(|(o, t)| corner_error(&o.corners, t))
-        .fold(0.0, f64::max);
+    let worst = outcomes.iter().zip(&truth).map(|(o, t)| corner_error(&o.corners, t)).fold(0.0, f64::max);
     println!("pendulum: mean corner error {mean:.3} px, worst frame {worst:.3} px");
     assert!(mean <= 0.5, "mean corner error {mean:.3}");
     assert!(worst <= 1.0, "worst frame error {worst:.3}");
@@ -305,10 +218,7 @@ fn a_60_px_jump_is_lost_without_panicking() {
         .map(|t| {
             let off = if t >= 25 { jump } else { [0.0, 0.0] };
             square(
-                [
-                    300.0 + speed * dir[0] * t as f64 + off[0],
-                    300.0 + speed * dir[1] * t as f64 + off[1],
-                ],
+                [300.0 + speed * dir[0] * t as f64 + off[0], 300.0 + speed * dir[1] * t as f64 + off[1]],
                 80.0,
                 20f64.to_radians(),
             )
@@ -316,29 +226,13 @@ fn a_60_px_jump_is_lost_without_panicking() {
         .collect();
     let outcomes = run(&truth, MotionEdgeParams::default(), 60, 5);
     assert_eq!(outcomes.len(), truth.len(), "an outcome for every frame");
-    assert!(
-        outcomes[..25].iter().all(|o| o.status == Status::Tracking),
-        "tracking before the jump"
-    );
-    let first_lost = outcomes
-        .iter()
-        .position(|o| o.status == Status::Lost)
-        .expect("the jump must be lost");
-    println!(
-        "jump at frame 25, first lost frame {first_lost}: {:?}",
-        outcomes[first_lost].diagnostics.lost_reason
-    );
-    assert!(
-        (25..=28).contains(&first_lost),
-        "lost at frame {first_lost}"
-    );
+    assert!(outcomes[..25].iter().all(|o| o.status == Status::Tracking), "tracking before the jump");
+    let first_lost = outcomes.iter().position(|o| o.status == Status::Lost).expect("the jump must be lost");
+    println!("jump at frame 25, first lost frame {first_lost}: {:?}", outcomes[first_lost].diagnostics.lost_reason);
+    assert!((25..=28).contains(&first_lost), "lost at frame {first_lost}");
     for o in &outcomes[first_lost..] {
         assert_eq!(o.corners.len(), 4);
-        assert!(
-            o.corners
-                .iter()
-                .all(|c| c[0].is_finite() && c[1].is_finite())
-        );
+        assert!(o.corners.iter().all(|c| c[0].is_finite() && c[1].is_finite()));
     }
     // It stays lost: nothing matches the coasting prediction.
     assert_eq!(outcomes.last().map(|o| o.status), Some(Status::Lost));
@@ -349,19 +243,8 @@ fn clutter_alone_does_not_move_a_resting_model() {
     let truth: Vec<Vec<[f64; 2]>> = (0..20).map(|_| square([200.0, 200.0], 80.0, 0.2)).collect();
     let outcomes = run(&truth, MotionEdgeParams::default(), 150, 11);
     for o in &outcomes {
-        assert_eq!(
-            o.status,
-            Status::Tracking,
-            "frame {} {:?}",
-            o.frame,
-            o.diagnostics
-        );
-        assert!(
-            corner_error(&o.corners, &truth[0]) < 1e-9,
-            "frame {} moved: {:?}",
-            o.frame,
-            o.corners
-        );
+        assert_eq!(o.status, Status::Tracking, "frame {} {:?}", o.frame, o.diagnostics);
+        assert!(corner_error(&o.corners, &truth[0]) < 1e-9, "frame {} moved: {:?}", o.frame, o.corners);
     }
 }
 
@@ -380,10 +263,7 @@ fn paper_literal_configuration_tracks_the_paper_speeds() {
     for (i, speed) in [1.1, 3.9, 4.5].into_iter().enumerate() {
         let truth = translating(speed, 50);
         let outcomes = run(&truth, paper.clone(), 60, 20 + i as u64);
-        assert!(
-            outcomes.iter().all(|o| o.status == Status::Tracking),
-            "speed {speed}"
-        );
+        assert!(outcomes.iter().all(|o| o.status == Status::Tracking), "speed {speed}");
         let mean = mean_error_after(&outcomes, &truth, WARM_UP);
         println!("paper-literal, speed {speed:>4} px/frame: mean corner error {mean:.3} px");
         assert!(mean <= 0.5, "speed {speed}: mean corner error {mean:.3} px");

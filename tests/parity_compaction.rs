@@ -65,9 +65,21 @@ fn windows(w: usize, h: usize) -> Vec<(&'static str, Window)> {
 /// Lists equal, or a panic naming the first differing index.
 fn assert_lists_equal(name: &str, cpu: &[Feature], gpu: &[Feature]) {
     if let Some(i) = cpu.iter().zip(gpu).position(|(c, g)| bytemuck::bytes_of(c) != bytemuck::bytes_of(g)) {
-        panic!("{name}: lists differ first at index {i}: cpu {:?} gpu {:?} (lengths {} and {})", cpu[i], gpu[i], cpu.len(), gpu.len());
+        panic!(
+            "{name}: lists differ first at index {i}: cpu {:?} gpu {:?} (lengths {} and {})",
+            cpu[i],
+            gpu[i],
+            cpu.len(),
+            gpu.len()
+        );
     }
-    assert_eq!(cpu.len(), gpu.len(), "{name}: lengths differ (cpu {}, gpu {}); common prefix equal", cpu.len(), gpu.len());
+    assert_eq!(
+        cpu.len(),
+        gpu.len(),
+        "{name}: lengths differ (cpu {}, gpu {}); common prefix equal",
+        cpu.len(),
+        gpu.len()
+    );
 }
 
 /// `sub` is a subsequence of `all` (same order).

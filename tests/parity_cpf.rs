@@ -67,11 +67,27 @@ fn parity_edge_pyramid_all_levels() {
         let cpu = cpf::edge_pyramids(&gx, &gy).unwrap();
         let gpu = cpf::edge_pyramids_gpu(ctx, &gx, &gy).unwrap();
         let levels = cpf::level_sizes(w, h).len();
-        assert_eq!((cpu.horizontal.len(), cpu.vertical.len()), (levels, levels), "edge_pyramid/{w}x{h}: CPU level count");
-        assert_eq!((gpu.horizontal.len(), gpu.vertical.len()), (levels, levels), "edge_pyramid/{w}x{h}: GPU level count");
+        assert_eq!(
+            (cpu.horizontal.len(), cpu.vertical.len()),
+            (levels, levels),
+            "edge_pyramid/{w}x{h}: CPU level count"
+        );
+        assert_eq!(
+            (gpu.horizontal.len(), gpu.vertical.len()),
+            (levels, levels),
+            "edge_pyramid/{w}x{h}: GPU level count"
+        );
         for k in 0..levels {
-            for (dir, c, g) in [("h", &cpu.horizontal[k], &gpu.horizontal[k]), ("v", &cpu.vertical[k], &gpu.vertical[k])] {
-                common::assert_close(&format!("edge_pyramid/{w}x{h}/{dir}/level{k}"), c, g, EDGE_PYRAMID_ATOL, EDGE_PYRAMID_RTOL);
+            for (dir, c, g) in
+                [("h", &cpu.horizontal[k], &gpu.horizontal[k]), ("v", &cpu.vertical[k], &gpu.vertical[k])]
+            {
+                common::assert_close(
+                    &format!("edge_pyramid/{w}x{h}/{dir}/level{k}"),
+                    c,
+                    g,
+                    EDGE_PYRAMID_ATOL,
+                    EDGE_PYRAMID_RTOL,
+                );
             }
         }
     }

@@ -23,9 +23,18 @@ fn texture(ctx: &GpuContext, w: usize, h: usize, format: wgpu::TextureFormat, by
     });
     let bpp = bytes.len() / (w * h);
     ctx.queue().write_texture(
-        wgpu::TexelCopyTextureInfo { texture: &t, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+        wgpu::TexelCopyTextureInfo {
+            texture: &t,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
         bytes,
-        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some((w * bpp) as u32), rows_per_image: Some(h as u32) },
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some((w * bpp) as u32),
+            rows_per_image: Some(h as u32),
+        },
         size,
     );
     t

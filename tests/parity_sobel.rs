@@ -13,9 +13,9 @@ mod common;
 use std::f32::consts::{FRAC_PI_2, PI};
 
 use pipetrack::FloatImage;
+use pipetrack::early::frame_sum;
 use pipetrack::early::gaussian::{self, GaussianParams};
 use pipetrack::early::sobel::{self, SobelOutput};
-use pipetrack::early::frame_sum;
 use pipetrack::testimage::natural;
 
 const ATOL: f32 = 1e-3;
@@ -52,8 +52,24 @@ fn assert_sobel_parity(name: &str, cpu: &SobelOutput, gpu: &SobelOutput) {
     common::assert_close(&format!("{name}/gy"), &cpu.gy, &gpu.gy, ATOL, RTOL);
     common::assert_close(&format!("{name}/magnitude"), &cpu.magnitude, &gpu.magnitude, ATOL, RTOL);
     let m = &cpu.magnitude;
-    common::assert_angles_close(&format!("{name}/direction"), &cpu.direction, &gpu.direction, m, ANGLE_MIN_MAGNITUDE, 2.0 * PI, ANGLE_ATOL);
-    common::assert_angles_close(&format!("{name}/theta"), &cpu.theta, &gpu.theta, m, ANGLE_MIN_MAGNITUDE, PI, ANGLE_ATOL);
+    common::assert_angles_close(
+        &format!("{name}/direction"),
+        &cpu.direction,
+        &gpu.direction,
+        m,
+        ANGLE_MIN_MAGNITUDE,
+        2.0 * PI,
+        ANGLE_ATOL,
+    );
+    common::assert_angles_close(
+        &format!("{name}/theta"),
+        &cpu.theta,
+        &gpu.theta,
+        m,
+        ANGLE_MIN_MAGNITUDE,
+        PI,
+        ANGLE_ATOL,
+    );
     for i in 0..cpu.gx.data().len() {
         let (d, t) = (gpu.direction.data()[i], gpu.theta.data()[i]);
         assert!(d > -PI && d <= PI, "{name}: gpu direction {d} out of (−π, π] at index {i}");

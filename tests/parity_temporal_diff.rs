@@ -27,7 +27,14 @@ fn moving_pair(w: usize, h: usize, seed: u64, dx: usize, dy: usize) -> (FloatIma
 
 /// Assert the masks are equal except near the threshold; returns how many
 /// pixels sit near it and how many of those differ.
-fn assert_masks_match(name: &str, prev: &FloatImage, cur: &FloatImage, threshold: f32, cpu: &FloatImage, gpu: &FloatImage) -> (usize, usize) {
+fn assert_masks_match(
+    name: &str,
+    prev: &FloatImage,
+    cur: &FloatImage,
+    threshold: f32,
+    cpu: &FloatImage,
+    gpu: &FloatImage,
+) -> (usize, usize) {
     assert_eq!(cpu.size(), gpu.size(), "{name}: sizes differ");
     let w = cpu.width().max(1);
     let (mut near, mut near_differing) = (0, 0);
@@ -41,7 +48,12 @@ fn assert_masks_match(name: &str, prev: &FloatImage, cur: &FloatImage, threshold
             bad.push(format!("  ({}, {}): cpu {c} gpu {g} |prev−cur| {}", i % w, i / w, (p - q).abs()));
         }
     }
-    assert!(bad.is_empty(), "{name}: {} mask pixels differ; first ones:\n{}", bad.len(), bad[..bad.len().min(10)].join("\n"));
+    assert!(
+        bad.is_empty(),
+        "{name}: {} mask pixels differ; first ones:\n{}",
+        bad.len(),
+        bad[..bad.len().min(10)].join("\n")
+    );
     (near, near_differing)
 }
 

@@ -34,7 +34,12 @@ const CHAIN_G_ATOL: f32 = 5e-3;
 const CHAIN_OFFSET_ATOL: f32 = 1e-2;
 
 fn edgel_mask(e: &Edgels) -> Image<u8> {
-    Image::from_vec(e.strength.width(), e.strength.height(), e.strength.data().iter().map(|&s| u8::from(s > 0.0)).collect()).unwrap()
+    Image::from_vec(
+        e.strength.width(),
+        e.strength.height(),
+        e.strength.data().iter().map(|&s| u8::from(s > 0.0)).collect(),
+    )
+    .unwrap()
 }
 
 fn assert_same_edgels(name: &str, cpu: &Edgels, gpu: &Edgels) {
@@ -42,12 +47,24 @@ fn assert_same_edgels(name: &str, cpu: &Edgels, gpu: &Edgels) {
     common::assert_close(&format!("{name}/strength"), &cpu.strength, &gpu.strength, VALUE_ATOL, 0.0);
     common::assert_close(&format!("{name}/offset_x"), &cpu.offset_x, &gpu.offset_x, VALUE_ATOL, 0.0);
     common::assert_close(&format!("{name}/offset_y"), &cpu.offset_y, &gpu.offset_y, VALUE_ATOL, 0.0);
-    common::assert_angles_close(&format!("{name}/direction"), &cpu.direction, &gpu.direction, &cpu.strength, f32::MIN_POSITIVE, TAU, ANGLE_ATOL);
+    common::assert_angles_close(
+        &format!("{name}/direction"),
+        &cpu.direction,
+        &gpu.direction,
+        &cpu.strength,
+        f32::MIN_POSITIVE,
+        TAU,
+        ANGLE_ATOL,
+    );
     // Where there is no edgel, everything is exactly 0 on both sides.
     for e in [cpu, gpu] {
         for (i, &s) in e.strength.data().iter().enumerate() {
             if s == 0.0 {
-                assert_eq!((e.direction.data()[i], e.offset_x.data()[i], e.offset_y.data()[i]), (0.0, 0.0, 0.0), "{name}: pixel {i}");
+                assert_eq!(
+                    (e.direction.data()[i], e.offset_x.data()[i], e.offset_y.data()[i]),
+                    (0.0, 0.0, 0.0),
+                    "{name}: pixel {i}"
+                );
             }
         }
     }
@@ -158,8 +175,19 @@ fn parity_zero_crossing_chain_gpu_log_vs_cpu_log() {
             }
         }
         let edgels = cpu.count();
-        eprintln!("zero_crossing chain {w}x{h}: {edgels} edgels, {mismatches} mismatching pixels, all near a decision boundary: {}", unexplained.is_empty());
-        assert!(unexplained.is_empty(), "{w}x{h}: {} mismatches not near a decision boundary:\n{}", unexplained.len(), unexplained.iter().take(10).cloned().collect::<Vec<_>>().join("\n"));
-        assert!(mismatches as f64 <= 0.005 * edgels as f64, "{w}x{h}: {mismatches} mismatching pixels of {edgels} edgels (≥ 0.5 %)");
+        eprintln!(
+            "zero_crossing chain {w}x{h}: {edgels} edgels, {mismatches} mismatching pixels, all near a decision boundary: {}",
+            unexplained.is_empty()
+        );
+        assert!(
+            unexplained.is_empty(),
+            "{w}x{h}: {} mismatches not near a decision boundary:\n{}",
+            unexplained.len(),
+            unexplained.iter().take(10).cloned().collect::<Vec<_>>().join("\n")
+        );
+        assert!(
+            mismatches as f64 <= 0.005 * edgels as f64,
+            "{w}x{h}: {mismatches} mismatching pixels of {edgels} edgels (≥ 0.5 %)"
+        );
     }
 }

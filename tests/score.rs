@@ -5,8 +5,8 @@ use std::fs;
 use std::path::PathBuf;
 
 use pipetrack::Error;
-use pipetrack::io::formats::{FrameResult, Status, TruthFrame};
 use pipetrack::cli::score::{ErrorStats, read_predictions, score, score_file};
+use pipetrack::io::formats::{FrameResult, Status, TruthFrame};
 
 const SQUARE: [[f64; 2]; 4] = [[10.0, 10.0], [20.0, 10.0], [20.0, 20.0], [10.0, 20.0]];
 

@@ -417,10 +417,12 @@ fn bundled_cube_cao_reads_as_a_closed_box() {
         let shared = model
             .faces
             .iter()
-            .filter(|f| (0..f.len()).any(|i| {
-                let (a, b) = (f[i], f[(i + 1) % f.len()]);
-                (a, b) == (e[0], e[1]) || (b, a) == (e[0], e[1])
-            }))
+            .filter(|f| {
+                (0..f.len()).any(|i| {
+                    let (a, b) = (f[i], f[(i + 1) % f.len()]);
+                    (a, b) == (e[0], e[1]) || (b, a) == (e[0], e[1])
+                })
+            })
             .count();
         assert_eq!(shared, 2, "edge {e:?}");
     }

@@ -25,7 +25,8 @@ fn every_shader_validates_with_naga() {
                 continue;
             }
         };
-        let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty());
+        let mut validator =
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty());
         if let Err(e) = validator.validate(&module) {
             let line = e.spans().next().map_or(0, |(span, _)| span.location(&source).line_number);
             failures.push(format!("{name}:{line}: {}", e.emit_to_string(&source)));
@@ -41,7 +42,8 @@ fn validator_reports_file_and_line_of_a_broken_shader() {
     let line = match module {
         Err(e) => e.location(source).map(|l| l.line_number),
         Ok(m) => {
-            let mut v = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty());
+            let mut v =
+                naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty());
             v.validate(&m).err().and_then(|e| e.spans().next().map(|(s, _)| s.location(source).line_number))
         }
     };

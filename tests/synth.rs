@@ -9,13 +9,13 @@
 use std::path::{Path, PathBuf};
 
 use pipetrack::Error;
-use pipetrack::io::formats::{Camera, InitState, Model, Status, TruthFrame};
 use pipetrack::image::{FloatImage, GrayImage};
+use pipetrack::io::formats::{Camera, InitState, Model, Status, TruthFrame};
 use pipetrack::io::overlay::{self, draw_overlay};
 use pipetrack::synth::pendulum::{self, HEIGHT, JUMP_OFFSET_PX, TARGET_GREY, WIDTH};
 use pipetrack::synth::{
-    self, BACKGROUND_GREY, Background, Canvas, Face, FillRule, PendulumMotion, PendulumOptions,
-    PendulumSwing, add_noise_and_quantise, render_pendulum,
+    self, BACKGROUND_GREY, Background, Canvas, Face, FillRule, PendulumMotion, PendulumOptions, PendulumSwing,
+    add_noise_and_quantise, render_pendulum,
 };
 
 /// Render a canvas down to u8 without noise.
@@ -88,14 +88,7 @@ fn synth_coverage_mixes_with_the_background() {
 #[test]
 fn synth_non_convex_polygon_and_fill_rules() {
     // An L: the 3x3 block of pixels 1..3 minus its top-right 2x2 (pixels x 2..3, y 1..2).
-    let l_shape = [
-        [0.5, 0.5],
-        [1.5, 0.5],
-        [1.5, 2.5],
-        [3.5, 2.5],
-        [3.5, 3.5],
-        [0.5, 3.5],
-    ];
+    let l_shape = [[0.5, 0.5], [1.5, 0.5], [1.5, 2.5], [3.5, 2.5], [3.5, 3.5], [0.5, 3.5]];
     let mut canvas = Canvas::new(5, 5, 4, 0.0).unwrap();
     canvas.fill_polygon(&l_shape, FillRule::EvenOdd, 90.0);
     let expected: Vec<Vec<u8>> = vec![
@@ -129,51 +122,19 @@ fn synth_adjacent_faces_share_edges_without_gaps_or_overlap() {
     let upper = [[0.5, 0.5], [3.5, 0.5], [3.5, 3.5]];
     let lower = [[0.5, 0.5], [3.5, 3.5], [0.5, 3.5]];
     let mut canvas = Canvas::new(5, 5, 4, 0.0).unwrap();
-    canvas.fill_faces(
-        &[
-            Face {
-                points: &upper,
-                grey: 200.0,
-            },
-            Face {
-                points: &lower,
-                grey: 200.0,
-            },
-        ],
-        FillRule::EvenOdd,
-    );
+    canvas.fill_faces(&[Face { points: &upper, grey: 200.0 }, Face { points: &lower, grey: 200.0 }], FillRule::EvenOdd);
     let img = to_gray(&canvas);
     for y in 0..5 {
         for x in 0..5 {
             let inside = (1..4).contains(&x) && (1..4).contains(&y);
-            assert_eq!(
-                img.get(x, y),
-                if inside { 200 } else { 0 },
-                "pixel ({x},{y})"
-            );
+            assert_eq!(img.get(x, y), if inside { 200 } else { 0 }, "pixel ({x},{y})");
         }
     }
     // Different greys meet on the diagonal: a diagonal pixel is half of each.
     let mut canvas = Canvas::new(5, 5, 4, 0.0).unwrap();
-    canvas.fill_faces(
-        &[
-            Face {
-                points: &upper,
-                grey: 200.0,
-            },
-            Face {
-                points: &lower,
-                grey: 100.0,
-            },
-        ],
-        FillRule::EvenOdd,
-    );
+    canvas.fill_faces(&[Face { points: &upper, grey: 200.0 }, Face { points: &lower, grey: 100.0 }], FillRule::EvenOdd);
     let smooth = canvas.downsample();
-    assert!(
-        (smooth.get(2, 2) - 150.0).abs() < 1e-3,
-        "{}",
-        smooth.get(2, 2)
-    );
+    assert!((smooth.get(2, 2) - 150.0).abs() < 1e-3, "{}", smooth.get(2, 2));
     assert_eq!(smooth.get(3, 1), 200.0);
     assert_eq!(smooth.get(1, 3), 100.0);
 }
@@ -185,18 +146,10 @@ fn synth_slanted_edge_coverage_is_exact() {
     // inside, the hypotenuse halves (3,1), (2,2), (1,3) through their corners,
     // and the total area is 3 · 3 / 2 = 4.5 pixels.
     let mut canvas = Canvas::new(5, 5, 4, 0.0).unwrap();
-    canvas.fill_polygon(
-        &[[0.5, 0.5], [3.5, 0.5], [0.5, 3.5]],
-        FillRule::NonZero,
-        100.0,
-    );
+    canvas.fill_polygon(&[[0.5, 0.5], [3.5, 0.5], [0.5, 3.5]], FillRule::NonZero, 100.0);
     let smooth = canvas.downsample();
     let close = |x: usize, y: usize, v: f32| {
-        assert!(
-            (smooth.get(x, y) - v).abs() < 1e-4,
-            "pixel ({x},{y}) = {}, want {v}",
-            smooth.get(x, y)
-        );
+        assert!((smooth.get(x, y) - v).abs() < 1e-4, "pixel ({x},{y}) = {}, want {v}", smooth.get(x, y));
     };
     close(1, 1, 100.0);
     close(2, 1, 100.0);
@@ -217,16 +170,8 @@ fn synth_slanted_edge_coverage_is_exact() {
 fn synth_degenerate_polygons_draw_nothing() {
     let mut canvas = Canvas::new(4, 4, 4, 7.0).unwrap();
     canvas.fill_polygon(&[[0.0, 0.0], [3.0, 3.0]], FillRule::EvenOdd, 200.0);
-    canvas.fill_polygon(
-        &[[f64::NAN, 0.0], [3.0, 0.0], [3.0, 3.0]],
-        FillRule::EvenOdd,
-        200.0,
-    );
-    canvas.fill_polygon(
-        &rect(-1e300, -1e300, 1e300, -1e299),
-        FillRule::NonZero,
-        200.0,
-    );
+    canvas.fill_polygon(&[[f64::NAN, 0.0], [3.0, 0.0], [3.0, 3.0]], FillRule::EvenOdd, 200.0);
+    canvas.fill_polygon(&rect(-1e300, -1e300, 1e300, -1e299), FillRule::NonZero, 200.0);
     assert!(to_gray(&canvas).data().iter().all(|&v| v == 7));
     // Far outside but finite: clipped, the visible part is filled.
     canvas.fill_polygon(&rect(-1e9, -1e9, 1e9, 1e9), FillRule::EvenOdd, 9.0);
@@ -236,13 +181,7 @@ fn synth_degenerate_polygons_draw_nothing() {
 }
 
 fn quiet(speed: f64, motion: PendulumMotion) -> PendulumOptions {
-    PendulumOptions {
-        speed,
-        motion,
-        noise_sigma: 0.0,
-        background: Background::Flat,
-        ..PendulumOptions::default()
-    }
+    PendulumOptions { speed, motion, noise_sigma: 0.0, background: Background::Flat, ..PendulumOptions::default() }
 }
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -250,25 +189,13 @@ fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
 }
 
 fn peak_corner_speed(truth: &[TruthFrame]) -> f64 {
-    truth
-        .windows(2)
-        .flat_map(|w| {
-            w[0].corners
-                .iter()
-                .zip(&w[1].corners)
-                .map(|(a, b)| dist(*a, *b))
-        })
-        .fold(0.0, f64::max)
+    truth.windows(2).flat_map(|w| w[0].corners.iter().zip(&w[1].corners).map(|(a, b)| dist(*a, *b))).fold(0.0, f64::max)
 }
 
 #[test]
 fn synth_pendulum_truth_corners_match_the_rendered_rectangle() {
     for motion in [PendulumMotion::Rotating, PendulumMotion::Translating] {
-        let seq = render_pendulum(&PendulumOptions {
-            frames: 64,
-            ..quiet(3.9, motion)
-        })
-        .unwrap();
+        let seq = render_pendulum(&PendulumOptions { frames: 64, ..quiet(3.9, motion) }).unwrap();
         for k in [0, 7, 15, 30, 31, 45, 63] {
             let frame = &seq.frames[k];
             let (mut sum, mut sx, mut sy) = (0.0f64, 0.0f64, 0.0f64);
@@ -281,10 +208,8 @@ fn synth_pendulum_truth_corners_match_the_rendered_rectangle() {
                 }
             }
             let corners = &seq.truth[k].corners;
-            let mean = [
-                corners.iter().map(|c| c[0]).sum::<f64>() / 4.0,
-                corners.iter().map(|c| c[1]).sum::<f64>() / 4.0,
-            ];
+            let mean =
+                [corners.iter().map(|c| c[0]).sum::<f64>() / 4.0, corners.iter().map(|c| c[1]).sum::<f64>() / 4.0];
             let centroid = [sx / sum, sy / sum];
             assert!(
                 dist(centroid, mean) < 0.05,
@@ -292,10 +217,7 @@ fn synth_pendulum_truth_corners_match_the_rendered_rectangle() {
             );
             // The covered area is the rectangle's 50 x 35 px.
             let area = sum / f64::from(TARGET_GREY - BACKGROUND_GREY);
-            assert!(
-                (area - 1750.0).abs() < 2.0,
-                "{motion:?} frame {k}: area {area}"
-            );
+            assert!((area - 1750.0).abs() < 2.0, "{motion:?} frame {k}: area {area}");
         }
     }
 }
@@ -307,10 +229,7 @@ fn synth_pendulum_peak_corner_speed_is_the_requested_speed() {
         let measured = peak_corner_speed(&seq.truth);
         let rel = (measured - speed).abs() / speed;
         assert!(rel < 0.02, "speed {speed}: measured {measured}");
-        assert!(
-            rel < 1e-6,
-            "speed {speed}: measured {measured} (exact by construction)"
-        );
+        assert!(rel < 1e-6, "speed {speed}: measured {measured} (exact by construction)");
     }
     // The axis-aligned variant, from the swing alone (no rendering needed).
     for speed in [1.1, 3.9, 4.5, 16.0] {
@@ -325,10 +244,7 @@ fn synth_pendulum_peak_corner_speed_is_the_requested_speed() {
             })
             .collect();
         let measured = peak_corner_speed(&truth);
-        assert!(
-            (measured - speed).abs() / speed < 1e-6,
-            "translating {speed}: {measured}"
-        );
+        assert!((measured - speed).abs() / speed < 1e-6, "translating {speed}: {measured}");
     }
 }
 
@@ -336,10 +252,7 @@ fn synth_pendulum_peak_corner_speed_is_the_requested_speed() {
 fn synth_pendulum_uses_the_natural_period_at_the_papers_speeds() {
     for speed in [1.1, 3.9, 4.5] {
         let swing = PendulumSwing::new(speed, PendulumMotion::Rotating, None).unwrap();
-        assert!(
-            (swing.period_frames() - 122.0).abs() < 1e-9,
-            "{speed}: {swing:?}"
-        );
+        assert!((swing.period_frames() - 122.0).abs() < 1e-9, "{speed}: {swing:?}");
         assert!(swing.amplitude_rad <= pendulum::MAX_AMPLITUDE_RAD);
     }
     let fast = PendulumSwing::new(16.0, PendulumMotion::Rotating, None).unwrap();
@@ -352,9 +265,7 @@ fn synth_pendulum_uses_the_natural_period_at_the_papers_speeds() {
 #[test]
 fn synth_pendulum_rectangle_stays_inside_the_frame() {
     let margin = 6.0;
-    let speeds = [
-        0.0, 0.5, 1.1, 2.0, 3.9, 4.5, 5.0, 6.0, 8.0, 10.0, 12.0, 16.0, 24.0, 32.0,
-    ];
+    let speeds = [0.0, 0.5, 1.1, 2.0, 3.9, 4.5, 5.0, 6.0, 8.0, 10.0, 12.0, 16.0, 24.0, 32.0];
     for motion in [PendulumMotion::Rotating, PendulumMotion::Translating] {
         for speed in speeds {
             for jump_at in [None, Some(1)] {
@@ -377,26 +288,15 @@ fn synth_pendulum_rectangle_stays_inside_the_frame() {
 
 #[test]
 fn synth_pendulum_is_deterministic_per_seed() {
-    let opts = |seed| PendulumOptions {
-        frames: 4,
-        seed,
-        ..PendulumOptions::default()
-    };
+    let opts = |seed| PendulumOptions { frames: 4, seed, ..PendulumOptions::default() };
     let a = render_pendulum(&opts(5)).unwrap();
     let b = render_pendulum(&opts(5)).unwrap();
     let c = render_pendulum(&opts(6)).unwrap();
     assert_eq!(a.frames, b.frames);
     assert_eq!(a.truth, c.truth, "the motion does not depend on the seed");
     for k in 0..4 {
-        let differing = a.frames[k]
-            .data()
-            .iter()
-            .zip(c.frames[k].data())
-            .filter(|(p, q)| p != q);
-        assert!(
-            differing.count() > WIDTH * HEIGHT / 4,
-            "frame {k}: seeds 5 and 6 too alike"
-        );
+        let differing = a.frames[k].data().iter().zip(c.frames[k].data()).filter(|(p, q)| p != q);
+        assert!(differing.count() > WIDTH * HEIGHT / 4, "frame {k}: seeds 5 and 6 too alike");
     }
     // Noise differs from frame to frame too (flat background, static object at speed 0).
     let still = render_pendulum(&PendulumOptions {
@@ -420,9 +320,7 @@ fn synth_pendulum_noise_has_the_requested_sigma() {
     })
     .unwrap();
     // Rows 0..60 are pure background (grey 100) above the rectangle.
-    let values: Vec<f64> = (0..60)
-        .flat_map(|y| seq.frames[0].row(y).iter().map(|&v| f64::from(v)))
-        .collect();
+    let values: Vec<f64> = (0..60).flat_map(|y| seq.frames[0].row(y).iter().map(|&v| f64::from(v))).collect();
     let n = values.len() as f64;
     let mean = values.iter().sum::<f64>() / n;
     let sd = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
@@ -440,29 +338,19 @@ fn synth_pendulum_jump_moves_the_truth() {
         ..quiet(3.9, PendulumMotion::Rotating)
     })
     .unwrap();
-    let plain = render_pendulum(&PendulumOptions {
-        frames: 80,
-        ..quiet(3.9, PendulumMotion::Rotating)
-    })
-    .unwrap();
+    let plain = render_pendulum(&PendulumOptions { frames: 80, ..quiet(3.9, PendulumMotion::Rotating) }).unwrap();
     for k in 0..80 {
         for (a, b) in seq.truth[k].corners.iter().zip(&plain.truth[k].corners) {
             let d = dist(*a, *b);
             if k < jump_at {
                 assert_eq!(d, 0.0, "frame {k}");
             } else {
-                assert!(
-                    (d - JUMP_OFFSET_PX[0].hypot(JUMP_OFFSET_PX[1])).abs() < 1e-9,
-                    "frame {k}"
-                );
+                assert!((d - JUMP_OFFSET_PX[0].hypot(JUMP_OFFSET_PX[1])).abs() < 1e-9, "frame {k}");
             }
         }
         assert!(seq.truth[k].visible);
     }
-    let step = seq.truth[jump_at - 1]
-        .corners
-        .iter()
-        .zip(&seq.truth[jump_at].corners);
+    let step = seq.truth[jump_at - 1].corners.iter().zip(&seq.truth[jump_at].corners);
     for (a, b) in step {
         assert!(dist(*a, *b) >= 60.0, "jump of {}", dist(*a, *b));
     }
@@ -471,42 +359,21 @@ fn synth_pendulum_jump_moves_the_truth() {
 
 #[test]
 fn synth_pendulum_backgrounds_and_distractor_change_the_image() {
-    let base = PendulumOptions {
-        frames: 3,
-        noise_sigma: 0.0,
-        ..PendulumOptions::default()
-    };
-    let flat = render_pendulum(&PendulumOptions {
-        background: Background::Flat,
-        ..base.clone()
-    })
-    .unwrap();
+    let base = PendulumOptions { frames: 3, noise_sigma: 0.0, ..PendulumOptions::default() };
+    let flat = render_pendulum(&PendulumOptions { background: Background::Flat, ..base.clone() }).unwrap();
     let textured = render_pendulum(&base).unwrap();
-    let cluttered = render_pendulum(&PendulumOptions {
-        background: Background::Cluttered,
-        ..base.clone()
-    })
-    .unwrap();
+    let cluttered = render_pendulum(&PendulumOptions { background: Background::Cluttered, ..base.clone() }).unwrap();
     // Flat: the top-left corner region is exactly the background grey.
     assert!(flat.frames[0].row(0).iter().all(|&v| v == 100));
     assert_ne!(textured.frames[0], flat.frames[0]);
     assert_ne!(cluttered.frames[0], textured.frames[0]);
     assert_eq!(flat.truth, cluttered.truth);
 
-    let with = render_pendulum(&PendulumOptions {
-        frames: 3,
-        distractor: true,
-        background: Background::Flat,
-        ..base.clone()
-    })
-    .unwrap();
+    let with =
+        render_pendulum(&PendulumOptions { frames: 3, distractor: true, background: Background::Flat, ..base.clone() })
+            .unwrap();
     // The distractor crosses the band around row 30; frame 1 is mid-way through.
-    let dark = |img: &GrayImage| {
-        (10..50)
-            .flat_map(|y| img.row(y).to_vec())
-            .filter(|&v| v < 60)
-            .count()
-    };
+    let dark = |img: &GrayImage| (10..50).flat_map(|y| img.row(y).to_vec()).filter(|&v| v < 60).count();
     assert_eq!(dark(&flat.frames[1]), 0);
     assert!(dark(&with.frames[1]) > 200, "{}", dark(&with.frames[1]));
     assert_eq!(with.truth, flat.truth);
@@ -515,40 +382,16 @@ fn synth_pendulum_backgrounds_and_distractor_change_the_image() {
 #[test]
 fn synth_pendulum_rejects_bad_options() {
     let bad = [
-        PendulumOptions {
-            frames: 0,
-            ..PendulumOptions::default()
-        },
-        PendulumOptions {
-            speed: -1.0,
-            ..PendulumOptions::default()
-        },
-        PendulumOptions {
-            speed: f64::NAN,
-            ..PendulumOptions::default()
-        },
-        PendulumOptions {
-            speed: 1000.0,
-            ..PendulumOptions::default()
-        },
-        PendulumOptions {
-            noise_sigma: f64::INFINITY,
-            ..PendulumOptions::default()
-        },
-        PendulumOptions {
-            jump_at: Some(0),
-            ..PendulumOptions::default()
-        },
-        PendulumOptions {
-            jump_at: Some(200),
-            ..PendulumOptions::default()
-        },
+        PendulumOptions { frames: 0, ..PendulumOptions::default() },
+        PendulumOptions { speed: -1.0, ..PendulumOptions::default() },
+        PendulumOptions { speed: f64::NAN, ..PendulumOptions::default() },
+        PendulumOptions { speed: 1000.0, ..PendulumOptions::default() },
+        PendulumOptions { noise_sigma: f64::INFINITY, ..PendulumOptions::default() },
+        PendulumOptions { jump_at: Some(0), ..PendulumOptions::default() },
+        PendulumOptions { jump_at: Some(200), ..PendulumOptions::default() },
     ];
     for opts in bad {
-        assert!(
-            matches!(render_pendulum(&opts), Err(Error::Parameter(_))),
-            "{opts:?}"
-        );
+        assert!(matches!(render_pendulum(&opts), Err(Error::Parameter(_))), "{opts:?}");
     }
 }
 
@@ -578,15 +421,9 @@ fn synth_generate_writes_a_sequence_folder() {
 
     let camera: Camera = read_json(&dir.join("camera.json"));
     assert_eq!(camera, seq.camera);
-    assert_eq!(
-        (camera.width, camera.height, camera.fx, camera.cx, camera.cy),
-        (256, 242, 300.0, 127.5, 120.5)
-    );
+    assert_eq!((camera.width, camera.height, camera.fx, camera.cx, camera.cy), (256, 242, 300.0, 127.5, 120.5));
     let model: Model = read_json(&dir.join("model.json"));
-    assert_eq!(
-        (model.vertices.len(), model.edges.len(), model.faces.len()),
-        (4, 4, 1)
-    );
+    assert_eq!((model.vertices.len(), model.edges.len(), model.faces.len()), (4, 4, 1));
     let init: InitState = read_json(&dir.join("init.json"));
     assert_corners_close(&init.corners, &seq.truth[0].corners);
     assert!(init.pose.is_none());
@@ -632,23 +469,16 @@ fn synth_generate_validates_before_writing() {
         other => panic!("{other}"),
     }
     assert!(synth::scene_names().contains(&"pendulum"));
-    for (key, value) in [
-        ("speed", "-3"),
-        ("speed", "fast"),
-        ("background", "plaid"),
-        ("colour", "red"),
-        ("jump_at", "0"),
-    ] {
+    for (key, value) in
+        [("speed", "-3"), ("speed", "fast"), ("background", "plaid"), ("colour", "red"), ("jump_at", "0")]
+    {
         let extra = vec![(key.to_string(), value.to_string())];
         let err = synth::generate("pendulum", &dir, Some(5), 0, &extra).unwrap_err();
         assert!(matches!(err, Error::Parameter(_)), "{key}={value}: {err}");
     }
     let err = synth::generate("pendulum", &dir, Some(0), 0, &[]).unwrap_err();
     assert!(matches!(err, Error::Parameter(_)), "{err}");
-    assert!(
-        !dir.exists(),
-        "nothing may be written for invalid arguments"
-    );
+    assert!(!dir.exists(), "nothing may be written for invalid arguments");
 }
 
 fn grey_frame(w: usize, h: usize, v: u8) -> GrayImage {
@@ -683,13 +513,7 @@ fn overlay_antialiases_lines_between_pixel_centres() {
     let frame = grey_frame(12, 8, 0);
     // A horizontal line at y = 3.25 splits 3/4 into row 3 and 1/4 into row 4
     // (column 4 is clear of the corner crosses at x = 1 and 7).
-    let img = draw_overlay(
-        &frame,
-        &[[1.0, 3.25], [7.0, 3.25]],
-        &[[0, 1]],
-        Status::Lost,
-        &[],
-    );
+    let img = draw_overlay(&frame, &[[1.0, 3.25], [7.0, 3.25]], &[[0, 1]], Status::Lost, &[]);
     assert_eq!(img.get_pixel(4, 3).0, [191, 0, 0]);
     assert_eq!(img.get_pixel(4, 4).0, [64, 0, 0]);
     assert_eq!(img.get_pixel(4, 2).0, [0, 0, 0]);
@@ -717,18 +541,7 @@ fn overlay_survives_corners_outside_and_nan() {
         [8.0, 1e9],
         [1e18, 1e18],
     ];
-    let edges = [
-        [0, 1],
-        [1, 2],
-        [2, 3],
-        [3, 4],
-        [4, 5],
-        [5, 6],
-        [6, 7],
-        [7, 0],
-        [0, 99],
-        [99, 100],
-    ];
+    let edges = [[0, 1], [1, 2], [2, 3], [3, 4], [4, 5], [5, 6], [6, 7], [7, 0], [0, 99], [99, 100]];
     let img = draw_overlay(&frame, &corners, &edges, Status::Tracking, &[(u32::MAX, 0)]);
     assert_eq!(img.dimensions(), (16, 12));
     // The clipped horizontal line (corners 3-4) and vertical line (5-6) cross the image.
@@ -737,12 +550,6 @@ fn overlay_survives_corners_outside_and_nan() {
     assert_eq!(img.get_pixel(8, 0).0, overlay::TRACKING_COLOUR);
     assert_eq!(img.get_pixel(8, 11).0, overlay::TRACKING_COLOUR);
     // An empty frame works too.
-    let empty = draw_overlay(
-        &grey_frame(0, 0, 0),
-        &corners,
-        &edges,
-        Status::Lost,
-        &[(0, 0)],
-    );
+    let empty = draw_overlay(&grey_frame(0, 0, 0), &corners, &edges, Status::Lost, &[(0, 0)]);
     assert_eq!(empty.dimensions(), (0, 0));
 }

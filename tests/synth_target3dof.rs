@@ -13,37 +13,23 @@
 
 use std::path::{Path, PathBuf};
 
-use pipetrack::io::formats::{Camera, InitState, Model, Pose, TruthFrame};
 use pipetrack::image::GrayImage;
+use pipetrack::io::formats::{Camera, InitState, Model, Pose, TruthFrame};
 use pipetrack::synth::target3dof::{self, HEIGHT, MAX_RANGE_M, MIN_RANGE_M, OCCLUDER_GREY, WIDTH};
 use pipetrack::synth::{self, Target3dofOptions, Target3dofScene, render_target3dof};
 
 fn extra(pairs: &[(&str, &str)]) -> Vec<(String, String)> {
-    pairs
-        .iter()
-        .map(|(k, v)| (k.to_string(), v.to_string()))
-        .collect()
+    pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect()
 }
 
 fn options(speed: f64, occlude: f64, noise: f64, frames: usize) -> Target3dofOptions {
-    Target3dofOptions {
-        frames,
-        seed: 5,
-        speed,
-        occlude,
-        noise_sigma: noise,
-        ..Target3dofOptions::default()
-    }
+    Target3dofOptions { frames, seed: 5, speed, occlude, noise_sigma: noise, ..Target3dofOptions::default() }
 }
 
 type V3 = [f64; 3];
 
 fn cross(a: V3, b: V3) -> V3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 fn dot(a: V3, b: V3) -> f64 {
@@ -100,22 +86,14 @@ fn synth_target3dof_is_registered_with_string_options() {
         "target3dof",
         Some(2),
         1,
-        &extra(&[
-            ("speed", "1.2"),
-            ("occlude", "0.2"),
-            ("noise", "0"),
-            ("background", "flat"),
-        ]),
+        &extra(&[("speed", "1.2"), ("occlude", "0.2"), ("noise", "0"), ("background", "flat")]),
     )
     .unwrap();
     assert_eq!(seq.frames.len(), 2);
     assert_eq!(seq.meta["speed_rad_per_s"], 1.2);
     assert_eq!(seq.meta["occlude"], 0.2);
     assert_eq!(seq.meta["background"], "flat");
-    assert_eq!(
-        seq.meta["occluder_columns"].as_array().map(Vec::len),
-        Some(2)
-    );
+    assert_eq!(seq.meta["occluder_columns"].as_array().map(Vec::len), Some(2));
     for bad in [
         vec![("speed", "fast")],
         vec![("speed", "-1")],
@@ -126,26 +104,17 @@ fn synth_target3dof_is_registered_with_string_options() {
         vec![("colour", "red")],
     ] {
         let err = synth::render_scene("target3dof", Some(1), 0, &extra(&bad)).unwrap_err();
-        assert!(
-            matches!(err, pipetrack::Error::Parameter(_)),
-            "{bad:?}: {err}"
-        );
+        assert!(matches!(err, pipetrack::Error::Parameter(_)), "{bad:?}: {err}");
     }
     let mut opts = Target3dofOptions::default();
     opts.set("occlude", "0.3").unwrap();
-    assert_eq!(
-        (opts.frames, opts.speed, opts.occlude, opts.noise_sigma),
-        (300, 0.3, 0.3, 2.0)
-    );
+    assert_eq!((opts.frames, opts.speed, opts.occlude, opts.noise_sigma), (300, 0.3, 0.3, 2.0));
 }
 
 #[test]
 fn synth_target3dof_camera_and_model_are_as_documented() {
     let cam = target3dof::camera();
-    assert_eq!(
-        (cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy),
-        (640, 480, 500.0, 500.0, 319.5, 239.5)
-    );
+    assert_eq!((cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy), (640, 480, 500.0, 500.0, 319.5, 239.5));
     let model = target3dof::model();
     assert_eq!(model.units, "m");
     assert_eq!(model.vertices.len(), 34);
@@ -165,11 +134,7 @@ fn synth_target3dof_camera_and_model_are_as_documented() {
     }
     for s in &sides {
         assert_eq!(sides.iter().filter(|t| *t == s).count(), 1, "{s:?}");
-        assert_eq!(
-            sides.iter().filter(|t| **t == [s[1], s[0]]).count(),
-            1,
-            "{s:?}"
-        );
+        assert_eq!(sides.iter().filter(|t| **t == [s[1], s[0]]).count(), 1, "{s:?}");
     }
     // Edges are the undirected face sides, each once.
     assert_eq!(model.edges.len(), sides.len() / 2);
@@ -182,19 +147,13 @@ fn synth_target3dof_camera_and_model_are_as_documented() {
         .iter()
         .map(|f| {
             let v = |i: usize| model.vertices[f[i]];
-            (1..f.len() - 1)
-                .map(|k| dot(v(0), cross(v(k), v(k + 1))))
-                .sum::<f64>()
-                / 6.0
+            (1..f.len() - 1).map(|k| dot(v(0), cross(v(k), v(k + 1)))).sum::<f64>() / 6.0
         })
         .sum();
     let body = 0.26 * 0.20 * 0.22;
     let bumper = 0.28 * 0.025 * 0.03;
     let light = 0.05 * 0.03 * 0.015;
-    assert!(
-        (volume - (body + bumper + 2.0 * light)).abs() < 1e-12,
-        "{volume}"
-    );
+    assert!((volume - (body + bumper + 2.0 * light)).abs() < 1e-12, "{volume}");
 }
 
 #[test]
@@ -213,21 +172,12 @@ fn synth_target3dof_truth_corners_are_the_projection_of_the_model() {
         assert_eq!(truth.corners.len(), seq.model.vertices.len());
         for (v, c) in seq.model.vertices.iter().zip(&truth.corners) {
             let p = project(&seq.camera, transform(&pose, *v));
-            assert!(
-                (p[0] - c[0]).abs() < 1e-9 && (p[1] - c[1]).abs() < 1e-9,
-                "frame {k}: {p:?} vs {c:?}"
-            );
+            assert!((p[0] - c[0]).abs() < 1e-9 && (p[1] - c[1]).abs() < 1e-9, "frame {k}: {p:?} vs {c:?}");
         }
     }
     // The rotation is Rx(pitch)·Ry(yaw): it turns the object's x axis to (cos yaw, 0, −sin yaw)
     // about x, i.e. the right side faces the camera and the roof too.
-    let x = transform(
-        &Pose {
-            rotation,
-            translation: [0.0; 3],
-        },
-        [1.0, 0.0, 0.0],
-    );
+    let x = transform(&Pose { rotation, translation: [0.0; 3] }, [1.0, 0.0, 0.0]);
     let (s, c) = target3dof::YAW_RAD.sin_cos();
     let (sp, cp) = target3dof::PITCH_RAD.sin_cos();
     let expected = [c, -sp * -s, cp * -s];
@@ -235,10 +185,7 @@ fn synth_target3dof_truth_corners_are_the_projection_of_the_model() {
         assert!((x[i] - expected[i]).abs() < 1e-12, "{x:?} vs {expected:?}");
     }
     // Frame 0: at rest at the image centre, at the nearest range.
-    assert_eq!(
-        seq.truth[0].pose.unwrap().translation,
-        [0.0, 0.0, MIN_RANGE_M]
-    );
+    assert_eq!(seq.truth[0].pose.unwrap().translation, [0.0, 0.0, MIN_RANGE_M]);
 }
 
 /// Where the straight line through `a` and `b` crosses row `y` (x) or column `x` (y).
@@ -252,19 +199,13 @@ fn crossing(a: [f64; 2], b: [f64; 2], at: f64, along_rows: bool) -> f64 {
 fn measured_step(frame: &GrayImage, line: usize, guess: f64, along_rows: bool) -> (f64, f64, f64) {
     let at = |p: i64| -> f64 {
         let p = p as usize;
-        f64::from(if along_rows {
-            frame.get(p, line)
-        } else {
-            frame.get(line, p)
-        })
+        f64::from(if along_rows { frame.get(p, line) } else { frame.get(line, p) })
     };
     let (start, end) = (guess.floor() as i64 - 3, guess.floor() as i64 + 4);
     let (first, second) = (at(start), at(end));
     assert_eq!(at(start - 1), first, "flat on the first side");
     assert_eq!(at(end + 1), second, "flat on the second side");
-    let coverage: f64 = (start..=end)
-        .map(|p| (at(p) - second) / (first - second))
-        .sum();
+    let coverage: f64 = (start..=end).map(|p| (at(p) - second) / (first - second)).sum();
     (start as f64 - 0.5 + coverage, first, second)
 }
 
@@ -286,18 +227,11 @@ fn synth_target3dof_intensity_steps_lie_on_the_projected_edges() {
                 let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
                 let line = if along_rows { p[1] } else { p[0] }.round();
                 let truth = crossing(a, b, line, along_rows);
-                let (found, g1, g2) =
-                    measured_step(&seq.frames[k], line as usize, truth, along_rows);
-                assert!(
-                    (g1 - g2).abs() >= 20.0,
-                    "frame {k} edge {i}-{j}: greys {g1} / {g2}"
-                );
+                let (found, g1, g2) = measured_step(&seq.frames[k], line as usize, truth, along_rows);
+                assert!((g1 - g2).abs() >= 20.0, "frame {k} edge {i}-{j}: greys {g1} / {g2}");
                 let err = (found - truth).abs();
                 worst = worst.max(err);
-                assert!(
-                    err < 0.1,
-                    "frame {k} edge {i}-{j} at line {line}: step at {found}, edge at {truth}"
-                );
+                assert!(err < 0.1, "frame {k} edge {i}-{j} at line {line}: step at {found}, edge at {truth}");
             }
         }
     }
@@ -315,22 +249,14 @@ fn synth_target3dof_peak_angular_speed_is_the_requested_speed() {
         };
         let (mut peak, mut at) = (0.0f64, 0);
         for k in 0..299 {
-            let turned = dot(cross(sight(k), sight(k + 1)), cross(sight(k), sight(k + 1)))
-                .sqrt()
-                .asin();
+            let turned = dot(cross(sight(k), sight(k + 1)), cross(sight(k), sight(k + 1))).sqrt().asin();
             let rate = turned * target3dof::FRAME_RATE_HZ;
             if rate > peak {
                 (peak, at) = (rate, k);
             }
         }
-        println!(
-            "speed {speed}: measured peak {peak:.5} rad/s between frames {at} and {}",
-            at + 1
-        );
-        assert!(
-            (peak / speed - 1.0).abs() < 0.02,
-            "requested {speed}, measured {peak}"
-        );
+        println!("speed {speed}: measured peak {peak:.5} rad/s between frames {at} and {}", at + 1);
+        assert!((peak / speed - 1.0).abs() < 0.02, "requested {speed}, measured {peak}");
         // The analytic rate never exceeds the request and reaches it at the first centre crossing.
         let first = scene.path.first_peak_time().unwrap();
         assert!(first * 30.0 < 299.0);
@@ -353,54 +279,32 @@ fn synth_target3dof_stays_in_range_and_in_view_with_constant_face_set() {
         let (mut near, mut far, mut margin) = (f64::INFINITY, 0.0f64, f64::INFINITY);
         for k in 0..300 {
             let z = scene.pose(k).translation[2];
-            assert!(
-                (MIN_RANGE_M..=MAX_RANGE_M).contains(&z),
-                "frame {k}: range {z}"
-            );
+            assert!((MIN_RANGE_M..=MAX_RANGE_M).contains(&z), "frame {k}: range {z}");
             (near, far) = (near.min(z), far.max(z));
             assert!(scene.visible(k), "speed {speed} frame {k}");
             let corners = scene.corners(k);
             for c in &corners {
-                margin = margin
-                    .min(c[0])
-                    .min(c[1])
-                    .min(WIDTH as f64 - 1.0 - c[0])
-                    .min(HEIGHT as f64 - 1.0 - c[1]);
+                margin = margin.min(c[0]).min(c[1]).min(WIDTH as f64 - 1.0 - c[0]).min(HEIGHT as f64 - 1.0 - c[1]);
             }
-            assert_eq!(
-                front_faces(&scene.model, &corners),
-                front0,
-                "speed {speed} frame {k}"
-            );
+            assert_eq!(front_faces(&scene.model, &corners), front0, "speed {speed} frame {k}");
         }
-        println!(
-            "speed {speed}: range {near:.3}..{far:.3} m, corners at least {margin:.1} px inside"
-        );
+        println!("speed {speed}: range {near:.3}..{far:.3} m, corners at least {margin:.1} px inside");
         assert_eq!(near, MIN_RANGE_M);
         assert!(far > 4.8, "a 300-frame sequence covers the range: {far}");
         assert!(margin > 40.0);
     }
     // Roof, two doors, right side; bumper rear, top and right; each light's rear, top and right.
     let scene = Target3dofScene::new(&Target3dofOptions::default()).unwrap();
-    assert_eq!(
-        front_faces(&scene.model, &scene.corners(0)),
-        vec![0, 1, 2, 5, 7, 9, 12, 13, 15, 18, 19, 21, 24]
-    );
+    assert_eq!(front_faces(&scene.model, &scene.corners(0)), vec![0, 1, 2, 5, 7, 9, 12, 13, 15, 18, 19, 21, 24]);
 }
 
 /// Fraction of the target's projected area whose x lies in `bar`: exact
 /// along each scanline (the union of the convex visible faces' spans),
 /// sampled every 1/16 px in y.
 fn hidden_fraction(model: &Model, corners: &[[f64; 2]], bar: [f64; 2]) -> f64 {
-    let outlines: Vec<Vec<[f64; 2]>> = front_faces(model, corners)
-        .into_iter()
-        .map(|f| model.faces[f].iter().map(|&i| corners[i]).collect())
-        .collect();
-    let (y0, y1) = corners
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| {
-            (a.min(c[1]), b.max(c[1]))
-        });
+    let outlines: Vec<Vec<[f64; 2]>> =
+        front_faces(model, corners).into_iter().map(|f| model.faces[f].iter().map(|&i| corners[i]).collect()).collect();
+    let (y0, y1) = corners.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| (a.min(c[1]), b.max(c[1])));
     let (mut total, mut hidden) = (0.0, 0.0);
     let step = 1.0 / 16.0;
     let mut y = y0.floor() + step / 2.0;
@@ -449,21 +353,12 @@ fn synth_target3dof_occluder_hides_the_requested_fraction() {
             let bar = scene.occluder(k).unwrap().unwrap();
             let got = hidden_fraction(&scene.model, &scene.corners(k), bar);
             println!("occlude {fraction}: frame {k} bar {bar:?} hides {got:.4}");
-            assert!(
-                (got - fraction).abs() < 0.001,
-                "frame {k}: {got} vs {fraction}"
-            );
+            assert!((got - fraction).abs() < 0.001, "frame {k}: {got} vs {fraction}");
             sum += got;
         }
         assert!((sum / frames.len() as f64 - fraction).abs() < 0.0005);
     }
-    assert_eq!(
-        Target3dofScene::new(&options(0.3, 0.0, 2.0, 3))
-            .unwrap()
-            .occluder(0)
-            .unwrap(),
-        None
-    );
+    assert_eq!(Target3dofScene::new(&options(0.3, 0.0, 2.0, 3)).unwrap().occluder(0).unwrap(), None);
     // The bar is drawn where it is said to be, in front of the target.
     let seq = render_target3dof(&options(0.3, 0.25, 0.0, 2)).unwrap();
     let columns = seq.meta["occluder_columns"].as_array().unwrap();
@@ -472,11 +367,7 @@ fn synth_target3dof_occluder_hides_the_requested_fraction() {
         assert!(x1 - x0 > 10.0);
         for x in (x0.ceil() as usize + 1)..(x1.floor() as usize) {
             for y in 0..HEIGHT {
-                assert_eq!(
-                    f32::from(seq.frames[k].get(x, y)),
-                    OCCLUDER_GREY,
-                    "frame {k} ({x}, {y})"
-                );
+                assert_eq!(f32::from(seq.frames[k].get(x, y)), OCCLUDER_GREY, "frame {k} ({x}, {y})");
             }
         }
     }
@@ -486,11 +377,7 @@ fn synth_target3dof_occluder_hides_the_requested_fraction() {
 fn synth_target3dof_same_seed_same_frames() {
     let a = render_target3dof(&options(1.2, 0.2, 2.0, 4)).unwrap();
     let b = render_target3dof(&options(1.2, 0.2, 2.0, 4)).unwrap();
-    let other = render_target3dof(&Target3dofOptions {
-        seed: 6,
-        ..options(1.2, 0.2, 2.0, 4)
-    })
-    .unwrap();
+    let other = render_target3dof(&Target3dofOptions { seed: 6, ..options(1.2, 0.2, 2.0, 4) }).unwrap();
     for k in 0..4 {
         assert_eq!(a.frames[k].data(), b.frames[k].data(), "frame {k}");
         assert_ne!(a.frames[k].data(), other.frames[k].data(), "frame {k}");

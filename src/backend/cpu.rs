@@ -2,17 +2,17 @@
 //! frame to frame so the per-frame loop does not allocate images.
 
 use super::{EarlyVision, FrameFeatures, FrameRequest, Pyramids};
-use crate::early::compaction::compact_cpu;
+use crate::Result;
 use crate::early::Feature;
+use crate::early::compaction::compact_cpu;
 use crate::early::cpf;
 use crate::early::gaussian::smooth_cpu;
 use crate::early::ingest::ingest_gray_into;
 use crate::early::log::log_cpu;
 use crate::early::sobel::{SobelOutput, sobel_cpu};
-use crate::early::zero_crossing::{Edgels, zero_crossings_cpu};
 use crate::early::temporal_diff;
+use crate::early::zero_crossing::{Edgels, zero_crossings_cpu};
 use crate::image::{FloatImage, GrayImage};
-use crate::Result;
 
 /// Early vision on the CPU (rayon threads across rows for large frames).
 #[derive(Debug)]
@@ -94,7 +94,13 @@ impl EarlyVision for CpuBackend {
             if let Some(prev) = &self.previous {
                 // 000 eq. 1: G*_t − G*_{t+1}, thresholded; eq. 2 on the sum of both.
                 // Fused: one pass over both frames writes the mask and the sum.
-                temporal_diff::temporal_diff_and_sum_cpu(prev, &self.smoothed, &m.diff, &mut self.motion_mask, &mut self.sum)?;
+                temporal_diff::temporal_diff_and_sum_cpu(
+                    prev,
+                    &self.smoothed,
+                    &m.diff,
+                    &mut self.motion_mask,
+                    &mut self.sum,
+                )?;
                 sobel_cpu(&self.sum, &mut self.sobel_sum);
                 compact_cpu(
                     &self.motion_mask,

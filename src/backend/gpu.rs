@@ -129,7 +129,13 @@ impl GpuBackend {
             (gaussian::SHADER, "blur_rows"),
             (gaussian::SHADER, "blur_cols"),
         ]);
-        Self { ctx, slots: (0..SLOTS).map(|_| None).collect(), next_slot: 0, previous: None, stats: FrameStats::default() }
+        Self {
+            ctx,
+            slots: (0..SLOTS).map(|_| None).collect(),
+            next_slot: 0,
+            previous: None,
+            stats: FrameStats::default(),
+        }
     }
 
     /// The context (device, queue, adapter name).
@@ -256,12 +262,7 @@ impl GpuBackend {
         }
         let had_previous = prev_smoothed.is_some();
         if let (Some(m), Some(prev)) = (&request.motion, prev_smoothed) {
-            let (mask, sum, sob, list) = (
-                opt(&s.motion_mask)?,
-                opt(&s.sum)?,
-                opt(&s.sobel_sum)?,
-                opt(&s.motion_list)?,
-            );
+            let (mask, sum, sob, list) = (opt(&s.motion_mask)?, opt(&s.sum)?, opt(&s.sobel_sum)?, opt(&s.motion_list)?);
             // 000 eq. 1 and eq. 2, as in the CPU backend.
             temporal_diff::encode(&mut rec, prev, &s.smoothed, mask, &m.diff)?;
             frame_sum::encode(&mut rec, prev, &s.smoothed, sum)?;
@@ -333,8 +334,10 @@ impl GpuBackend {
             let (c, e) = opt(&s.cpf)?;
             let pyr = c.download(&self.ctx)?;
             let edges = e.download(&self.ctx)?;
-            bytes += 4 * (pyr.hierarchies.iter().flatten().map(|l| l.data().len()).sum::<usize>()
-                + edges.horizontal.iter().chain(&edges.vertical).map(|l| l.data().len()).sum::<usize>()) as u64;
+            bytes += 4
+                * (pyr.hierarchies.iter().flatten().map(|l| l.data().len()).sum::<usize>()
+                    + edges.horizontal.iter().chain(&edges.vertical).map(|l| l.data().len()).sum::<usize>())
+                    as u64;
             out.pyramids = Some((pyr, edges));
         }
         self.stats.bytes_read_back = bytes;

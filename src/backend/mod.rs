@@ -13,6 +13,7 @@ mod gpu;
 pub use cpu::CpuBackend;
 pub use gpu::{FrameStats, GpuBackend, Ticket};
 
+use crate::Result;
 use crate::early::compaction::CompactionParams;
 use crate::early::cpf::{CpfPyramids, EdgePyramids};
 use crate::early::gaussian::GaussianParams;
@@ -21,7 +22,6 @@ use crate::early::temporal_diff::TemporalDiffParams;
 use crate::early::zero_crossing::ZeroCrossingParams;
 use crate::early::{Feature, Window};
 use crate::image::GrayImage;
-use crate::Result;
 
 /// Where a list's pixels are kept: window, cap and subsample seed.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -46,9 +46,8 @@ impl Inputs {
     /// Inputs of `width`×`height`.
     pub fn new(width: usize, height: usize) -> Result<Self> {
         let base = natural(width + CHAIN_FRAMES, height, 2024);
-        let frames: Vec<GrayImage> = (0..CHAIN_FRAMES)
-            .map(|k| GrayImage::from_fn(width, height, |x, y| base.get(x + k, y)))
-            .collect();
+        let frames: Vec<GrayImage> =
+            (0..CHAIN_FRAMES).map(|k| GrayImage::from_fn(width, height, |x, y| base.get(x + k, y))).collect();
         let luma = frames[0].to_f32();
         let p = GaussianParams::default();
         let smoothed = [gaussian::smooth(&luma, &p)?, gaussian::smooth(&frames[1].to_f32(), &p)?];
@@ -142,7 +141,11 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
     let pyr = CpfGpu::new(ctx, w, h);
     let list = CompactionGpu::new(ctx, w * h, Some(1500))?;
     let arena = FrameArena::new(ctx);
-    let stage: &'static str = STAGES.iter().copied().find(|s| *s == stage).ok_or_else(|| Error::Parameter(format!("unknown stage {stage:?}")))?;
+    let stage: &'static str = STAGES
+        .iter()
+        .copied()
+        .find(|s| *s == stage)
+        .ok_or_else(|| Error::Parameter(format!("unknown stage {stage:?}")))?;
     // Inputs that are outputs of earlier stages are computed once up front.
     crate::gpu::run_once(ctx, |rec| {
         sobel::encode(rec, &luma, &sob)?;
@@ -182,7 +185,9 @@ fn record_stage(
         "log" => log::encode(rec, luma, t[0], t[1], s1, &LogParams::default()),
         "zero_crossing" => zero_crossing::encode(rec, t[2], edg, &ZeroCrossingParams::default()),
         "cpf" => cpf::encode(rec, luma, pyr),
-        "compaction" => compaction::encode(rec, &sob.magnitude, &sob.direction, &sob.magnitude, &compaction_params(w, h), list),
+        "compaction" => {
+            compaction::encode(rec, &sob.magnitude, &sob.direction, &sob.magnitude, &compaction_params(w, h), list)
+        }
         other => Err(Error::Parameter(format!("unknown stage {other:?}"))),
     }
 }
@@ -261,7 +266,12 @@ pub fn chain_cost(ctx: &GpuContext, inp: &Inputs) -> Result<FrameStats> {
 }
 
 /// Run every stage at every size on both backends.
-pub fn compare(sizes: &[(usize, usize)], stages: &[&str], budget: Duration, mut progress: impl FnMut(&BenchRow)) -> Result<BenchReport> {
+pub fn compare(
+    sizes: &[(usize, usize)],
+    stages: &[&str],
+    budget: Duration,
+    mut progress: impl FnMut(&BenchRow),
+) -> Result<BenchReport> {
     let gpu = GpuContext::new();
     let adapter = match &gpu {
         Ok(ctx) => ctx.adapter_name().to_string(),

@@ -14,11 +14,11 @@
 use std::fmt::Write as _;
 
 use crate::backend::CpuBackend;
-use crate::io::formats::{FrameResult, Status};
-use crate::track::run::track_frames;
 use crate::cli::score::score;
+use crate::io::formats::{FrameResult, Status};
 use crate::synth::pendulum::{PendulumOptions, render_pendulum};
 use crate::track::motion_edge::{LineFitMethod, MissingMeasurement, Prediction};
+use crate::track::run::track_frames;
 use crate::track::{MotionEdgeParams, MotionEdgeTracker};
 use crate::{Error, Result};
 
@@ -112,7 +112,8 @@ pub fn run_tables(config: &str, mut progress: impl FnMut(usize, usize)) -> Resul
 pub fn markdown(config: &str, tables: &[Vec<Vec<Cell>>]) -> String {
     let mut md = String::new();
     for (t, (&epsilon, rows)) in EPSILONS.iter().zip(tables).enumerate() {
-        let _ = writeln!(md, "\n#### Table {} — mean corner error (px), ε = {epsilon}, configuration `{config}`\n", t + 1);
+        let _ =
+            writeln!(md, "\n#### Table {} — mean corner error (px), ε = {epsilon}, configuration `{config}`\n", t + 1);
         let _ = writeln!(md, "| velocity (px/frame) | ζ = 3 | ζ = 5 | ζ = 10 | ζ = 15 |");
         let _ = writeln!(md, "|---|---|---|---|---|");
         for (si, (&speed, row)) in SPEEDS.iter().zip(rows).enumerate() {

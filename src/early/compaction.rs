@@ -37,7 +37,8 @@ use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "compaction", source: include_str!("../../shaders/compaction.wgsl") };
+pub(crate) const SHADER: ShaderDef =
+    ShaderDef { name: "compaction", source: include_str!("../../shaders/compaction.wgsl") };
 
 /// Largest cap accepted: keeps `j·(n % cap)` below 2³² in the stratum bounds.
 pub const MAX_CAP: u32 = 65_535;
@@ -151,7 +152,15 @@ fn check_sizes(select: (usize, usize), theta: (usize, usize), magnitude: (usize,
 
 /// Append the selected pixels of window row `y` (columns `x0..x0 + sel.len()`) to `emit`.
 #[inline]
-fn list_row(sel: &[f32], theta: &[f32], mag: &[f32], x0: usize, y: usize, threshold: f32, mut emit: impl FnMut(Feature)) {
+fn list_row(
+    sel: &[f32],
+    theta: &[f32],
+    mag: &[f32],
+    x0: usize,
+    y: usize,
+    threshold: f32,
+    mut emit: impl FnMut(Feature),
+) {
     for (dx, ((&s, &t), &m)) in sel.iter().zip(theta).zip(mag).enumerate() {
         if s > threshold {
             emit(Feature { x: (x0 + dx) as u32, y: y as u32, theta: t, magnitude: m });
@@ -162,7 +171,13 @@ fn list_row(sel: &[f32], theta: &[f32], mag: &[f32], x0: usize, y: usize, thresh
 /// CPU twin: the features of `params.window` into `out` (cleared first; no
 /// allocation once `out` has grown). Large windows are listed on several
 /// threads by the GPU's own scheme: count per band of rows, prefix-sum, fill.
-pub fn compact_cpu(select: &FloatImage, theta: &FloatImage, magnitude: &FloatImage, params: &CompactionParams, out: &mut Vec<Feature>) -> Result<()> {
+pub fn compact_cpu(
+    select: &FloatImage,
+    theta: &FloatImage,
+    magnitude: &FloatImage,
+    params: &CompactionParams,
+    out: &mut Vec<Feature>,
+) -> Result<()> {
     check_sizes(select.size(), theta.size(), magnitude.size())?;
     let win = checked_window(select.size(), params)?;
     out.clear();
@@ -203,7 +218,9 @@ pub fn compact_cpu(select: &FloatImage, theta: &FloatImage, magnitude: &FloatIma
         });
     } else {
         for y in y0..y1 {
-            list_row(span(select, y, x0, x1), span(theta, y, x0, x1), span(magnitude, y, x0, x1), x0, y, th, |f| out.push(f));
+            list_row(span(select, y, x0, x1), span(theta, y, x0, x1), span(magnitude, y, x0, x1), x0, y, th, |f| {
+                out.push(f)
+            });
         }
     }
 
@@ -221,7 +238,12 @@ pub fn compact_cpu(select: &FloatImage, theta: &FloatImage, magnitude: &FloatIma
 }
 
 /// CPU twin, allocating its output: the feature list.
-pub fn compact(select: &FloatImage, theta: &FloatImage, magnitude: &FloatImage, params: &CompactionParams) -> Result<Vec<Feature>> {
+pub fn compact(
+    select: &FloatImage,
+    theta: &FloatImage,
+    magnitude: &FloatImage,
+    params: &CompactionParams,
+) -> Result<Vec<Feature>> {
     let mut out = Vec::new();
     compact_cpu(select, theta, magnitude, params, &mut out)?;
     Ok(out)
@@ -256,13 +278,22 @@ impl CompactionGpu {
         }
         let limits = ctx.device.limits();
         let list_bytes = max_pixels.max(1) as u64 * FEATURE_BYTES;
-        if list_bytes > limits.max_storage_buffer_binding_size as u64 || HEADER_BYTES + list_bytes > limits.max_buffer_size {
-            return Err(Error::Parameter(format!("a list of {max_pixels} features exceeds the device's buffer limits")));
+        if list_bytes > limits.max_storage_buffer_binding_size as u64
+            || HEADER_BYTES + list_bytes > limits.max_buffer_size
+        {
+            return Err(Error::Parameter(format!(
+                "a list of {max_pixels} features exceeds the device's buffer limits"
+            )));
         }
         let max_blocks = max_pixels.div_ceil(BLOCK as usize).max(1) as u64;
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
         let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {
-            ctx.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
         };
         Ok(Self {
             block_counts: buffer("compaction.block_counts", max_blocks * 4, storage),
@@ -331,14 +362,20 @@ impl CompactionGpu {
         let (list, capacity) = self.list();
         let listed = u64::from(header.listed);
         if listed > capacity || header.listed > header.total {
-            return Err(Error::Gpu(format!("compaction header lists {} of {} features, capacity {capacity}", header.listed, header.total)));
+            return Err(Error::Gpu(format!(
+                "compaction header lists {} of {} features, capacity {capacity}",
+                header.listed, header.total
+            )));
         }
         let head = listed.min(prefetched);
-        let mut out: Vec<Feature> = bytemuck::pod_collect_to_vec(&bytes[HEADER_BYTES as usize..(HEADER_BYTES + head * FEATURE_BYTES) as usize]);
+        let mut out: Vec<Feature> =
+            bytemuck::pod_collect_to_vec(&bytes[HEADER_BYTES as usize..(HEADER_BYTES + head * FEATURE_BYTES) as usize]);
         if listed > prefetched {
             let at = HEADER_BYTES + prefetched * FEATURE_BYTES;
             let size = (listed - prefetched) * FEATURE_BYTES;
-            let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("compaction.readback") });
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("compaction.readback") });
             enc.copy_buffer_to_buffer(list, prefetched * FEATURE_BYTES, &self.staging, at, size);
             ctx.queue.submit([enc.finish()]);
             let rest = ctx.read_buffer(&self.staging, at..at + size)?;
@@ -374,10 +411,17 @@ pub(crate) fn encode(
     check_sizes(size, (theta.width(), theta.height()), (magnitude.width(), magnitude.height()))?;
     let win = checked_window(size, params)?;
     if win.area() > scratch.max_pixels {
-        return Err(Error::Size(format!("window of {} pixels, compaction scratch holds {}", win.area(), scratch.max_pixels)));
+        return Err(Error::Size(format!(
+            "window of {} pixels, compaction scratch holds {}",
+            win.area(),
+            scratch.max_pixels
+        )));
     }
     if let Some(cap) = params.cap.filter(|&c| c > scratch.max_cap.unwrap_or(0)) {
-        return Err(Error::Parameter(format!("cap {cap}, compaction scratch built for caps up to {:?}", scratch.max_cap)));
+        return Err(Error::Parameter(format!(
+            "cap {cap}, compaction scratch built for caps up to {:?}",
+            scratch.max_cap
+        )));
     }
     let area = win.area() as u32;
     let num_blocks = area.div_ceil(BLOCK);
@@ -415,7 +459,13 @@ pub(crate) fn encode(
 }
 
 /// GPU: upload the three images, compact, and read the list back (tests and benches).
-pub fn compact_gpu(ctx: &GpuContext, select: &FloatImage, theta: &FloatImage, magnitude: &FloatImage, params: &CompactionParams) -> Result<Vec<Feature>> {
+pub fn compact_gpu(
+    ctx: &GpuContext,
+    select: &FloatImage,
+    theta: &FloatImage,
+    magnitude: &FloatImage,
+    params: &CompactionParams,
+) -> Result<Vec<Feature>> {
     check_sizes(select.size(), theta.size(), magnitude.size())?;
     let win = checked_window(select.size(), params)?;
     let scratch = CompactionGpu::new(ctx, win.area(), params.cap)?;
@@ -461,7 +511,8 @@ mod tests {
     fn tiny_mask_lists_set_pixels_row_major() {
         let (s, t, m) = tiny();
         let all = compact(&s, &t, &m, &params(Window::full(4, 3), None)).unwrap();
-        let expected = vec![f(1, 0, 1.0, 1.0), f(3, 0, 3.0, 3.0), f(0, 1, 0.1, 10.0), f(2, 2, 2.2, 22.0), f(3, 2, 3.2, 23.0)];
+        let expected =
+            vec![f(1, 0, 1.0, 1.0), f(3, 0, 3.0, 3.0), f(0, 1, 0.1, 10.0), f(2, 2, 2.2, 22.0), f(3, 2, 3.2, 23.0)];
         assert_eq!(all, expected);
 
         // Columns 1..3, rows 0..3: only (1, 0) and (2, 2).
@@ -531,7 +582,10 @@ mod tests {
     #[test]
     fn bad_parameters_are_errors() {
         let (s, t, m) = tiny();
-        assert!(matches!(compact(&s, &t, &m, &params(Window::full(4, 3), Some(MAX_CAP + 1))), Err(Error::Parameter(_))));
+        assert!(matches!(
+            compact(&s, &t, &m, &params(Window::full(4, 3), Some(MAX_CAP + 1))),
+            Err(Error::Parameter(_))
+        ));
         let nan = CompactionParams { threshold: f32::NAN, ..params(Window::full(4, 3), None) };
         assert!(matches!(compact(&s, &t, &m, &nan), Err(Error::Parameter(_))));
         let small = FloatImage::new(3, 3);

@@ -113,7 +113,13 @@ pub struct EdgePyramids {
 /// when clamped): `dst[i] = outer(inner(r0[2i], r1[2i]), inner(r0[2i+1], r1[2i+1]))`,
 /// the last column clamped when `r0` has odd length.
 #[inline(always)]
-fn reduce_row(r0: &[f32], r1: &[f32], dst: &mut [f32], inner: impl Fn(f32, f32) -> f32, outer: impl Fn(f32, f32) -> f32) {
+fn reduce_row(
+    r0: &[f32],
+    r1: &[f32],
+    dst: &mut [f32],
+    inner: impl Fn(f32, f32) -> f32,
+    outer: impl Fn(f32, f32) -> f32,
+) {
     let pairs = r0.len() / 2;
     for ((d, a), b) in dst[..pairs].iter_mut().zip(r0.chunks_exact(2)).zip(r1.chunks_exact(2)) {
         *d = outer(inner(a[0], b[0]), inner(a[1], b[1]));
@@ -389,7 +395,11 @@ impl LevelLayout {
     fn check_input(&self, image: &GpuImage, what: &str) -> Result<()> {
         let (w, h) = self.sizes[0];
         if (image.width(), image.height()) != (w, h) {
-            return Err(Error::Size(format!("{what}: {}x{} image for a {w}x{h} pyramid", image.width(), image.height())));
+            return Err(Error::Size(format!(
+                "{what}: {}x{} image for a {w}x{h} pyramid",
+                image.width(),
+                image.height()
+            )));
         }
         Ok(())
     }
@@ -541,7 +551,13 @@ pub(crate) fn encode_edges(rec: &mut Recorder<'_>, gx: &GpuImage, gy: &GpuImage,
     for k in 1..layout.sizes.len() {
         let (w, h) = layout.sizes[k];
         let u = layout.uniform(k)?;
-        rec.dispatch(&EDGE_SHADER, "edge_level", &u, &[&out.horizontal.buffer, &out.vertical.buffer], workgroups_2d(w, h))?;
+        rec.dispatch(
+            &EDGE_SHADER,
+            "edge_level",
+            &u,
+            &[&out.horizontal.buffer, &out.vertical.buffer],
+            workgroups_2d(w, h),
+        )?;
     }
     Ok(())
 }

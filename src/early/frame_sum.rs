@@ -14,7 +14,8 @@ use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "frame_sum", source: include_str!("../../shaders/frame_sum.wgsl") };
+pub(crate) const SHADER: ShaderDef =
+    ShaderDef { name: "frame_sum", source: include_str!("../../shaders/frame_sum.wgsl") };
 
 /// Uniform block of `frame_sum.wgsl`; kept in sync with its `Params`.
 #[repr(C)]

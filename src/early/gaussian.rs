@@ -13,7 +13,8 @@ use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "gaussian", source: include_str!("../../shaders/gaussian.wgsl") };
+pub(crate) const SHADER: ShaderDef =
+    ShaderDef { name: "gaussian", source: include_str!("../../shaders/gaussian.wgsl") };
 
 /// Most half-kernel weights the shader's uniform block holds.
 const MAX_TAPS: usize = 60;
@@ -163,7 +164,13 @@ pub fn smooth(src: &FloatImage, params: &GaussianParams) -> Result<FloatImage> {
 }
 
 /// Record the two passes `src → tmp → dst` (all the same size).
-pub(crate) fn encode(rec: &mut Recorder<'_>, src: &GpuImage, tmp: &GpuImage, dst: &GpuImage, params: &GaussianParams) -> Result<()> {
+pub(crate) fn encode(
+    rec: &mut Recorder<'_>,
+    src: &GpuImage,
+    tmp: &GpuImage,
+    dst: &GpuImage,
+    params: &GaussianParams,
+) -> Result<()> {
     let half = half_kernel(params.sigma)?;
     let (w, h) = (src.width(), src.height());
     let u = GaussianUniform::new(w, h, &half);

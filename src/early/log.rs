@@ -201,7 +201,9 @@ fn log_col_row_body(tg: &[f32], td: &[f32], width: usize, height: usize, y: usiz
             let (tg_u, tg_v) = (row_of(tg, up, x0, n), row_of(tg, down, x0, n));
             let (td_u, td_v) = (row_of(td, up, x0, n), row_of(td, down, x0, n));
             let (gj, dj) = (g[j], d[j]);
-            for (((((o, a), &pu), &pv), &qu), &qv) in out.iter_mut().zip(acc.iter_mut()).zip(tg_u).zip(tg_v).zip(td_u).zip(td_v) {
+            for (((((o, a), &pu), &pv), &qu), &qv) in
+                out.iter_mut().zip(acc.iter_mut()).zip(tg_u).zip(tg_v).zip(td_u).zip(td_v)
+            {
                 *o += dj * (pu + pv);
                 *a += gj * (qu + qv);
             }
@@ -215,7 +217,13 @@ fn log_col_row_body(tg: &[f32], td: &[f32], width: usize, height: usize, y: usiz
 /// CPU twin: the LoG of `src` into `out`, using `tmp_g` and `tmp_d` as the
 /// intermediates of the row pass (all resized to match `src`). No allocation
 /// once the buffers have grown, apart from the two small kernels.
-pub fn log_cpu(src: &FloatImage, params: &LogParams, tmp_g: &mut FloatImage, tmp_d: &mut FloatImage, out: &mut FloatImage) -> Result<()> {
+pub fn log_cpu(
+    src: &FloatImage,
+    params: &LogParams,
+    tmp_g: &mut FloatImage,
+    tmp_d: &mut FloatImage,
+    out: &mut FloatImage,
+) -> Result<()> {
     let k = log_kernels(params.sigma)?;
     let (w, h) = src.size();
     tmp_g.resize(w, h);

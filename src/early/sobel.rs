@@ -294,7 +294,8 @@ pub(crate) fn encode(rec: &mut Recorder<'_>, src: &GpuImage, out: &SobelGpu) -> 
         return Err(Error::Size(format!("sobel output planes are not all {w}x{h}")));
     }
     let u = SobelUniform { width: w as u32, height: h as u32, _pad: [0; 2] };
-    let buffers = [&src.buffer, &out.gx.buffer, &out.gy.buffer, &out.magnitude.buffer, &out.direction.buffer, &out.theta.buffer];
+    let buffers =
+        [&src.buffer, &out.gx.buffer, &out.gy.buffer, &out.magnitude.buffer, &out.direction.buffer, &out.theta.buffer];
     rec.dispatch(&SHADER, "sobel", &u, &buffers, workgroups_2d(w, h))
 }
 
@@ -334,7 +335,10 @@ mod tests {
             sobel_row_body(src.data(), w, h, y, rows);
         }
         let bits = |o: &SobelOutput| -> Vec<u32> {
-            [&o.gx, &o.gy, &o.magnitude, &o.direction, &o.theta].iter().flat_map(|p| p.data().iter().map(|v| v.to_bits())).collect()
+            [&o.gx, &o.gy, &o.magnitude, &o.direction, &o.theta]
+                .iter()
+                .flat_map(|p| p.data().iter().map(|v| v.to_bits()))
+                .collect()
         };
         assert_eq!(bits(&fast), bits(&base));
     }

@@ -111,7 +111,12 @@ pub fn temporal_diff_and_sum_cpu(
 
 /// CPU twin: write the motion mask of `prev → cur` into `out` (resized to
 /// match). `prev` and `cur` must have the same size ([`Error::Size`]).
-pub fn temporal_diff_cpu(prev: &FloatImage, cur: &FloatImage, params: &TemporalDiffParams, out: &mut FloatImage) -> Result<()> {
+pub fn temporal_diff_cpu(
+    prev: &FloatImage,
+    cur: &FloatImage,
+    params: &TemporalDiffParams,
+    out: &mut FloatImage,
+) -> Result<()> {
     params.validate()?;
     prev.check_same_size(cur, "temporal difference prev/cur")?;
     let (w, h) = prev.size();
@@ -144,7 +149,13 @@ pub fn temporal_diff(prev: &FloatImage, cur: &FloatImage, params: &TemporalDiffP
 }
 
 /// Record the mask `out = |prev − cur| > threshold` (all three the same size).
-pub(crate) fn encode(rec: &mut Recorder<'_>, prev: &GpuImage, cur: &GpuImage, out: &GpuImage, params: &TemporalDiffParams) -> Result<()> {
+pub(crate) fn encode(
+    rec: &mut Recorder<'_>,
+    prev: &GpuImage,
+    cur: &GpuImage,
+    out: &GpuImage,
+    params: &TemporalDiffParams,
+) -> Result<()> {
     params.validate()?;
     let (w, h) = (prev.width(), prev.height());
     for (img, what) in [(cur, "cur"), (out, "out")] {
@@ -161,7 +172,12 @@ pub(crate) fn encode(rec: &mut Recorder<'_>, prev: &GpuImage, cur: &GpuImage, ou
 }
 
 /// GPU: the motion mask of two CPU images, read back (tests and benches).
-pub fn temporal_diff_gpu(ctx: &GpuContext, prev: &FloatImage, cur: &FloatImage, params: &TemporalDiffParams) -> Result<FloatImage> {
+pub fn temporal_diff_gpu(
+    ctx: &GpuContext,
+    prev: &FloatImage,
+    cur: &FloatImage,
+    params: &TemporalDiffParams,
+) -> Result<FloatImage> {
     prev.check_same_size(cur, "temporal difference prev/cur")?;
     let (w, h) = prev.size();
     let p = GpuImage::from_image(ctx, prev, "temporal_diff.prev");

@@ -42,7 +42,8 @@ use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "zero_crossing", source: include_str!("../../shaders/zero_crossing.wgsl") };
+pub(crate) const SHADER: ShaderDef =
+    ShaderDef { name: "zero_crossing", source: include_str!("../../shaders/zero_crossing.wgsl") };
 
 /// Smallest effective `min_slope`: smaller values (and NaN) act as this one,
 /// so every kept slope is far above f32 underflow and `strength > 0` exactly
@@ -224,7 +225,9 @@ pub fn zero_crossings_cpu(log: &FloatImage, params: &ZeroCrossingParams, out: &m
     let min_slope = params.effective_min_slope();
     let l = log.data();
     let row = |y: usize| &l[y * w..(y + 1) * w];
-    let one_row = |y: usize, out: RowOut<'_>| edgel_row(row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)), min_slope, out);
+    let one_row = |y: usize, out: RowOut<'_>| {
+        edgel_row(row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)), min_slope, out)
+    };
     let Edgels { strength, direction, offset_x, offset_y } = out;
     if w * h >= PARALLEL_PIXELS {
         strength
@@ -234,7 +237,9 @@ pub fn zero_crossings_cpu(log: &FloatImage, params: &ZeroCrossingParams, out: &m
             .zip(offset_x.data_mut().par_chunks_mut(w))
             .zip(offset_y.data_mut().par_chunks_mut(w))
             .enumerate()
-            .for_each(|(y, (((s, d), ox), oy))| one_row(y, RowOut { strength: s, direction: d, offset_x: ox, offset_y: oy }));
+            .for_each(|(y, (((s, d), ox), oy))| {
+                one_row(y, RowOut { strength: s, direction: d, offset_x: ox, offset_y: oy })
+            });
     } else {
         strength
             .data_mut()
@@ -243,7 +248,9 @@ pub fn zero_crossings_cpu(log: &FloatImage, params: &ZeroCrossingParams, out: &m
             .zip(offset_x.data_mut().chunks_mut(w))
             .zip(offset_y.data_mut().chunks_mut(w))
             .enumerate()
-            .for_each(|(y, (((s, d), ox), oy))| one_row(y, RowOut { strength: s, direction: d, offset_x: ox, offset_y: oy }));
+            .for_each(|(y, (((s, d), ox), oy))| {
+                one_row(y, RowOut { strength: s, direction: d, offset_x: ox, offset_y: oy })
+            });
     }
 }
 
@@ -292,9 +299,19 @@ impl EdgelsGpu {
 }
 
 /// Record the one dispatch `log → out` (same size).
-pub(crate) fn encode(rec: &mut Recorder<'_>, log: &GpuImage, out: &EdgelsGpu, params: &ZeroCrossingParams) -> Result<()> {
+pub(crate) fn encode(
+    rec: &mut Recorder<'_>,
+    log: &GpuImage,
+    out: &EdgelsGpu,
+    params: &ZeroCrossingParams,
+) -> Result<()> {
     let (w, h) = (log.width(), log.height());
-    for (img, what) in [(&out.strength, "strength"), (&out.direction, "direction"), (&out.offset_x, "offset_x"), (&out.offset_y, "offset_y")] {
+    for (img, what) in [
+        (&out.strength, "strength"),
+        (&out.direction, "direction"),
+        (&out.offset_x, "offset_x"),
+        (&out.offset_y, "offset_y"),
+    ] {
         if (img.width(), img.height()) != (w, h) {
             return Err(Error::Size(format!("zero crossings {what}: {}x{} vs LoG {w}x{h}", img.width(), img.height())));
         }
@@ -347,7 +364,10 @@ mod tests {
             edgel_row_body(row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)), p.effective_min_slope(), out);
         }
         let bits = |e: &Edgels| -> Vec<u32> {
-            [&e.strength, &e.direction, &e.offset_x, &e.offset_y].iter().flat_map(|p| p.data().iter().map(|v| v.to_bits())).collect()
+            [&e.strength, &e.direction, &e.offset_x, &e.offset_y]
+                .iter()
+                .flat_map(|p| p.data().iter().map(|v| v.to_bits()))
+                .collect()
         };
         assert_eq!(bits(&fast), bits(&base));
     }
@@ -399,7 +419,10 @@ mod tests {
         assert_eq!(e.offset_x.data(), &[0.0, 0.0, -0.25]);
         assert!((e.direction.get(2, 0) - PI).abs() < 1e-6);
         // A slope below min_slope is no crossing: [−1, 3] with min_slope 5.
-        let e = zero_crossings(&FloatImage::from_vec(2, 1, vec![-1.0, 3.0]).unwrap(), &ZeroCrossingParams { min_slope: 5.0 });
+        let e = zero_crossings(
+            &FloatImage::from_vec(2, 1, vec![-1.0, 3.0]).unwrap(),
+            &ZeroCrossingParams { min_slope: 5.0 },
+        );
         assert_eq!(e.count(), 0);
     }
 
@@ -439,7 +462,8 @@ mod tests {
     /// (−1, 9) slope 10, |−1| ≤ |9| → pixel 1, offset 0.1: gx = 10 wins.
     #[test]
     fn steeper_crossing_wins() {
-        let e = zero_crossings(&FloatImage::from_vec(3, 1, vec![4.0, -1.0, 9.0]).unwrap(), &ZeroCrossingParams::default());
+        let e =
+            zero_crossings(&FloatImage::from_vec(3, 1, vec![4.0, -1.0, 9.0]).unwrap(), &ZeroCrossingParams::default());
         assert_eq!(e.strength.data(), &[0.0, 10.0, 0.0]);
         assert!((e.offset_x.get(1, 0) - 0.1).abs() < 1e-7);
     }

@@ -1,7 +1,6 @@
 //! The α-β-γ filter that 002 eq. 16–18 show equivalent, in steady state, to
 //! the one-step predictor of the degree-2 polynomial motion model.
 
-
 /// The α-β-γ filter (unit sample period): predict x⁻ = x + v + a/2,
 /// v⁻ = v + a; update with residual r = m − x⁻: x = x⁻ + α·r,
 /// v = v⁻ + β·r, a = a⁻ + (γ/2)·r. With α, β, γ from λ by eq. 18
@@ -48,11 +47,7 @@ impl AlphaBetaGamma {
 
     /// Take measurement `m` and return the prediction of the next sample.
     pub fn update(&mut self, m: f64) -> f64 {
-        let (x, v, a) = (
-            self.prediction(),
-            self.velocity + self.acceleration,
-            self.acceleration,
-        );
+        let (x, v, a) = (self.prediction(), self.velocity + self.acceleration, self.acceleration);
         let r = m - x;
         self.position = x + self.alpha * r;
         self.velocity = v + self.beta * r;

@@ -63,11 +63,7 @@ impl<const K: usize> BlueSolution<K> {
         if n == 0 {
             return 0.0;
         }
-        let s: f64 = self
-            .consistency
-            .iter()
-            .map(|e| e[0] * e[0] + e[1] * e[1])
-            .sum();
+        let s: f64 = self.consistency.iter().map(|e| e[0] * e[0] + e[1] * e[1]).sum();
         (s / n as f64).sqrt()
     }
 }
@@ -86,11 +82,7 @@ impl<const K: usize> BlueProblem<K> {
         if !finite || inverse_sqrt2(covariance).is_none() {
             return false;
         }
-        self.blocks.push(BlueBlock {
-            rows,
-            value,
-            covariance,
-        });
+        self.blocks.push(BlueBlock { rows, value, covariance });
         true
     }
 
@@ -139,11 +131,7 @@ impl<const K: usize> BlueProblem<K> {
         let residuals: Vec<[f64; 2]> = self
             .blocks
             .iter()
-            .map(|b| {
-                std::array::from_fn(|r| {
-                    b.value[r] - (0..K).map(|k| b.rows[r][k] * estimate[k]).sum::<f64>()
-                })
-            })
+            .map(|b| std::array::from_fn(|r| b.value[r] - (0..K).map(|k| b.rows[r][k] * estimate[k]).sum::<f64>()))
             .collect();
         // Eq. 11: whitened residuals, normalised per coordinate (module doc).
         let mut whitened = Vec::with_capacity(self.blocks.len());
@@ -153,32 +141,22 @@ impl<const K: usize> BlueProblem<K> {
             // C_i^{−1/2} of the weights' covariance W_i⁻¹.
             let s = inverse_sqrt2(inverse2(*w)?)?;
             trace += s[0][0] + s[1][1];
-            let wr = [
-                s[0][0] * r[0] + s[0][1] * r[1],
-                s[1][0] * r[0] + s[1][1] * r[1],
-            ];
+            let wr = [s[0][0] * r[0] + s[0][1] * r[1], s[1][0] * r[0] + s[1][1] * r[1]];
             chi_square += wr[0] * wr[0] + wr[1] * wr[1];
             whitened.push(wr);
         }
         let mean_precision = trace / (2 * self.blocks.len()).max(1) as f64;
-        let consistency: Vec<[f64; 2]> = whitened
-            .iter()
-            .map(|wr| [wr[0] / mean_precision, wr[1] / mean_precision])
-            .collect();
+        let consistency: Vec<[f64; 2]> =
+            whitened.iter().map(|wr| [wr[0] / mean_precision, wr[1] / mean_precision]).collect();
         // Eq. 12: C_l = Σ_i L_i diag(e_i²) L_iᵀ with L_i = M⁻¹ A_iᵀ W_i.
         let mut consistency_covariance = [[0.0; K]; K];
         for (aw, e) in awt.iter().zip(&consistency) {
-            let l: [[f64; 2]; K] = std::array::from_fn(|k| {
-                std::array::from_fn(|c| (0..K).map(|j| m_inv[k][j] * aw[j][c]).sum())
-            });
-            let e2 = [
-                (e[0] * e[0]).max(feature_variance_floor),
-                (e[1] * e[1]).max(feature_variance_floor),
-            ];
+            let l: [[f64; 2]; K] =
+                std::array::from_fn(|k| std::array::from_fn(|c| (0..K).map(|j| m_inv[k][j] * aw[j][c]).sum()));
+            let e2 = [(e[0] * e[0]).max(feature_variance_floor), (e[1] * e[1]).max(feature_variance_floor)];
             for k in 0..K {
                 for j in 0..K {
-                    consistency_covariance[k][j] +=
-                        l[k][0] * e2[0] * l[j][0] + l[k][1] * e2[1] * l[j][1];
+                    consistency_covariance[k][j] += l[k][0] * e2[0] * l[j][0] + l[k][1] * e2[1] * l[j][1];
                 }
             }
         }

@@ -19,8 +19,8 @@
 
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use super::line_fit::{LineFit, LineSums, Regression};
 use super::linalg::*;
+use super::line_fit::{LineFit, LineSums, Regression};
 
 /// How eq. 6's Σ is formed from a line fit (module doc, "Eq. 6 in general").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -117,11 +117,7 @@ const MIN_CORNER_SINE: f64 = 1e-6;
 /// Eq. 5–6: the intersection of two fitted lines and its covariance
 /// C_v = F⁻¹·Σ·F⁻ᵀ; `None` for (nearly) parallel lines.
 #[must_use]
-pub fn intersect_lines(
-    l1: &LineLocation,
-    l2: &LineLocation,
-    mode: CornerCovariance,
-) -> Option<Corner> {
+pub fn intersect_lines(l1: &LineLocation, l2: &LineLocation, mode: CornerCovariance) -> Option<Corner> {
     let (f1, w1) = l1.eq5_row();
     let (f2, w2) = l2.eq5_row();
     let det = f1[0] * f2[1] - f1[1] * f2[0];
@@ -130,15 +126,9 @@ pub fn intersect_lines(
         return None;
     }
     let f_inv = inverse2([f1, f2])?;
-    let v = [
-        f_inv[0][0] * w1 + f_inv[0][1] * w2,
-        f_inv[1][0] * w1 + f_inv[1][1] * w2,
-    ];
+    let v = [f_inv[0][0] * w1 + f_inv[0][1] * w2, f_inv[1][0] * w1 + f_inv[1][1] * w2];
     let (s1, s2) = match mode {
-        CornerCovariance::LineLocation => (
-            l1.variance_at(l1.independent(v)),
-            l2.variance_at(l2.independent(v)),
-        ),
+        CornerCovariance::LineLocation => (l1.variance_at(l1.independent(v)), l2.variance_at(l2.independent(v))),
         CornerCovariance::PointVariance => (l1.point_variance, l2.point_variance),
     };
     // Eq. 6: C_v = F⁻¹ diag(s1, s2) F⁻ᵀ.
@@ -148,8 +138,5 @@ pub fn intersect_lines(
         [g[0][0] * s1 * g[0][0] + g[0][1] * s2 * g[0][1], c01],
         [c01, g[1][0] * s1 * g[1][0] + g[1][1] * s2 * g[1][1]],
     ];
-    Some(Corner {
-        position: v,
-        covariance,
-    })
+    Some(Corner { position: v, covariance })
 }

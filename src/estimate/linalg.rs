@@ -4,7 +4,6 @@
 // `!(x > 0.0)` rejects NaN on purpose; index loops mirror the matrix formulas.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
-
 /// A 2×2 matrix, row-major.
 pub type Mat2 = [[f64; 2]; 2];
 
@@ -12,18 +11,11 @@ pub type Mat2 = [[f64; 2]; 2];
 #[must_use]
 pub fn inverse2(m: Mat2) -> Option<Mat2> {
     let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
-    let scale = m[0][0]
-        .abs()
-        .max(m[1][1].abs())
-        .max(m[0][1].abs())
-        .max(m[1][0].abs());
+    let scale = m[0][0].abs().max(m[1][1].abs()).max(m[0][1].abs()).max(m[1][0].abs());
     if !(det.abs() > 1e-14 * scale * scale && det.is_finite()) {
         return None;
     }
-    Some([
-        [m[1][1] / det, -m[0][1] / det],
-        [-m[1][0] / det, m[0][0] / det],
-    ])
+    Some([[m[1][1] / det, -m[0][1] / det], [-m[1][0] / det, m[0][0] / det]])
 }
 
 /// The symmetric inverse square root C^{−1/2} of a symmetric positive
@@ -41,10 +33,7 @@ pub fn inverse_sqrt2(c: Mat2) -> Option<Mat2> {
     let angle = 0.5 * f64::atan2(2.0 * b, a - d);
     let (cs, sn) = (angle.cos(), angle.sin());
     let (s1, s2) = (1.0 / l1.sqrt(), 1.0 / l2.sqrt());
-    Some([
-        [s1 * cs * cs + s2 * sn * sn, (s1 - s2) * cs * sn],
-        [(s1 - s2) * cs * sn, s1 * sn * sn + s2 * cs * cs],
-    ])
+    Some([[s1 * cs * cs + s2 * sn * sn, (s1 - s2) * cs * sn], [(s1 - s2) * cs * sn, s1 * sn * sn + s2 * cs * cs]])
 }
 
 /// Inverse of a symmetric positive definite K×K matrix by Cholesky; `None`
@@ -74,9 +63,7 @@ pub fn invert_spd<const K: usize>(m: &[[f64; K]; K]) -> Option<[[f64; K]; K]> {
             li[i][c] = s / l[i][i];
         }
     }
-    Some(std::array::from_fn(|i| {
-        std::array::from_fn(|j| (i.max(j)..K).map(|k| li[k][i] * li[k][j]).sum())
-    }))
+    Some(std::array::from_fn(|i| std::array::from_fn(|j| (i.max(j)..K).map(|k| li[k][i] * li[k][j]).sum())))
 }
 
 #[cfg(test)]
@@ -88,14 +75,8 @@ mod tests {
         let c = [[4.0, 1.0], [1.0, 2.0]];
         let s = inverse_sqrt2(c).expect("spd");
         let s2 = [
-            [
-                s[0][0] * s[0][0] + s[0][1] * s[1][0],
-                s[0][0] * s[0][1] + s[0][1] * s[1][1],
-            ],
-            [
-                s[1][0] * s[0][0] + s[1][1] * s[1][0],
-                s[1][0] * s[0][1] + s[1][1] * s[1][1],
-            ],
+            [s[0][0] * s[0][0] + s[0][1] * s[1][0], s[0][0] * s[0][1] + s[0][1] * s[1][1]],
+            [s[1][0] * s[0][0] + s[1][1] * s[1][0], s[1][0] * s[0][1] + s[1][1] * s[1][1]],
         ];
         let inv = inverse2(c).expect("regular");
         for i in 0..2 {
@@ -103,10 +84,7 @@ mod tests {
                 assert!((s2[i][j] - inv[i][j]).abs() < 1e-12, "{s2:?} vs {inv:?}");
             }
         }
-        assert!(
-            inverse_sqrt2([[1.0, 2.0], [2.0, 1.0]]).is_none(),
-            "indefinite"
-        );
+        assert!(inverse_sqrt2([[1.0, 2.0], [2.0, 1.0]]).is_none(), "indefinite");
     }
 
     #[test]

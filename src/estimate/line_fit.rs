@@ -39,11 +39,7 @@ impl Line {
         if !(norm > 0.0 && norm.is_finite() && c.is_finite()) {
             return None;
         }
-        Some(Self {
-            a: a / norm,
-            b: b / norm,
-            c: c / norm,
-        })
+        Some(Self { a: a / norm, b: b / norm, c: c / norm })
     }
 
     /// The line through `p` and `q`; `None` when they coincide.
@@ -151,10 +147,7 @@ impl LineSums {
     /// Empty sums taken relative to `origin` (better conditioned for large coordinates).
     #[must_use]
     pub fn with_origin(origin: [f64; 2]) -> Self {
-        Self {
-            origin,
-            ..Self::default()
-        }
+        Self { origin, ..Self::default() }
     }
 
     /// Add the point (x, y) with weight 1.
@@ -192,12 +185,7 @@ impl LineSums {
     /// Weighted mean point.
     #[must_use]
     pub fn mean(&self) -> Option<[f64; 2]> {
-        (self.w > 0.0).then(|| {
-            [
-                self.sx / self.w + self.origin[0],
-                self.sy / self.w + self.origin[1],
-            ]
-        })
+        (self.w > 0.0).then(|| [self.sx / self.w + self.origin[0], self.sy / self.w + self.origin[1]])
     }
 
     /// Weighted standard deviation of x (population form).
@@ -226,11 +214,7 @@ impl LineSums {
     /// Σw times the points' covariance matrix.
     #[must_use]
     pub fn centered_moments(&self) -> (f64, f64, f64) {
-        (
-            self.centered_xx(),
-            self.centered_yy(),
-            self.sxy - self.sx * self.sy / self.w,
-        )
+        (self.centered_xx(), self.centered_yy(), self.sxy - self.sx * self.sy / self.w)
     }
 }
 
@@ -303,11 +287,7 @@ pub fn fit_line(sums: &LineSums) -> Option<LineFit> {
     if sums.count < 2 || !(sums.w > 0.0) {
         return None;
     }
-    if sums.centered_xx() >= sums.centered_yy() {
-        fit_y_on_x(sums)
-    } else {
-        fit_x_on_y(sums)
-    }
+    if sums.centered_xx() >= sums.centered_yy() { fit_y_on_x(sums) } else { fit_x_on_y(sums) }
 }
 
 /// The regression of `u` on `v`, where (u, v) = (y, x) for y on x.
@@ -346,14 +326,7 @@ fn regress(sums: &LineSums, regression: Regression) -> Option<LineFit> {
         Regression::YOnX | Regression::Orthogonal | Regression::Across => Line::y_on_x(slope, intercept),
         Regression::XOnY => Line::x_on_y(slope, intercept),
     }?;
-    Some(LineFit {
-        regression,
-        slope,
-        intercept,
-        line,
-        residual_variance,
-        count: sums.count,
-    })
+    Some(LineFit { regression, slope, intercept, line, residual_variance, count: sums.count })
 }
 
 /// Orthogonal (total) least squares: the line through the weighted mean
@@ -379,11 +352,8 @@ pub fn fit_line_orthogonal(sums: &LineSums) -> Option<LineFit> {
     let (dir_x, dir_y) = (angle.cos(), angle.sin());
     let mean = sums.mean()?;
     let perpendicular_variance = smallest / sums.w;
-    let (regression_form, slope) = if dir_x.abs() >= dir_y.abs() {
-        (Regression::YOnX, dir_y / dir_x)
-    } else {
-        (Regression::XOnY, dir_x / dir_y)
-    };
+    let (regression_form, slope) =
+        if dir_x.abs() >= dir_y.abs() { (Regression::YOnX, dir_y / dir_x) } else { (Regression::XOnY, dir_x / dir_y) };
     let (intercept, line) = match regression_form {
         Regression::YOnX | Regression::Orthogonal | Regression::Across => {
             let b = mean[1] - slope * mean[0];
@@ -543,16 +513,8 @@ mod tests {
         // Residuals 1−5/6, 2−(1.5+5/6), 4−(3+5/6) = 1/6, −1/3, 1/6 → Σr²/n = (1/36+1/9+1/36)/3 = 1/18.
         let fit = fit_y_on_x(&sums_of(&[[0.0, 1.0], [1.0, 2.0], [2.0, 4.0]])).expect("fit");
         assert!((fit.slope - 1.5).abs() < 1e-12, "m = {}", fit.slope);
-        assert!(
-            (fit.intercept - 5.0 / 6.0).abs() < 1e-12,
-            "b = {}",
-            fit.intercept
-        );
-        assert!(
-            (fit.residual_variance - 1.0 / 18.0).abs() < 1e-12,
-            "var = {}",
-            fit.residual_variance
-        );
+        assert!((fit.intercept - 5.0 / 6.0).abs() < 1e-12, "b = {}", fit.intercept);
+        assert!((fit.residual_variance - 1.0 / 18.0).abs() < 1e-12, "var = {}", fit.residual_variance);
         // Perpendicular: vertical residuals × cos(atan 1.5) = × 1/√3.25.
         assert!((fit.perpendicular_residual_variance() - 1.0 / 18.0 / 3.25).abs() < 1e-12);
         assert_eq!(fit.count, 3);
@@ -583,16 +545,10 @@ mod tests {
     #[test]
     fn vertical_line_x_equals_5_by_x_on_y() {
         let pts = [[5.0, 0.0], [5.0, 1.0], [5.0, 2.0], [5.0, 7.0]];
-        assert!(
-            fit_y_on_x(&sums_of(&pts)).is_none(),
-            "y on x must refuse a vertical line"
-        );
+        assert!(fit_y_on_x(&sums_of(&pts)).is_none(), "y on x must refuse a vertical line");
         let fit = fit_line(&sums_of(&pts)).expect("fit");
         assert_eq!(fit.regression, Regression::XOnY);
-        assert!(
-            fit.slope.abs() < 1e-12 && (fit.intercept - 5.0).abs() < 1e-12,
-            "{fit:?}"
-        );
+        assert!(fit.slope.abs() < 1e-12 && (fit.intercept - 5.0).abs() < 1e-12, "{fit:?}");
         assert!(fit.residual_variance < 1e-12);
         assert!(fit.line.distance([5.0, 100.0]) < 1e-12);
         assert!((fit.line.distance([8.0, -3.0]) - 3.0).abs() < 1e-12);
@@ -622,10 +578,7 @@ mod tests {
         weighted.add(1.0, 1.0);
         weighted.add(2.0, 4.0);
         let repeated = sums_of(&[[0.0, 0.0], [0.0, 0.0], [1.0, 1.0], [2.0, 4.0]]);
-        let (a, b) = (
-            fit_y_on_x(&weighted).expect("fit"),
-            fit_y_on_x(&repeated).expect("fit"),
-        );
+        let (a, b) = (fit_y_on_x(&weighted).expect("fit"), fit_y_on_x(&repeated).expect("fit"));
         assert!((a.slope - b.slope).abs() < 1e-12 && (a.intercept - b.intercept).abs() < 1e-12);
         assert!((a.residual_variance - b.residual_variance).abs() < 1e-12);
         assert_eq!(a.count, 3, "count is points, not weight");
@@ -636,14 +589,7 @@ mod tests {
     fn orthogonal_fit_by_hand_and_unbiased_for_a_thick_band() {
         // Square corners (0,0), (2,0), (0,2), (2,2) plus (3,3), (−1,−1): the
         // scatter's principal axis is the diagonal y = x.
-        let pts = [
-            [0.0, 0.0],
-            [2.0, 0.0],
-            [0.0, 2.0],
-            [2.0, 2.0],
-            [3.0, 3.0],
-            [-1.0, -1.0],
-        ];
+        let pts = [[0.0, 0.0], [2.0, 0.0], [0.0, 2.0], [2.0, 2.0], [3.0, 3.0], [-1.0, -1.0]];
         let fit = fit_line_orthogonal(&sums_of(&pts)).expect("fit");
         assert_eq!(fit.regression, Regression::Orthogonal);
         assert!((fit.line.orientation() - std::f64::consts::FRAC_PI_4).abs() < 1e-12);
@@ -663,10 +609,7 @@ mod tests {
         let ortho = fit_line_orthogonal(&band).expect("fit");
         assert!((ortho.line.orientation() - 20f64.to_radians()).abs() < 1e-9);
         let ols = fit_y_on_x(&band).expect("fit");
-        assert!(
-            (ols.line.orientation() - 20f64.to_radians()).abs() > 0.5f64.to_radians(),
-            "OLS is biased here"
-        );
+        assert!((ols.line.orientation() - 20f64.to_radians()).abs() > 0.5f64.to_radians(), "OLS is biased here");
         assert!(fit_line_orthogonal(&sums_of(&[[1.0, 1.0], [1.0, 1.0]])).is_none());
         // Vertical points: x = 5.
         let v = fit_line_orthogonal(&sums_of(&[[5.0, 0.0], [5.0, 1.0], [5.0, 4.0]])).expect("fit");
@@ -687,23 +630,14 @@ mod tests {
         let l1 = Line::y_on_x(2.0, 1.0).expect("line");
         let l2 = Line::x_on_y(-1.0, 7.0).expect("line");
         let p = l1.intersection(&l2).expect("not parallel");
-        assert!(
-            (p[0] - 2.0).abs() < 1e-12 && (p[1] - 5.0).abs() < 1e-12,
-            "{p:?}"
-        );
+        assert!((p[0] - 2.0).abs() < 1e-12 && (p[1] - 5.0).abs() < 1e-12, "{p:?}");
         // x = 3 and y = 4 meet at (3, 4).
         let v = Line::x_on_y(0.0, 3.0).expect("line");
         let h = Line::y_on_x(0.0, 4.0).expect("line");
         let q = v.intersection(&h).expect("not parallel");
-        assert!(
-            (q[0] - 3.0).abs() < 1e-12 && (q[1] - 4.0).abs() < 1e-12,
-            "{q:?}"
-        );
+        assert!((q[0] - 3.0).abs() < 1e-12 && (q[1] - 4.0).abs() < 1e-12, "{q:?}");
         // Parallel lines do not meet.
-        assert!(
-            l1.intersection(&Line::y_on_x(2.0, -3.0).expect("line"))
-                .is_none()
-        );
+        assert!(l1.intersection(&Line::y_on_x(2.0, -3.0).expect("line")).is_none());
     }
 
     #[test]
@@ -738,7 +672,14 @@ mod tests {
         let mut pts = Vec::new();
         for i in 0..=(2.0 * length) as usize {
             let s = 0.5 * i as f64;
-            for d in [-0.5 * width - 0.5, -0.5 * width, -0.5 * width + 0.5, 0.5 * width - 0.5, 0.5 * width, 0.5 * width + 0.5] {
+            for d in [
+                -0.5 * width - 0.5,
+                -0.5 * width,
+                -0.5 * width + 0.5,
+                0.5 * width - 0.5,
+                0.5 * width,
+                0.5 * width + 0.5,
+            ] {
                 // Position t along the line whose point at offset d lies at s along `cut`.
                 let t = (s - d * dot(n, m)) / dot(u, m);
                 pts.push([100.0 + t * u[0] + d * n[0], 50.0 + t * u[1] + d * n[1]]);
@@ -759,7 +700,8 @@ mod tests {
             assert!(orientation_difference(fit.line.orientation(), wrap_orientation(angle)) < 1e-9, "{angle}: {fit:?}");
             assert!(fit.line.distance([100.0, 50.0]) < 1e-9);
             // Perpendicular spread of the points about the line.
-            let expected: f64 = pts.iter().map(|p| fit.line.signed_distance(*p).powi(2)).sum::<f64>() / pts.len() as f64;
+            let expected: f64 =
+                pts.iter().map(|p| fit.line.signed_distance(*p).powi(2)).sum::<f64>() / pts.len() as f64;
             assert!((fit.perpendicular_residual_variance() - expected).abs() < 1e-9);
         }
         assert!(fit_line_across(&sums_of(&[[0.0, 0.0], [0.0, 5.0]]), [1.0, 0.0]).is_none(), "no spread along");

@@ -16,13 +16,13 @@
 pub mod alpha_beta_gamma;
 pub mod blue;
 pub mod corners;
-pub mod line_fit;
 pub mod linalg;
+pub mod line_fit;
 pub mod smoothing;
 pub mod srif;
 
 pub use alpha_beta_gamma::AlphaBetaGamma;
 pub use blue::{BlueBlock, BlueProblem, BlueSolution};
 pub use corners::{Corner, CornerCovariance, LineLocation, intersect_lines};
-pub use linalg::{Mat2, inverse2, inverse_sqrt2, invert_spd};
+pub use linalg::{Mat2, inverse_sqrt2, inverse2, invert_spd};
 pub use srif::PolynomialSrif;

@@ -36,11 +36,7 @@ impl<const N: usize> DoubleExponentialSmoother<N> {
     /// i.e. level `initial` and trend 0. Needs 0 < α < 1.
     pub fn new(alpha: f64, initial: [f64; N]) -> Result<Self> {
         validate_alpha(alpha)?;
-        Ok(Self {
-            alpha,
-            first: initial,
-            second: initial,
-        })
+        Ok(Self { alpha, first: initial, second: initial })
     }
 
     /// A smoother starting from a known level and trend per step
@@ -50,11 +46,7 @@ impl<const N: usize> DoubleExponentialSmoother<N> {
         let lag = (1.0 - alpha) / alpha;
         let first = std::array::from_fn(|i| level[i] - lag * trend[i]);
         let second = std::array::from_fn(|i| level[i] - 2.0 * lag * trend[i]);
-        Ok(Self {
-            alpha,
-            first,
-            second,
-        })
+        Ok(Self { alpha, first, second })
     }
 
     /// Take the observation `x` of this step (eq. 10 then eq. 11).
@@ -105,9 +97,7 @@ fn validate_alpha(alpha: f64) -> Result<()> {
     if alpha > 0.0 && alpha < 1.0 {
         Ok(())
     } else {
-        Err(Error::Parameter(format!(
-            "smoothing constant alpha must be in (0, 1), got {alpha}"
-        )))
+        Err(Error::Parameter(format!("smoothing constant alpha must be in (0, 1), got {alpha}")))
     }
 }
 
@@ -121,10 +111,7 @@ mod tests {
         for _ in 0..50 {
             s.update([7.0, -3.0]);
             let f = s.forecast(1.0);
-            assert!(
-                (f[0] - 7.0).abs() < 1e-12 && (f[1] + 3.0).abs() < 1e-12,
-                "{f:?}"
-            );
+            assert!((f[0] - 7.0).abs() < 1e-12 && (f[1] + 3.0).abs() < 1e-12, "{f:?}");
         }
         assert!(s.trend()[0].abs() < 1e-12);
     }
@@ -139,16 +126,8 @@ mod tests {
             errors.push((s.forecast(1.0)[0] - (10.0 + 3.0 * (t + 1) as f64)).abs());
         }
         // The zero initial trend costs a transient, then the ramp is recovered.
-        assert!(
-            errors[0] > 1.0,
-            "the paper's start has no trend: {}",
-            errors[0]
-        );
-        assert!(
-            errors[79] < 1e-4,
-            "forecast error after warm-up {}",
-            errors[79]
-        );
+        assert!(errors[0] > 1.0, "the paper's start has no trend: {}", errors[0]);
+        assert!(errors[79] < 1e-4, "forecast error after warm-up {}", errors[79]);
         assert!((s.trend()[0] - 3.0).abs() < 1e-4, "trend {}", s.trend()[0]);
         // τ steps ahead too.
         assert!((s.forecast(2.5)[0] - (10.0 + 3.0 * 82.5)).abs() < 1e-3);
@@ -156,8 +135,7 @@ mod tests {
 
     #[test]
     fn known_level_and_trend_start_is_exact_on_a_ramp() {
-        let mut s =
-            DoubleExponentialSmoother::with_level_and_trend(0.2, [4.0], [-1.5]).expect("alpha");
+        let mut s = DoubleExponentialSmoother::with_level_and_trend(0.2, [4.0], [-1.5]).expect("alpha");
         assert!((s.level()[0] - 4.0).abs() < 1e-12 && (s.trend()[0] + 1.5).abs() < 1e-12);
         for t in 1..=5 {
             s.update([4.0 - 1.5 * t as f64]);
@@ -187,10 +165,7 @@ mod tests {
     #[test]
     fn alpha_out_of_range_is_an_error() {
         for alpha in [0.0, 1.0, -0.1, f64::NAN] {
-            assert!(
-                DoubleExponentialSmoother::new(alpha, [0.0]).is_err(),
-                "alpha {alpha}"
-            );
+            assert!(DoubleExponentialSmoother::new(alpha, [0.0]).is_err(), "alpha {alpha}");
         }
     }
 }

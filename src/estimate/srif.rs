@@ -46,17 +46,9 @@ impl<const N: usize> PolynomialSrif<N> {
     /// An empty filter (no information) at time `time`, decay 0 < λ ≤ 1.
     pub fn new(lambda: f64, time: f64) -> Result<Self> {
         if !(lambda > 0.0 && lambda <= 1.0) || N == 0 || !time.is_finite() {
-            return Err(Error::Parameter(format!(
-                "polynomial filter: decay lambda must be in (0, 1], got {lambda}"
-            )));
+            return Err(Error::Parameter(format!("polynomial filter: decay lambda must be in (0, 1], got {lambda}")));
         }
-        Ok(Self {
-            lambda,
-            r: [[0.0; N]; N],
-            z: [0.0; N],
-            time,
-            samples: 0,
-        })
+        Ok(Self { lambda, r: [[0.0; N]; N], z: [0.0; N], time, samples: 0 })
     }
 
     /// The decay factor λ.
@@ -100,9 +92,7 @@ impl<const N: usize> PolynomialSrif<N> {
         let mut shifted = [[0.0; N]; N];
         for (i, row) in shifted.iter_mut().enumerate() {
             for (j, entry) in row.iter_mut().enumerate().skip(i) {
-                *entry = (i..=j)
-                    .map(|k| self.r[i][k] * binomial(j, k) * (-d).powi((j - k) as i32))
-                    .sum();
+                *entry = (i..=j).map(|k| self.r[i][k] * binomial(j, k) * (-d).powi((j - k) as i32)).sum();
             }
         }
         let decay = self.lambda.powf(0.5 * d);
@@ -183,9 +173,7 @@ impl<const N: usize> PolynomialSrif<N> {
                 ri[i][c] = (rhs - s) / self.r[i][i];
             }
         }
-        Some(std::array::from_fn(|i| {
-            std::array::from_fn(|j| (i.max(j)..N).map(|k| ri[i][k] * ri[j][k]).sum())
-        }))
+        Some(std::array::from_fn(|i| std::array::from_fn(|j| (i.max(j)..N).map(|k| ri[i][k] * ri[j][k]).sum())))
     }
 
     /// Eq. 15 generalised: the polynomial's value `tau` after its origin
@@ -202,11 +190,7 @@ impl<const N: usize> PolynomialSrif<N> {
     pub fn prediction_variance(&self, tau: f64) -> Option<f64> {
         let p = self.covariance()?;
         let h: [f64; N] = std::array::from_fn(|k| tau.powi(k as i32));
-        Some(
-            (0..N)
-                .map(|i| (0..N).map(|j| h[i] * p[i][j] * h[j]).sum::<f64>())
-                .sum(),
-        )
+        Some((0..N).map(|i| (0..N).map(|j| h[i] * p[i][j] * h[j]).sum::<f64>()).sum())
     }
 }
 
@@ -224,18 +208,12 @@ mod tests {
         }
         // Relative to t = 5: c(5 + τ) = 5.75 + 2τ + 0.25τ² (c(5) = 2 − 2.5 + 6.25).
         let a = f.coefficients().expect("determined");
-        assert!(
-            (a[0] - 5.75).abs() < 1e-9 && (a[1] - 2.0).abs() < 1e-9 && (a[2] - 0.25).abs() < 1e-9,
-            "{a:?}"
-        );
+        assert!((a[0] - 5.75).abs() < 1e-9 && (a[1] - 2.0).abs() < 1e-9 && (a[2] - 0.25).abs() < 1e-9, "{a:?}");
         assert!((f.predict(1.0).expect("p") - c(6.0)).abs() < 1e-9);
         assert!((f.predict(2.5).expect("p") - c(7.5)).abs() < 1e-9);
         let before = f.prediction_variance(1.0).expect("var");
         f.advance_to(7.0);
         assert!((f.predict(0.0).expect("p") - c(7.0)).abs() < 1e-9);
-        assert!(
-            f.prediction_variance(-1.0).expect("var") > before,
-            "decay loses information"
-        );
+        assert!(f.prediction_variance(-1.0).expect("var") > before, "decay loses information");
     }
 }

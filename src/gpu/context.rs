@@ -94,13 +94,7 @@ impl GpuContext {
     }
 
     fn wrap(device: wgpu::Device, queue: wgpu::Queue, adapter_name: String) -> Self {
-        Self {
-            device,
-            queue,
-            adapter_name,
-            pipelines: Arc::default(),
-            modules: Arc::default(),
-        }
+        Self { device, queue, adapter_name, pipelines: Arc::default(), modules: Arc::default() }
     }
 
     /// The adapter's name, backend and driver, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, llvmpipe)`.
@@ -177,9 +171,7 @@ impl GpuContext {
         self.wait()?;
         rx.recv().map_err(|_| Error::Gpu("map callback dropped".into()))??;
         let bytes = {
-            let view = buffer
-                .get_mapped_range(range)
-                .map_err(|e| Error::Gpu(format!("mapped range: {e}")))?;
+            let view = buffer.get_mapped_range(range).map_err(|e| Error::Gpu(format!("mapped range: {e}")))?;
             view.to_vec()
         };
         buffer.unmap();

@@ -83,7 +83,8 @@ impl GpuImage {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pipetrack.download") });
+        let mut enc =
+            ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pipetrack.download") });
         enc.copy_buffer_to_buffer(&self.buffer, 0, &staging, 0, (n.max(1) * 4) as u64);
         ctx.queue.submit([enc.finish()]);
         let bytes = ctx.read_buffer(&staging, 0..(n * 4) as u64)?;
@@ -162,7 +163,8 @@ impl<'a> Recorder<'a> {
     /// Start recording; `arena` must not be in use by another recorder whose
     /// work has not yet been submitted.
     pub(crate) fn new(ctx: &'a GpuContext, arena: &'a FrameArena) -> Self {
-        let encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pipetrack.frame") });
+        let encoder =
+            ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pipetrack.frame") });
         Self { ctx, encoder, arena, uniforms: Vec::new(), dispatches: 0 }
     }
 
@@ -193,7 +195,8 @@ impl<'a> Recorder<'a> {
             cache
                 .entry(key)
                 .or_insert_with(|| {
-                    let resources: Vec<wgpu::BindingResource<'_>> = buffers.iter().map(|b| b.as_entire_binding()).collect();
+                    let resources: Vec<wgpu::BindingResource<'_>> =
+                        buffers.iter().map(|b| b.as_entire_binding()).collect();
                     self.make_bind_group(shader, &pipeline, offset, size, &resources)
                 })
                 .clone()
@@ -230,7 +233,11 @@ impl<'a> Recorder<'a> {
         }
         let bytes = bytemuck::bytes_of(params);
         if bytes.len() as u64 > UNIFORM_STRIDE {
-            return Err(Error::Gpu(format!("{}: uniform block of {} bytes exceeds {UNIFORM_STRIDE}", shader.name, bytes.len())));
+            return Err(Error::Gpu(format!(
+                "{}: uniform block of {} bytes exceeds {UNIFORM_STRIDE}",
+                shader.name,
+                bytes.len()
+            )));
         }
         self.uniforms.extend_from_slice(bytes);
         self.uniforms.resize((offset + UNIFORM_STRIDE) as usize, 0);
@@ -263,8 +270,16 @@ impl<'a> Recorder<'a> {
         })
     }
 
-    fn record(&mut self, shader: &ShaderDef, pipeline: &wgpu::ComputePipeline, bind_group: &wgpu::BindGroup, groups: [u32; 3]) {
-        let mut pass = self.encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(shader.name), timestamp_writes: None });
+    fn record(
+        &mut self,
+        shader: &ShaderDef,
+        pipeline: &wgpu::ComputePipeline,
+        bind_group: &wgpu::BindGroup,
+        groups: [u32; 3],
+    ) {
+        let mut pass = self
+            .encoder
+            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(shader.name), timestamp_writes: None });
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, bind_group, &[]);
         pass.dispatch_workgroups(groups[0], groups[1], groups[2]);

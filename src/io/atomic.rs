@@ -4,7 +4,6 @@ use std::fs::{self, File};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-
 use crate::{Error, Result};
 
 /// A file written under `<path>.partial` and renamed to `path` by

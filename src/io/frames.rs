@@ -7,7 +7,6 @@ use std::fs::{self};
 use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 
-
 use super::formats::Camera;
 use super::json::*;
 use super::sequence::FRAME_EXTENSIONS;

@@ -11,8 +11,8 @@
 
 use image::{Rgb, RgbImage};
 
-use crate::io::formats::Status;
 use crate::image::GrayImage;
+use crate::io::formats::Status;
 
 /// Model colour while tracking.
 pub const TRACKING_COLOUR: [u8; 3] = [255, 255, 0];
@@ -53,13 +53,7 @@ pub fn draw_overlay(
         Rgb([v, v, v])
     });
     for &(x, y) in labelled {
-        blend(
-            &mut out,
-            i64::from(x),
-            i64::from(y),
-            LABELLED_COLOUR,
-            LABELLED_OPACITY,
-        );
+        blend(&mut out, i64::from(x), i64::from(y), LABELLED_COLOUR, LABELLED_OPACITY);
     }
     let colour = status_colour(status);
     let finite = |p: &[f64; 2]| p[0].is_finite() && p[1].is_finite();
@@ -105,19 +99,11 @@ fn draw_cross(img: &mut RgbImage, p: [f64; 2], colour: [u8; 3]) {
 
 /// Clip the segment `a`–`b` to `[lo, hi]` in both coordinates (Liang–Barsky);
 /// `None` when nothing of it is inside.
-fn clip_segment(
-    a: [f64; 2],
-    b: [f64; 2],
-    lo: [f64; 2],
-    hi: [f64; 2],
-) -> Option<([f64; 2], [f64; 2])> {
+fn clip_segment(a: [f64; 2], b: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> Option<([f64; 2], [f64; 2])> {
     let d = [b[0] - a[0], b[1] - a[1]];
     let (mut t0, mut t1) = (0.0f64, 1.0f64);
     for axis in 0..2 {
-        for (p, q) in [
-            (-d[axis], a[axis] - lo[axis]),
-            (d[axis], hi[axis] - a[axis]),
-        ] {
+        for (p, q) in [(-d[axis], a[axis] - lo[axis]), (d[axis], hi[axis] - a[axis])] {
             if p == 0.0 {
                 if q < 0.0 {
                     return None;
@@ -154,11 +140,7 @@ fn draw_line_aa(img: &mut RgbImage, a: [f64; 2], b: [f64; 2], colour: [u8; 3]) {
     }
     let steep = (b[1] - a[1]).abs() > (b[0] - a[0]).abs();
     // Work with x as the major axis.
-    let (mut a, mut b) = if steep {
-        ([a[1], a[0]], [b[1], b[0]])
-    } else {
-        (a, b)
-    };
+    let (mut a, mut b) = if steep { ([a[1], a[0]], [b[1], b[0]]) } else { (a, b) };
     if a[0] > b[0] {
         std::mem::swap(&mut a, &mut b);
     }

@@ -10,7 +10,6 @@ use std::fs::{self};
 use std::io::{self};
 use std::path::{Path, PathBuf};
 
-
 use super::cao;
 use super::formats::{Camera, InitState, Model, TruthFrame};
 use super::frames::*;

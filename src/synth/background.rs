@@ -14,12 +14,7 @@ use crate::{Error, Result};
 /// away from zero) into `out` (resized if needed). Gaussian deviates come from
 /// the Box–Muller transform of `rng`'s uniforms; with `noise_sigma == 0` the
 /// generator is not touched.
-pub fn add_noise_and_quantise(
-    image: &FloatImage,
-    noise_sigma: f32,
-    rng: &mut impl Rng,
-    out: &mut GrayImage,
-) {
+pub fn add_noise_and_quantise(image: &FloatImage, noise_sigma: f32, rng: &mut impl Rng, out: &mut GrayImage) {
     let (w, h) = image.size();
     if out.size() != (w, h) {
         out.resize(w, h);
@@ -85,10 +80,7 @@ impl std::str::FromStr for Background {
             "flat" => Ok(Background::Flat),
             "textured" => Ok(Background::Textured),
             "cluttered" => Ok(Background::Cluttered),
-            _ => Err(Error::Parameter(format!(
-                "unknown background '{s}' (known: {})",
-                Background::NAMES.join(", ")
-            ))),
+            _ => Err(Error::Parameter(format!("unknown background '{s}' (known: {})", Background::NAMES.join(", ")))),
         }
     }
 }
@@ -154,9 +146,7 @@ impl ValueNoise {
             .map(|&(amp, cell)| {
                 let gw = (width as f64 / cell).ceil() as usize + 3;
                 let gh = (height as f64 / cell).ceil() as usize + 3;
-                let grid = (0..gw * gh)
-                    .map(|_| rng.random_range(-1.0f32..1.0))
-                    .collect();
+                let grid = (0..gw * gh).map(|_| rng.random_range(-1.0f32..1.0)).collect();
                 (amp * scale, cell, gw, grid)
             })
             .collect();
@@ -179,11 +169,7 @@ impl ValueNoise {
         let columns: Vec<Vec<(usize, f32)>> = self
             .octaves
             .iter()
-            .map(|(_, cell, _, _)| {
-                (0..sw)
-                    .map(|i| lattice(canvas.sample_centre(i, 0)[0], *cell))
-                    .collect()
-            })
+            .map(|(_, cell, _, _)| (0..sw).map(|i| lattice(canvas.sample_centre(i, 0)[0], *cell)).collect())
             .collect();
         let s = canvas.supersample() as f64;
         let widest = self.octaves.iter().map(|o| o.2).max().unwrap_or(0);
@@ -213,10 +199,7 @@ fn draw_clutter(canvas: &mut Canvas, rng: &mut ChaCha8Rng) {
     let extent = w.min(h);
     for _ in 0..12 {
         let c = [rng.random_range(0.0..w), rng.random_range(0.0..h)];
-        let half = [
-            rng.random_range(3.0..extent / 8.0),
-            rng.random_range(3.0..extent / 8.0),
-        ];
+        let half = [rng.random_range(3.0..extent / 8.0), rng.random_range(3.0..extent / 8.0)];
         let (sa, ca) = rng.random_range(0.0..std::f64::consts::PI).sin_cos();
         let corners: Vec<[f64; 2]> = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
             .iter()
@@ -237,10 +220,7 @@ fn draw_clutter(canvas: &mut Canvas, rng: &mut ChaCha8Rng) {
     }
     for _ in 0..8 {
         let c = [rng.random_range(0.0..w), rng.random_range(0.0..h)];
-        let radii = [
-            rng.random_range(3.0..extent / 10.0),
-            rng.random_range(3.0..extent / 10.0),
-        ];
+        let radii = [rng.random_range(3.0..extent / 10.0), rng.random_range(3.0..extent / 10.0)];
         let angle = rng.random_range(0.0..std::f64::consts::PI);
         let grey = rng.random_range(CLUTTER_GREYS);
         canvas.fill_ellipse(c, radii, angle, grey);

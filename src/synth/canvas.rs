@@ -89,23 +89,13 @@ impl Canvas {
     /// `1..=MAX_SUPERSAMPLE`.
     pub fn new(width: usize, height: usize, supersample: usize, grey: f32) -> Result<Self> {
         if width == 0 || height == 0 {
-            return Err(Error::Parameter(format!(
-                "canvas size {width}x{height} is empty"
-            )));
+            return Err(Error::Parameter(format!("canvas size {width}x{height} is empty")));
         }
         if !(1..=MAX_SUPERSAMPLE).contains(&supersample) {
-            return Err(Error::Parameter(format!(
-                "supersample factor {supersample} is not in 1..={MAX_SUPERSAMPLE}"
-            )));
+            return Err(Error::Parameter(format!("supersample factor {supersample} is not in 1..={MAX_SUPERSAMPLE}")));
         }
         let n = width * supersample * height * supersample;
-        Ok(Self {
-            width,
-            height,
-            supersample,
-            samples: vec![grey; n],
-            scratch: FillScratch::default(),
-        })
+        Ok(Self { width, height, supersample, samples: vec![grey; n], scratch: FillScratch::default() })
     }
 
     /// Output width in pixels.
@@ -156,15 +146,12 @@ impl Canvas {
     pub fn shade_with(&mut self, shade: impl Fn(f64, f64) -> f32 + Sync) {
         let sw = self.width * self.supersample;
         let s = self.supersample as f64;
-        self.samples
-            .par_chunks_mut(sw)
-            .enumerate()
-            .for_each(|(j, row)| {
-                let y = (j as f64 + 0.5) / s - 0.5;
-                for (i, v) in row.iter_mut().enumerate() {
-                    *v = shade((i as f64 + 0.5) / s - 0.5, y);
-                }
-            });
+        self.samples.par_chunks_mut(sw).enumerate().for_each(|(j, row)| {
+            let y = (j as f64 + 0.5) / s - 0.5;
+            for (i, v) in row.iter_mut().enumerate() {
+                *v = shade((i as f64 + 0.5) / s - 0.5, y);
+            }
+        });
     }
 
     /// Copy another canvas of the same size and factor into this one (the
@@ -176,17 +163,10 @@ impl Canvas {
     }
 
     fn check_same_shape(&self, other: &Canvas) -> Result<()> {
-        if (self.width, self.height, self.supersample)
-            != (other.width, other.height, other.supersample)
-        {
+        if (self.width, self.height, self.supersample) != (other.width, other.height, other.supersample) {
             return Err(Error::Size(format!(
                 "canvas {}x{}@{} vs {}x{}@{}",
-                self.width,
-                self.height,
-                self.supersample,
-                other.width,
-                other.height,
-                other.supersample
+                self.width, self.height, self.supersample, other.width, other.height, other.supersample
             )));
         }
         Ok(())
@@ -210,22 +190,14 @@ impl Canvas {
     /// non-finite coordinate are skipped.
     pub fn fill_faces(&mut self, faces: &[Face<'_>], rule: FillRule) {
         let s = self.supersample as f64;
-        let (sw, sh) = (
-            self.width * self.supersample,
-            self.height * self.supersample,
-        );
+        let (sw, sh) = (self.width * self.supersample, self.height * self.supersample);
         // Cell coordinates: cell (i, j) spans [i, i+1] x [j, j+1], i.e. pixel
         // coordinates u = (x + 1/2)·S.
         let to_cell = |p: &[f64; 2]| [(p[0] + 0.5) * s, (p[1] + 0.5) * s];
-        let drawable =
-            |f: &&Face<'_>| f.points.len() >= 3 && f.points.iter().flatten().all(|c| c.is_finite());
+        let drawable = |f: &&Face<'_>| f.points.len() >= 3 && f.points.iter().flatten().all(|c| c.is_finite());
         let boxes: Vec<Option<CellBox>> = faces
             .iter()
-            .map(|f| {
-                drawable(&f)
-                    .then(|| CellBox::of(f.points.iter().map(to_cell), sw, sh))
-                    .flatten()
-            })
+            .map(|f| drawable(&f).then(|| CellBox::of(f.points.iter().map(to_cell), sw, sh)).flatten())
             .collect();
         let Some(layer) = boxes.iter().flatten().copied().reduce(CellBox::union) else {
             return;
@@ -305,12 +277,7 @@ impl Canvas {
             return;
         }
         let (nx, ny) = (-dy / len * width / 2.0, dx / len * width / 2.0);
-        let quad = [
-            [a[0] + nx, a[1] + ny],
-            [b[0] + nx, b[1] + ny],
-            [b[0] - nx, b[1] - ny],
-            [a[0] - nx, a[1] - ny],
-        ];
+        let quad = [[a[0] + nx, a[1] + ny], [b[0] + nx, b[1] + ny], [b[0] - nx, b[1] - ny], [a[0] - nx, a[1] - ny]];
         self.fill_polygon(&quad, FillRule::EvenOdd, grey);
     }
 
@@ -351,10 +318,8 @@ impl Canvas {
         let norm = 1.0 / (s * s) as f32;
         let block_rows = w * s * s;
         let samples = &self.samples[y0 * block_rows..y1 * block_rows];
-        out.data_mut()[y0 * w..y1 * w]
-            .par_chunks_mut(w)
-            .zip(samples.par_chunks(block_rows))
-            .for_each(|(out_row, block)| {
+        out.data_mut()[y0 * w..y1 * w].par_chunks_mut(w).zip(samples.par_chunks(block_rows)).for_each(
+            |(out_row, block)| {
                 let out_row = &mut out_row[x0..x1];
                 out_row.fill(0.0);
                 for sample_row in block.chunks_exact(w * s) {
@@ -366,7 +331,8 @@ impl Canvas {
                 for o in out_row.iter_mut() {
                     *o *= norm;
                 }
-            });
+            },
+        );
     }
 
     /// Copy the cells under output-pixel window `window` (clipped) from a
@@ -392,10 +358,7 @@ impl Canvas {
     #[must_use]
     pub fn window_around<'a>(&self, points: impl IntoIterator<Item = &'a [f64; 2]>) -> Window {
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in points
-            .into_iter()
-            .filter(|p| p[0].is_finite() && p[1].is_finite())
-        {
+        for p in points.into_iter().filter(|p| p[0].is_finite() && p[1].is_finite()) {
             for k in 0..2 {
                 lo[k] = lo[k].min(p[k]);
                 hi[k] = hi[k].max(p[k]);
@@ -496,12 +459,7 @@ impl CellBox {
     }
 
     fn union(self, o: Self) -> Self {
-        Self {
-            x0: self.x0.min(o.x0),
-            y0: self.y0.min(o.y0),
-            x1: self.x1.max(o.x1),
-            y1: self.y1.max(o.y1),
-        }
+        Self { x0: self.x0.min(o.x0), y0: self.y0.min(o.y0), x1: self.x1.max(o.x1), y1: self.y1.max(o.y1) }
     }
 }
 
@@ -529,11 +487,7 @@ fn accumulate_edge(acc: &mut [f64], stride: usize, size: [f64; 2], a: [f64; 2], 
     cuts[n] = 1.0;
     cuts[..=n].sort_by(f64::total_cmp);
     let at = |t: f64| {
-        if t == 1.0 {
-            b
-        } else {
-            [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
-        }
+        if t == 1.0 { b } else { [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])] }
     };
     for k in 0..n {
         let (p, q) = (at(cuts[k]), at(cuts[k + 1]));
@@ -547,11 +501,7 @@ fn accumulate_piece(acc: &mut [f64], stride: usize, size: [f64; 2], a: [f64; 2],
     if a[1] == b[1] {
         return;
     }
-    let (dir, top, bottom) = if a[1] < b[1] {
-        (1.0, a, b)
-    } else {
-        (-1.0, b, a)
-    };
+    let (dir, top, bottom) = if a[1] < b[1] { (1.0, a, b) } else { (-1.0, b, a) };
     let dxdy = (bottom[0] - top[0]) / (bottom[1] - top[1]);
     let (mut x, mut y0) = (top[0], top[1]);
     if y0 < 0.0 {
@@ -569,11 +519,7 @@ fn accumulate_piece(acc: &mut [f64], stride: usize, size: [f64; 2], a: [f64; 2],
         let x_next = (x + dxdy * dy).clamp(0.0, width);
         let x_here = x.clamp(0.0, width);
         let d = dy * dir;
-        let (xa, xb) = if x_here < x_next {
-            (x_here, x_next)
-        } else {
-            (x_next, x_here)
-        };
+        let (xa, xb) = if x_here < x_next { (x_here, x_next) } else { (x_next, x_here) };
         let xa_floor = xa.floor();
         let ia = xa_floor as usize;
         let ib = xb.ceil() as usize;

@@ -19,12 +19,14 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
+use crate::image::GrayImage;
 use crate::io::StagedDir;
 use crate::io::formats::{Camera, InitState, Model, TruthFrame};
-use crate::image::GrayImage;
 use crate::{Error, Result};
 
-pub use background::{BACKGROUND_GREY, Background, FRAME_STREAM_BASE, add_noise_and_quantise, frame_rng, render_background};
+pub use background::{
+    BACKGROUND_GREY, Background, FRAME_STREAM_BASE, add_noise_and_quantise, frame_rng, render_background,
+};
 pub use canvas::{Canvas, DEFAULT_SUPERSAMPLE, ELLIPSE_SEGMENTS, Face, FillRule, MAX_SUPERSAMPLE, ellipse_points};
 pub use pendulum::{PendulumMotion, PendulumOptions, PendulumSwing, render_pendulum};
 pub use target3dof::{Target3dofOptions, Target3dofScene, render_target3dof};
@@ -76,21 +78,18 @@ impl SyntheticSequence {
         }
         let truth_path = dir.join("truth.jsonl");
         std::fs::write(&truth_path, truth).map_err(|e| Error::io(&truth_path, e))?;
-        self.frames
-            .par_iter()
-            .enumerate()
-            .try_for_each(|(k, frame)| {
-                let path = frames_dir.join(format!("{k:06}.png"));
-                image::save_buffer_with_format(
-                    &path,
-                    frame.data(),
-                    frame.width() as u32,
-                    frame.height() as u32,
-                    image::ColorType::L8,
-                    image::ImageFormat::Png,
-                )
-                .map_err(|e| Error::io(&path, std::io::Error::other(e)))
-            })
+        self.frames.par_iter().enumerate().try_for_each(|(k, frame)| {
+            let path = frames_dir.join(format!("{k:06}.png"));
+            image::save_buffer_with_format(
+                &path,
+                frame.data(),
+                frame.width() as u32,
+                frame.height() as u32,
+                image::ColorType::L8,
+                image::ImageFormat::Png,
+            )
+            .map_err(|e| Error::io(&path, std::io::Error::other(e)))
+        })
     }
 }
 
@@ -107,9 +106,7 @@ fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
 /// Parse the string `value` of scene option `key`; the error names the
 /// scene, the key and what was expected (`what`).
 pub(crate) fn parse_option<T: std::str::FromStr>(scene: &str, key: &str, value: &str, what: &str) -> Result<T> {
-    value
-        .parse()
-        .map_err(|_| Error::Parameter(format!("{scene} option {key}: '{value}' is not {what}")))
+    value.parse().map_err(|_| Error::Parameter(format!("{scene} option {key}: '{value}' is not {what}")))
 }
 
 /// Error unless `value` (named `name`, in `unit`) is finite and in `0..=max`.
@@ -149,10 +146,7 @@ pub fn render_scene(
 ) -> Result<SyntheticSequence> {
     match scene {
         "pendulum" => {
-            let mut opts = PendulumOptions {
-                seed,
-                ..PendulumOptions::default()
-            };
+            let mut opts = PendulumOptions { seed, ..PendulumOptions::default() };
             if let Some(n) = frames {
                 opts.frames = n;
             }
@@ -162,10 +156,7 @@ pub fn render_scene(
             render_pendulum(&opts)
         }
         "target3dof" => {
-            let mut opts = Target3dofOptions {
-                seed,
-                ..Target3dofOptions::default()
-            };
+            let mut opts = Target3dofOptions { seed, ..Target3dofOptions::default() };
             if let Some(n) = frames {
                 opts.frames = n;
             }
@@ -174,10 +165,7 @@ pub fn render_scene(
             }
             render_target3dof(&opts)
         }
-        _ => Err(Error::Parameter(format!(
-            "unknown scene '{scene}' (known scenes: {})",
-            scene_names().join(", ")
-        ))),
+        _ => Err(Error::Parameter(format!("unknown scene '{scene}' (known scenes: {})", scene_names().join(", ")))),
     }
 }
 

@@ -51,12 +51,12 @@
 
 use rayon::prelude::*;
 
-use super::{check_frames, check_range, parse_option, 
-    Background, DEFAULT_SUPERSAMPLE, FillRule, SyntheticSequence, add_noise_and_quantise,
-    frame_rng, render_background,
+use super::{
+    Background, DEFAULT_SUPERSAMPLE, FillRule, SyntheticSequence, add_noise_and_quantise, check_frames, check_range,
+    frame_rng, parse_option, render_background,
 };
-use crate::io::formats::{Camera, InitState, Model, TruthFrame};
 use crate::image::{FloatImage, GrayImage};
+use crate::io::formats::{Camera, InitState, Model, TruthFrame};
 use crate::{Error, Result};
 
 /// Frame width in pixels (paper 000: 242×256 PIPE frames).
@@ -113,9 +113,7 @@ impl std::str::FromStr for PendulumMotion {
         match s {
             "rotating" => Ok(PendulumMotion::Rotating),
             "translating" => Ok(PendulumMotion::Translating),
-            _ => Err(Error::Parameter(format!(
-                "unknown pendulum motion '{s}' (known: rotating, translating)"
-            ))),
+            _ => Err(Error::Parameter(format!("unknown pendulum motion '{s}' (known: rotating, translating)"))),
         }
     }
 }
@@ -172,14 +170,7 @@ impl Default for PendulumOptions {
 
 impl PendulumOptions {
     /// Keys [`PendulumOptions::set`] accepts.
-    pub const KEYS: [&'static str; 6] = [
-        "speed",
-        "noise",
-        "background",
-        "distractor",
-        "jump_at",
-        "motion",
-    ];
+    pub const KEYS: [&'static str; 6] = ["speed", "noise", "background", "distractor", "jump_at", "motion"];
 
     /// Set one option from strings (for the command line): `speed` (px/frame),
     /// `noise` (σ, grey levels), `background` (flat|textured|cluttered),
@@ -212,10 +203,7 @@ impl PendulumOptions {
         if let Some(j) = self.jump_at
             && !(1..self.frames).contains(&j)
         {
-            return Err(Error::Parameter(format!(
-                "jump_at = {j} is not in 1..{} (frames)",
-                self.frames
-            )));
+            return Err(Error::Parameter(format!("jump_at = {j} is not in 1..{} (frames)", self.frames)));
         }
         Ok(())
     }
@@ -239,9 +227,7 @@ impl PendulumSwing {
     /// pixels. Errors when `speed` is not in `0..=MAX_SPEED`.
     pub fn new(speed: f64, motion: PendulumMotion, jump_at: Option<usize>) -> Result<Self> {
         if !(speed.is_finite() && (0.0..=MAX_SPEED).contains(&speed)) {
-            return Err(Error::Parameter(format!(
-                "speed = {speed} px/frame is not in 0..={MAX_SPEED}"
-            )));
+            return Err(Error::Parameter(format!("speed = {speed} px/frame is not in 0..={MAX_SPEED}")));
         }
         // A·sin(ω/2) = asin(speed / 2r): half the arm angle swept across the bottom.
         let half_sweep = (speed / (2.0 * Self::corner_radius(motion))).asin();
@@ -254,16 +240,9 @@ impl PendulumSwing {
         }
         let amplitude_rad = amplitude(quarter);
         if amplitude_rad > MAX_AMPLITUDE_RAD + 1e-12 {
-            return Err(Error::Parameter(format!(
-                "speed = {speed} px/frame cannot be reached"
-            )));
+            return Err(Error::Parameter(format!("speed = {speed} px/frame cannot be reached")));
         }
-        Ok(Self {
-            amplitude_rad,
-            omega_rad_per_frame: omega_of(quarter),
-            motion,
-            jump_at,
-        })
+        Ok(Self { amplitude_rad, omega_rad_per_frame: omega_of(quarter), motion, jump_at })
     }
 
     /// Distance from the pivot of the fastest corner: the bottom corners when
@@ -271,9 +250,7 @@ impl PendulumSwing {
     #[must_use]
     pub fn corner_radius(motion: PendulumMotion) -> f64 {
         match motion {
-            PendulumMotion::Rotating => {
-                (ARM_LENGTH_PX + RECT_SIZE_PX[1] / 2.0).hypot(RECT_SIZE_PX[0] / 2.0)
-            }
+            PendulumMotion::Rotating => (ARM_LENGTH_PX + RECT_SIZE_PX[1] / 2.0).hypot(RECT_SIZE_PX[0] / 2.0),
             PendulumMotion::Translating => ARM_LENGTH_PX,
         }
     }
@@ -296,27 +273,16 @@ impl PendulumSwing {
     pub fn corners(&self, frame: usize) -> [[f64; 2]; 4] {
         let theta = self.angle(frame);
         let (s, c) = theta.sin_cos();
-        let jump = if self.jump_at.is_some_and(|j| frame >= j) {
-            JUMP_OFFSET_PX
-        } else {
-            [0.0; 2]
-        };
-        let centre = [
-            PIVOT[0] + ARM_LENGTH_PX * s + jump[0],
-            PIVOT[1] + ARM_LENGTH_PX * c + jump[1],
-        ];
+        let jump = if self.jump_at.is_some_and(|j| frame >= j) { JUMP_OFFSET_PX } else { [0.0; 2] };
+        let centre = [PIVOT[0] + ARM_LENGTH_PX * s + jump[0], PIVOT[1] + ARM_LENGTH_PX * c + jump[1]];
         // Rectangle axes in the image: along the arm's perpendicular and along the arm.
         let (x_axis, y_axis) = match self.motion {
             PendulumMotion::Rotating => ([c, -s], [s, c]),
             PendulumMotion::Translating => ([1.0, 0.0], [0.0, 1.0]),
         };
         let [hw, hh] = [RECT_SIZE_PX[0] / 2.0, RECT_SIZE_PX[1] / 2.0];
-        [[-hw, -hh], [hw, -hh], [hw, hh], [-hw, hh]].map(|[u, v]| {
-            [
-                centre[0] + u * x_axis[0] + v * y_axis[0],
-                centre[1] + u * x_axis[1] + v * y_axis[1],
-            ]
-        })
+        [[-hw, -hh], [hw, -hh], [hw, hh], [-hw, hh]]
+            .map(|[u, v]| [centre[0] + u * x_axis[0] + v * y_axis[0], centre[1] + u * x_axis[1] + v * y_axis[1]])
     }
 }
 
@@ -347,12 +313,7 @@ pub fn model() -> Model {
     Model {
         name: "pendulum-rectangle".to_string(),
         units: "px".to_string(),
-        vertices: vec![
-            [-hw, -hh, 0.0],
-            [hw, -hh, 0.0],
-            [hw, hh, 0.0],
-            [-hw, hh, 0.0],
-        ],
+        vertices: vec![[-hw, -hh, 0.0], [hw, -hh, 0.0], [hw, hh, 0.0], [-hw, hh, 0.0]],
         edges: vec![[0, 1], [1, 2], [2, 3], [3, 0]],
         faces: vec![vec![0, 3, 2, 1]],
         joints: Vec::new(),
@@ -373,13 +334,7 @@ fn distractor_polygon(frame: usize, frames: usize) -> Vec<[f64; 2]> {
 pub fn render_pendulum(opts: &PendulumOptions) -> Result<SyntheticSequence> {
     opts.validate()?;
     let swing = PendulumSwing::new(opts.speed, opts.motion, opts.jump_at)?;
-    let background = render_background(
-        opts.background,
-        WIDTH,
-        HEIGHT,
-        DEFAULT_SUPERSAMPLE,
-        opts.seed,
-    )?;
+    let background = render_background(opts.background, WIDTH, HEIGHT, DEFAULT_SUPERSAMPLE, opts.seed)?;
     let background_small = background.downsample();
     let noise_sigma = opts.noise_sigma as f32;
     let frames = (0..opts.frames)
@@ -400,12 +355,7 @@ pub fn render_pendulum(opts: &PendulumOptions) -> Result<SyntheticSequence> {
                 canvas.fill_polygon(&target, FillRule::EvenOdd, TARGET_GREY);
                 canvas.downsample_window_into(smooth, window)?;
                 let mut frame = GrayImage::new(WIDTH, HEIGHT);
-                add_noise_and_quantise(
-                    smooth,
-                    noise_sigma,
-                    &mut frame_rng(opts.seed, k),
-                    &mut frame,
-                );
+                add_noise_and_quantise(smooth, noise_sigma, &mut frame_rng(opts.seed, k), &mut frame);
                 Ok(frame)
             },
         )
@@ -419,11 +369,7 @@ pub fn render_pendulum(opts: &PendulumOptions) -> Result<SyntheticSequence> {
             corners: swing.corners(k).to_vec(),
         })
         .collect();
-    let init = InitState {
-        pose: None,
-        params: Vec::new(),
-        corners: swing.corners(0).to_vec(),
-    };
+    let init = InitState { pose: None, params: Vec::new(), corners: swing.corners(0).to_vec() };
     let meta = serde_json::json!({
         "scene": "pendulum",
         "seed": opts.seed,
@@ -446,13 +392,5 @@ pub fn render_pendulum(opts: &PendulumOptions) -> Result<SyntheticSequence> {
         "target_grey": TARGET_GREY,
         "note": "theta(t) = A cos(omega t), released from rest at frame 0; corners exact, pixel (0,0) = centre of the top-left pixel",
     });
-    Ok(SyntheticSequence {
-        scene: "pendulum".to_string(),
-        camera: camera(),
-        model: model(),
-        init,
-        truth,
-        frames,
-        meta,
-    })
+    Ok(SyntheticSequence { scene: "pendulum".to_string(), camera: camera(), model: model(), init, truth, frames, meta })
 }

@@ -116,13 +116,13 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-use super::{check_frames, check_range, parse_option, 
-    Background, Canvas, DEFAULT_SUPERSAMPLE, Face, FillRule, SyntheticSequence,
-    add_noise_and_quantise, frame_rng, render_background,
+use super::{
+    Background, Canvas, DEFAULT_SUPERSAMPLE, Face, FillRule, SyntheticSequence, add_noise_and_quantise, check_frames,
+    check_range, frame_rng, parse_option, render_background,
 };
 use crate::early::Window;
-use crate::io::formats::{Camera, InitState, Model, Pose, TruthFrame};
 use crate::image::{FloatImage, GrayImage};
+use crate::io::formats::{Camera, InitState, Model, Pose, TruthFrame};
 use crate::{Error, Result};
 
 /// Frame width in pixels.
@@ -279,16 +279,11 @@ impl Target3dofPath {
     /// exactly, `speed` rad/s. Errors when `speed` is not in `0..=MAX_SPEED`.
     pub fn new(speed: f64) -> Result<Self> {
         if !(speed.is_finite() && (0.0..=MAX_SPEED).contains(&speed)) {
-            return Err(Error::Parameter(format!(
-                "speed = {speed} rad/s is not in 0..={MAX_SPEED}"
-            )));
+            return Err(Error::Parameter(format!("speed = {speed} rad/s is not in 0..={MAX_SPEED}")));
         }
         let [a, b] = BEARING_AMPLITUDE;
         // Peak of |dl/dt| = ω·√(A² + 4B²) at a centre crossing.
-        Ok(Self {
-            speed,
-            omega: speed / (a * a + 4.0 * b * b).sqrt(),
-        })
+        Ok(Self { speed, omega: speed / (a * a + 4.0 * b * b).sqrt() })
     }
 
     /// Clock time of frame `frame`, seconds.
@@ -306,10 +301,7 @@ impl Target3dofPath {
         }
         let x = (t / RAMP_S).max(0.0);
         // τ' = smoothstep(x) = 3x² − 2x³, integrated: τ = RAMP_S·(x³ − x⁴/2).
-        (
-            RAMP_S * x * x * x * (1.0 - 0.5 * x),
-            x * x * (3.0 - 2.0 * x),
-        )
+        (RAMP_S * x * x * x * (1.0 - 0.5 * x), x * x * (3.0 - 2.0 * x))
     }
 
     /// Bearing (a, b) = (X/Z, Y/Z) of the target centre and its derivative
@@ -319,10 +311,7 @@ impl Target3dofPath {
         let [a, b] = BEARING_AMPLITUDE;
         let (s1, c1) = (self.omega * tau).sin_cos();
         let (s2, c2) = (2.0 * self.omega * tau).sin_cos();
-        (
-            [a * s1, b * s2],
-            [a * self.omega * c1, 2.0 * b * self.omega * c2],
-        )
+        ([a * s1, b * s2], [a * self.omega * c1, 2.0 * b * self.omega * c2])
     }
 
     /// Range Z (depth of the target centre) at scene time `tau`, metres.
@@ -344,10 +333,7 @@ impl Target3dofPath {
     /// The true pose of frame `frame`: the fixed [`rotation`] and the path's translation.
     #[must_use]
     pub fn pose(&self, frame: usize) -> Pose {
-        Pose {
-            rotation: rotation(),
-            translation: self.translation_at(Self::time(frame)),
-        }
+        Pose { rotation: rotation(), translation: self.translation_at(Self::time(frame)) }
     }
 
     /// Angular speed `|dl/dt|` of the line of sight at clock time `t`, rad/s
@@ -418,12 +404,7 @@ fn add_box(model: &mut TruckModel, lo: [f64; 3], hi: [f64; 3], greys: BoxGreys) 
     let base = model.vertices.len();
     // Rear face (z = lo) TL, TR, BR, BL, then the same at z = hi.
     for z in [lo[2], hi[2]] {
-        for [x, y] in [
-            [lo[0], lo[1]],
-            [hi[0], lo[1]],
-            [hi[0], hi[1]],
-            [lo[0], hi[1]],
-        ] {
+        for [x, y] in [[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]] {
             model.vertices.push([x, y, z]);
         }
     }
@@ -437,20 +418,14 @@ fn add_box(model: &mut TruckModel, lo: [f64; 3], hi: [f64; 3], greys: BoxGreys) 
         vec![tl, ftl, fbl, bl],
         vec![tr, br, fbr, ftr],
     ];
-    model.parts.push(Part {
-        faces,
-        greys: greys.to_vec(),
-    });
+    model.parts.push(Part { faces, greys: greys.to_vec() });
 }
 
 /// The truck-back model of the module docs.
 fn truck_model() -> TruckModel {
     let [w, h, d] = BODY_SIZE;
     let (hw, hh) = (w / 2.0, h / 2.0);
-    let mut model = TruckModel {
-        vertices: Vec::new(),
-        parts: Vec::new(),
-    };
+    let mut model = TruckModel { vertices: Vec::new(), parts: Vec::new() };
     // Body: rear face TL, TM, TR, BR, BM, BL (z = 0), front TL, TR, BR, BL (z = d).
     model.vertices.extend_from_slice(&[
         [-hw, -hh, 0.0],
@@ -473,10 +448,7 @@ fn truck_model() -> TruckModel {
         vec![2, 3, 8, 7],    // right side
         vec![6, 7, 8, 9],    // front
     ];
-    model.parts.push(Part {
-        faces: body_faces,
-        greys: vec![185.0, 148.0, 222.0, 90.0, 100.0, 112.0, 80.0],
-    });
+    model.parts.push(Part { faces: body_faces, greys: vec![185.0, 148.0, 222.0, 90.0, 100.0, 112.0, 80.0] });
     // Bumper: 1 cm below the body, 1 cm wider on each side, 3 cm towards the camera.
     add_box(
         &mut model,
@@ -524,27 +496,16 @@ pub fn model() -> Model {
 /// Flat grey level of every face of [`model`], in the order of its `faces`.
 #[must_use]
 pub fn face_greys() -> Vec<f32> {
-    truck_model()
-        .parts
-        .iter()
-        .flat_map(|p| p.greys.clone())
-        .collect()
+    truck_model().parts.iter().flat_map(|p| p.greys.clone()).collect()
 }
 
 /// Camera coordinates of the model's vertices under `pose` (X = R·X_obj + t).
 fn to_camera(vertices: &[[f64; 3]], pose: &Pose) -> Vec<DVec3> {
     let r = DVec3::from_array(pose.rotation);
     let angle = r.length();
-    let rot = if angle > 0.0 {
-        DMat3::from_axis_angle(r / angle, angle)
-    } else {
-        DMat3::IDENTITY
-    };
+    let rot = if angle > 0.0 { DMat3::from_axis_angle(r / angle, angle) } else { DMat3::IDENTITY };
     let t = DVec3::from_array(pose.translation);
-    vertices
-        .iter()
-        .map(|v| rot * DVec3::from_array(*v) + t)
-        .collect()
+    vertices.iter().map(|v| rot * DVec3::from_array(*v) + t).collect()
 }
 
 /// Pinhole projection u = fx·X/Z + cx, v = fy·Y/Z + cy.
@@ -556,10 +517,7 @@ fn project(cam: &Camera, p: DVec3) -> [f64; 2] {
 /// (also hidden ones), in model-vertex order.
 #[must_use]
 pub fn project_model(model: &Model, pose: &Pose, cam: &Camera) -> Vec<[f64; 2]> {
-    to_camera(&model.vertices, pose)
-        .into_iter()
-        .map(|p| project(cam, p))
-        .collect()
+    to_camera(&model.vertices, pose).into_iter().map(|p| project(cam, p)).collect()
 }
 
 /// Whether the face `face` (outward right-hand normal) faces the camera.
@@ -567,15 +525,8 @@ fn faces_camera(cam_vertices: &[DVec3], face: &[usize]) -> bool {
     // Newell's normal of the loop.
     let mut normal = DVec3::ZERO;
     for k in 0..face.len() {
-        let (p, q) = (
-            cam_vertices[face[k]],
-            cam_vertices[face[(k + 1) % face.len()]],
-        );
-        normal += DVec3::new(
-            (p.y - q.y) * (p.z + q.z),
-            (p.z - q.z) * (p.x + q.x),
-            (p.x - q.x) * (p.y + q.y),
-        );
+        let (p, q) = (cam_vertices[face[k]], cam_vertices[face[(k + 1) % face.len()]]);
+        normal += DVec3::new((p.y - q.y) * (p.z + q.z), (p.z - q.z) * (p.x + q.x), (p.x - q.x) * (p.y + q.y));
     }
     normal.dot(cam_vertices[face[0]]) < 0.0
 }
@@ -638,10 +589,7 @@ impl Target3dofScene {
     /// reach half a pixel further).
     #[must_use]
     pub fn visible(&self, frame: usize) -> bool {
-        let (w, h) = (
-            self.camera.width as f64 - 0.5,
-            self.camera.height as f64 - 0.5,
-        );
+        let (w, h) = (self.camera.width as f64 - 0.5, self.camera.height as f64 - 0.5);
         let cam = to_camera(&self.model.vertices, &self.pose(frame));
         cam.iter().all(|p| {
             let [u, v] = project(&self.camera, *p);
@@ -660,10 +608,7 @@ impl Target3dofScene {
                     .clone()
                     .filter(|&f| faces_camera(&cam, &self.model.faces[f]))
                     .map(|f| {
-                        let outline = self.model.faces[f]
-                            .iter()
-                            .map(|&i| project(&self.camera, cam[i]))
-                            .collect();
+                        let outline = self.model.faces[f].iter().map(|&i| project(&self.camera, cam[i])).collect();
                         (outline, self.greys[f])
                     })
                     .collect()
@@ -705,10 +650,7 @@ impl Target3dofScene {
                 *p = [p[0] - origin[0], p[1] - origin[1]];
             }
         }
-        let (ww, wh) = (
-            (window.x1 - window.x0) as usize,
-            (window.y1 - window.y0) as usize,
-        );
+        let (ww, wh) = ((window.x1 - window.x0) as usize, (window.y1 - window.y0) as usize);
         let mut mask = Canvas::new(ww, wh, OCCLUDER_SUPERSAMPLE, 0.0)?;
         draw_target(&mut mask, &parts, Some(1.0));
         let columns = column_areas(&mask);
@@ -726,13 +668,8 @@ pub const OCCLUDER_SUPERSAMPLE: usize = 4;
 /// `flat` every face gets that grey (a silhouette mask).
 fn draw_target(canvas: &mut Canvas, parts: &[PartOutlines], flat: Option<f32>) {
     for part in parts {
-        let faces: Vec<Face<'_>> = part
-            .iter()
-            .map(|(points, grey)| Face {
-                points,
-                grey: flat.unwrap_or(*grey),
-            })
-            .collect();
+        let faces: Vec<Face<'_>> =
+            part.iter().map(|(points, grey)| Face { points, grey: flat.unwrap_or(*grey) }).collect();
         canvas.fill_faces(&faces, FillRule::NonZero);
     }
 }
@@ -819,41 +756,21 @@ fn render_bookshelf(seed: u64) -> Result<Canvas> {
             }
             let height = (bottom - top) * rng.random_range(0.55..0.92);
             let grey = rng.random_range(BOOK_GREYS);
-            canvas.fill_polygon(
-                &rect(x, bottom - height, x + width, bottom),
-                FillRule::NonZero,
-                grey,
-            );
+            canvas.fill_polygon(&rect(x, bottom - height, x + width, bottom), FillRule::NonZero, grey);
             if rng.random_bool(0.3) {
                 // A label band across the spine.
                 let y = bottom - height * rng.random_range(0.3..0.8);
                 let band = rng.random_range(3.0..8.0);
                 let label = (grey + rng.random_range(40.0..80.0)).min(235.0);
-                canvas.fill_polygon(
-                    &rect(x + 1.0, y, x + width - 1.0, y + band),
-                    FillRule::NonZero,
-                    label,
-                );
+                canvas.fill_polygon(&rect(x + 1.0, y, x + width - 1.0, y + band), FillRule::NonZero, label);
             }
             x += width + rng.random_range(0.0..1.5);
         }
-        canvas.fill_polygon(
-            &rect(left, bottom, right, bottom + board),
-            FillRule::NonZero,
-            SHELF_GREY,
-        );
+        canvas.fill_polygon(&rect(left, bottom, right, bottom + board), FillRule::NonZero, SHELF_GREY);
         top = bottom + board;
     }
-    canvas.fill_polygon(
-        &rect(left, -1.0, left + upright, h + 1.0),
-        FillRule::NonZero,
-        SHELF_GREY,
-    );
-    canvas.fill_polygon(
-        &rect(right - upright, -1.0, right, h + 1.0),
-        FillRule::NonZero,
-        SHELF_GREY,
-    );
+    canvas.fill_polygon(&rect(left, -1.0, left + upright, h + 1.0), FillRule::NonZero, SHELF_GREY);
+    canvas.fill_polygon(&rect(right - upright, -1.0, right, h + 1.0), FillRule::NonZero, SHELF_GREY);
     Ok(canvas)
 }
 
@@ -862,9 +779,7 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
     let scene = Target3dofScene::new(opts)?;
     let background = match opts.background {
         Backdrop::Bookshelf => render_bookshelf(opts.seed)?,
-        Backdrop::Shared(kind) => {
-            render_background(kind, WIDTH, HEIGHT, DEFAULT_SUPERSAMPLE, opts.seed)?
-        }
+        Backdrop::Shared(kind) => render_background(kind, WIDTH, HEIGHT, DEFAULT_SUPERSAMPLE, opts.seed)?,
     };
     let background_small = background.downsample();
     let noise_sigma = opts.noise_sigma as f32;
@@ -880,11 +795,7 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
                     [[x0, top], [x1, top], [x1, bottom], [x0, bottom]]
                 });
                 // Only the pixels the target and the bar touch differ from the background.
-                let moving = parts
-                    .iter()
-                    .flatten()
-                    .flat_map(|(p, _)| p.iter())
-                    .chain(bar_outline.iter().flatten());
+                let moving = parts.iter().flatten().flat_map(|(p, _)| p.iter()).chain(bar_outline.iter().flatten());
                 let window = canvas.window_around(moving);
                 smooth.data_mut().copy_from_slice(background_small.data());
                 canvas.copy_window_from(&background, window)?;
@@ -894,12 +805,7 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
                 }
                 canvas.downsample_window_into(smooth, window)?;
                 let mut frame = GrayImage::new(WIDTH, HEIGHT);
-                add_noise_and_quantise(
-                    smooth,
-                    noise_sigma,
-                    &mut frame_rng(opts.seed, k),
-                    &mut frame,
-                );
+                add_noise_and_quantise(smooth, noise_sigma, &mut frame_rng(opts.seed, k), &mut frame);
                 Ok((frame, bar))
             },
         )
@@ -914,11 +820,7 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
             corners: scene.corners(k),
         })
         .collect();
-    let init = InitState {
-        pose: Some(scene.pose(0)),
-        params: Vec::new(),
-        corners: scene.corners(0),
-    };
+    let init = InitState { pose: Some(scene.pose(0)), params: Vec::new(), corners: scene.corners(0) };
     let occluder_columns: Vec<[f64; 2]> = bars.into_iter().flatten().collect();
     let meta = serde_json::json!({
         "scene": "target3dof",

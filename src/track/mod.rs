@@ -15,7 +15,9 @@ pub mod run;
 
 pub use blue::{BlueParams, BlueTracker, TargetLocation, TargetPrediction};
 pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker, Prediction};
-pub use run::{RunSummary, TRACKERS, TrackOptions, make_tracker, read_config, track_frames, track_sequence, track_to_file};
+pub use run::{
+    RunSummary, TRACKERS, TrackOptions, make_tracker, read_config, track_frames, track_sequence, track_to_file,
+};
 
 use crate::backend::FrameRequest;
 use crate::early::{Feature, Window};

@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::backend::{BackendKind, EarlyVision, make_backend};
+use crate::image::GrayImage;
 use crate::io::formats::{FrameResult, Status};
 use crate::io::{AtomicFile, Sequence, StagedDir};
-use crate::image::GrayImage;
 use crate::track::{BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
 use crate::{Error, Result};
 
@@ -21,15 +21,14 @@ pub const TRACKERS: &[&str] = &["motion-edge", "blue"];
 pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>, tracker: &str) -> Result<P> {
     let Some(path) = path else { return Ok(P::default()) };
     let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
-    let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| Error::input(path, one_line(&e.to_string())))?;
+    let mut table: toml::Table =
+        text.parse().map_err(|e: toml::de::Error| Error::input(path, one_line(&e.to_string())))?;
     let section = match table.remove(tracker) {
         Some(toml::Value::Table(t)) => t,
         Some(_) => return Err(Error::input(path, format!("[{tracker}] must be a table"))),
         None => table,
     };
-    toml::Value::Table(section)
-        .try_into()
-        .map_err(|e: toml::de::Error| Error::input(path, one_line(&e.to_string())))
+    toml::Value::Table(section).try_into().map_err(|e: toml::de::Error| Error::input(path, one_line(&e.to_string())))
 }
 
 /// A parameter error blamed on the config file when there is one.
@@ -51,7 +50,10 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             let params: MotionEdgeParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
             if seq.init.corners.is_empty() {
-                return Err(Error::input(seq.dir().join("init.json"), "motion-edge needs \"corners\" (the operator's points)"));
+                return Err(Error::input(
+                    seq.dir().join("init.json"),
+                    "motion-edge needs \"corners\" (the operator's points)",
+                ));
             }
             let tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), params)
                 .map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
@@ -101,7 +103,12 @@ pub struct RunSummary {
 /// Track `seq` and write one JSON line per frame to `out`; with
 /// `opts.overlay`, write one PNG per frame into that folder (a
 /// [`StagedDir`]: an interrupted run never leaves a folder that looks complete).
-pub fn track_sequence(seq: &Sequence, opts: &TrackOptions, out: &mut dyn Write, mut on_result: impl FnMut(&FrameResult)) -> Result<RunSummary> {
+pub fn track_sequence(
+    seq: &Sequence,
+    opts: &TrackOptions,
+    out: &mut dyn Write,
+    mut on_result: impl FnMut(&FrameResult),
+) -> Result<RunSummary> {
     let mut tracker = make_tracker(&opts.tracker, seq, opts.config.as_deref())?;
     let (mut backend, fallback) = make_backend(opts.backend);
     if let Some(reason) = &fallback {
@@ -118,7 +125,8 @@ pub fn track_sequence(seq: &Sequence, opts: &TrackOptions, out: &mut dyn Write, 
         writeln!(out).map_err(|e| Error::io("output", e))?;
         if let Some(dir) = &overlay {
             let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
-            let img = crate::io::overlay::draw_overlay(frame, &outcome.corners, &seq.model.edges, outcome.status, &labelled);
+            let img =
+                crate::io::overlay::draw_overlay(frame, &outcome.corners, &seq.model.edges, outcome.status, &labelled);
             let path = dir.path().join(format!("{:06}.png", outcome.frame));
             img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
         }
@@ -178,7 +186,9 @@ fn progress_bar(enabled: bool, len: Option<usize>) -> indicatif::ProgressBar {
         return indicatif::ProgressBar::hidden();
     }
     let bar = indicatif::ProgressBar::with_draw_target(len.map(|n| n as u64), indicatif::ProgressDrawTarget::stderr());
-    if let Ok(style) = indicatif::ProgressStyle::with_template("{spinner} {pos}/{len} frames {per_sec} [{elapsed_precise}] {wide_bar}") {
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{spinner} {pos}/{len} frames {per_sec} [{elapsed_precise}] {wide_bar}")
+    {
         bar.set_style(style);
     }
     bar

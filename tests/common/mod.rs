@@ -83,7 +83,15 @@ pub fn assert_close(name: &str, cpu: &Image<f32>, gpu: &Image<f32>, atol: f32, r
 /// (2π for directions, π for undirected edge orientations), and pixels where
 /// `weight` (the gradient magnitude) is below `min_weight` are not compared,
 /// since their angle is ill-defined.
-pub fn assert_angles_close(name: &str, cpu: &Image<f32>, gpu: &Image<f32>, weight: &Image<f32>, min_weight: f32, period: f32, atol: f32) {
+pub fn assert_angles_close(
+    name: &str,
+    cpu: &Image<f32>,
+    gpu: &Image<f32>,
+    weight: &Image<f32>,
+    min_weight: f32,
+    period: f32,
+    atol: f32,
+) {
     assert_eq!(cpu.size(), gpu.size(), "{name}: sizes differ");
     let w = cpu.width();
     let bad: Vec<(usize, f32, f32)> = cpu

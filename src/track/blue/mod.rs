@@ -136,12 +136,8 @@ use super::{Diagnostics, FrameOutcome, Observations, Phase, Tracker};
 use crate::backend::{EdgeRequest, FrameRequest, ListSpec};
 use crate::early::compaction::MAX_CAP;
 use crate::early::{Feature, Window};
-use crate::estimate::{
-    BlueProblem, CornerCovariance, LineLocation, PolynomialSrif, intersect_lines,
-};
-use crate::estimate::line_fit::{
-    Line, LineSums, fit_x_on_y, fit_y_on_x, orientation_difference, wrap_orientation,
-};
+use crate::estimate::line_fit::{Line, LineSums, fit_x_on_y, fit_y_on_x, orientation_difference, wrap_orientation};
+use crate::estimate::{BlueProblem, CornerCovariance, LineLocation, PolynomialSrif, intersect_lines};
 use crate::io::formats::{Camera, InitState, Model, Pose, Status};
 use crate::{Error, Result};
 
@@ -303,25 +299,16 @@ impl BlueParams {
                 return bad(format!("{name} must be positive and finite, got {v}"));
             }
         }
-        for (name, v) in [
-            ("end_margin", self.end_margin),
-            ("window_margin", self.window_margin),
-        ] {
+        for (name, v) in [("end_margin", self.end_margin), ("window_margin", self.window_margin)] {
             if !(v >= 0.0 && v.is_finite()) {
                 return bad(format!("{name} must be ≥ 0 and finite, got {v}"));
             }
         }
         if self.angle_tolerance > std::f64::consts::FRAC_PI_2 {
-            return bad(format!(
-                "angle_tolerance is at most π/2 radians, got {}",
-                self.angle_tolerance
-            ));
+            return bad(format!("angle_tolerance is at most π/2 radians, got {}", self.angle_tolerance));
         }
         if self.min_corner_angle > std::f64::consts::FRAC_PI_2 {
-            return bad(format!(
-                "min_corner_angle is at most π/2 radians, got {}",
-                self.min_corner_angle
-            ));
+            return bad(format!("min_corner_angle is at most π/2 radians, got {}", self.min_corner_angle));
         }
         if !(self.lambda > 0.0 && self.lambda < 1.0) {
             return bad(format!("lambda must be in (0, 1), got {}", self.lambda));
@@ -330,22 +317,14 @@ impl BlueParams {
             return bad("max_edge_points must be at least 1".into());
         }
         if self.min_points_per_line < 3 {
-            return bad(format!(
-                "min_points_per_line must be at least 3, got {}",
-                self.min_points_per_line
-            ));
+            return bad(format!("min_points_per_line must be at least 3, got {}", self.min_points_per_line));
         }
         if self.min_corners < 2 {
-            return bad(format!(
-                "min_corners must be at least 2, got {}",
-                self.min_corners
-            ));
+            return bad(format!("min_corners must be at least 2, got {}", self.min_corners));
         }
         if let Some(z) = self.nominal_range {
             if !(z > 0.0 && z.is_finite()) {
-                return bad(format!(
-                    "nominal_range must be positive and finite, got {z}"
-                ));
+                return bad(format!("nominal_range must be positive and finite, got {z}"));
             }
         }
         Ok(())
@@ -401,21 +380,9 @@ pub fn rotation_from_axis_angle(r: [f64; 3]) -> [[f64; 3]; 3] {
     let (s, c) = angle.sin_cos();
     let v = 1.0 - c;
     [
-        [
-            c + k[0] * k[0] * v,
-            k[0] * k[1] * v - k[2] * s,
-            k[0] * k[2] * v + k[1] * s,
-        ],
-        [
-            k[1] * k[0] * v + k[2] * s,
-            c + k[1] * k[1] * v,
-            k[1] * k[2] * v - k[0] * s,
-        ],
-        [
-            k[2] * k[0] * v - k[1] * s,
-            k[2] * k[1] * v + k[0] * s,
-            c + k[2] * k[2] * v,
-        ],
+        [c + k[0] * k[0] * v, k[0] * k[1] * v - k[2] * s, k[0] * k[2] * v + k[1] * s],
+        [k[1] * k[0] * v + k[2] * s, c + k[1] * k[1] * v, k[1] * k[2] * v - k[0] * s],
+        [k[2] * k[0] * v - k[1] * s, k[2] * k[1] * v + k[0] * s, c + k[2] * k[2] * v],
     ]
 }
 
@@ -512,9 +479,7 @@ impl BlueTracker {
         let bad = |msg: String| Err(Error::Parameter(format!("blue: {msg}")));
         let intrinsics = [camera.fx, camera.fy, camera.cx, camera.cy];
         if !(intrinsics.iter().all(|v| v.is_finite()) && camera.fx > 0.0 && camera.fy > 0.0) {
-            return bad(format!(
-                "camera intrinsics must be finite with fx, fy > 0, got {intrinsics:?}"
-            ));
+            return bad(format!("camera intrinsics must be finite with fx, fy > 0, got {intrinsics:?}"));
         }
         let Some(pose) = init.pose else {
             return bad("init.json has no pose; the blue tracker needs the initial pose".into());
@@ -522,40 +487,25 @@ impl BlueTracker {
         if model.vertices.is_empty() || model.edges.is_empty() {
             return bad("the model needs vertices and edges".into());
         }
-        if !model
-            .vertices
-            .iter()
-            .flatten()
-            .chain(&pose.rotation)
-            .chain(&pose.translation)
-            .all(|v| v.is_finite())
-        {
+        if !model.vertices.iter().flatten().chain(&pose.rotation).chain(&pose.translation).all(|v| v.is_finite()) {
             return bad("model vertices and init pose must be finite".into());
         }
         let nv = model.vertices.len();
         let mut vertex_edges = vec![Vec::new(); nv];
         for (k, &[i, j]) in model.edges.iter().enumerate() {
             if i >= nv || j >= nv || i == j {
-                return bad(format!(
-                    "edge {k} [{i}, {j}] is not a pair of distinct vertices of the {nv}"
-                ));
+                return bad(format!("edge {k} [{i}, {j}] is not a pair of distinct vertices of the {nv}"));
             }
             vertex_edges[i].push(k);
             vertex_edges[j].push(k);
         }
         let rotation = rotation_from_axis_angle(pose.rotation);
         let inv_n = 1.0 / nv as f64;
-        let centroid: [f64; 3] =
-            std::array::from_fn(|a| model.vertices.iter().map(|v| v[a]).sum::<f64>() * inv_n);
+        let centroid: [f64; 3] = std::array::from_fn(|a| model.vertices.iter().map(|v| v[a]).sum::<f64>() * inv_n);
         let offsets: Vec<[f64; 3]> = model
             .vertices
             .iter()
-            .map(|p| {
-                mat_vec(
-                    &rotation,
-                    [p[0] - centroid[0], p[1] - centroid[1], p[2] - centroid[2]],
-                )
-            })
+            .map(|p| mat_vec(&rotation, [p[0] - centroid[0], p[1] - centroid[1], p[2] - centroid[2]]))
             .collect();
         let mut faces = Vec::with_capacity(model.faces.len());
         let mut edge_faces = vec![Vec::new(); model.edges.len()];
@@ -566,10 +516,7 @@ impl BlueTracker {
             // Newell's normal, counter-clockwise seen from outside → outward.
             let mut n = [0.0; 3];
             for (a, &i) in face.iter().enumerate() {
-                let (p, q) = (
-                    model.vertices[i],
-                    model.vertices[face[(a + 1) % face.len()]],
-                );
+                let (p, q) = (model.vertices[i], model.vertices[face[(a + 1) % face.len()]]);
                 n[0] += (p[1] - q[1]) * (p[2] + q[2]);
                 n[1] += (p[2] - q[2]) * (p[0] + q[0]);
                 n[2] += (p[0] - q[0]) * (p[1] + q[1]);
@@ -587,10 +534,7 @@ impl BlueTracker {
         let origin = mat_vec(&rotation, centroid);
         let reference: [f64; 3] = std::array::from_fn(|a| origin[a] + pose.translation[a]);
         if !(reference[2] > 0.0) {
-            return bad(format!(
-                "the init pose puts the model's centroid behind the camera (Z = {})",
-                reference[2]
-            ));
+            return bad(format!("the init pose puts the model's centroid behind the camera (Z = {})", reference[2]));
         }
         let init_location = TargetLocation {
             cx: camera.fx * reference[0] / reference[2] + camera.cx,
@@ -599,11 +543,7 @@ impl BlueTracker {
         };
         let nominal_range = params.nominal_range.unwrap_or(reference[2]);
         // Image displacement per metre of range change for the model's extent.
-        let extent = offsets
-            .iter()
-            .map(|q| q[0].hypot(q[1]))
-            .fold(0.0, f64::max)
-            .max(1e-9);
+        let extent = offsets.iter().map(|q| q[0].hypot(q[1])).fold(0.0, f64::max).max(1e-9);
         let range_px_per_m = camera.fx.max(camera.fy) * extent / (reference[2] * reference[2]);
         let filters = start_filters(&params, &init_location, 0.0, range_px_per_m)?;
         Ok(Self {
@@ -649,10 +589,7 @@ impl BlueTracker {
     /// p_x, p_y of eq. 7–8: f_x·Z₀ and f_y·Z₀ (module doc).
     #[must_use]
     pub fn eq7_scales(&self) -> [f64; 2] {
-        [
-            self.camera.fx * self.nominal_range,
-            self.camera.fy * self.nominal_range,
-        ]
+        [self.camera.fx * self.nominal_range, self.camera.fy * self.nominal_range]
     }
 
     /// The motion models' prediction `dt_frames` frames after the last
@@ -660,21 +597,13 @@ impl BlueTracker {
     /// 6b). Before any frame, relative to frame 0 − 1, i.e. dt = 1 is frame 0.
     #[must_use]
     pub fn predict_ahead(&self, dt_frames: f64) -> TargetPrediction {
-        let time = self
-            .last_frame
-            .map_or(dt_frames - 1.0, |f| f as f64 + dt_frames);
+        let time = self.last_frame.map_or(dt_frames - 1.0, |f| f as f64 + dt_frames);
         let location = self.location_at(time);
         let variance: [f64; 3] = std::array::from_fn(|k| {
             let f = &self.filters[k];
-            f.prediction_variance(time - f.time())
-                .unwrap_or(f64::INFINITY)
+            f.prediction_variance(time - f.time()).unwrap_or(f64::INFINITY)
         });
-        TargetPrediction {
-            location,
-            variance,
-            corners: self.vertices_at(&location),
-            pose: self.pose_at(&location),
-        }
+        TargetPrediction { location, variance, corners: self.vertices_at(&location), pose: self.pose_at(&location) }
     }
 
     /// The motion models' location at (frame) time `time`.
@@ -683,21 +612,13 @@ impl BlueTracker {
             let f = &self.filters[k];
             f.predict(time - f.time()).unwrap_or(f64::NAN)
         };
-        TargetLocation {
-            cx: value(0),
-            cy: value(1),
-            cz: value(2),
-        }
+        TargetLocation { cx: value(0), cy: value(1), cz: value(2) }
     }
 
     /// Centroid in the camera frame for `location`.
     fn reference_point(&self, location: &TargetLocation) -> [f64; 3] {
         let c = &self.camera;
-        [
-            (location.cx - c.cx) * location.cz / c.fx,
-            (location.cy - c.cy) * location.cz / c.fy,
-            location.cz,
-        ]
+        [(location.cx - c.cx) * location.cz / c.fx, (location.cy - c.cy) * location.cz / c.fy, location.cz]
     }
 
     /// Image positions of every model vertex at `location` (model-vertex
@@ -711,10 +632,7 @@ impl BlueTracker {
             .map(|q| {
                 let z = x[2] + q[2];
                 if z > 0.0 {
-                    [
-                        c.fx * (x[0] + q[0]) / z + c.cx,
-                        c.fy * (x[1] + q[1]) / z + c.cy,
-                    ]
+                    [c.fx * (x[0] + q[0]) / z + c.cx, c.fy * (x[1] + q[1]) / z + c.cy]
                 } else {
                     [f64::NAN, f64::NAN]
                 }
@@ -727,10 +645,7 @@ impl BlueTracker {
     pub fn pose_at(&self, location: &TargetLocation) -> Pose {
         let x = self.reference_point(location);
         let rc = mat_vec(&self.rotation, self.centroid);
-        Pose {
-            rotation: self.rotation_vector,
-            translation: std::array::from_fn(|a| x[a] - rc[a]),
-        }
+        Pose { rotation: self.rotation_vector, translation: std::array::from_fn(|a| x[a] - rc[a]) }
     }
 
     /// Whether each model edge is visible at `location` (borders a face
@@ -746,10 +661,7 @@ impl BlueTracker {
                 n[0] * p[0] + n[1] * p[1] + n[2] * p[2] < 0.0
             })
             .collect();
-        self.edge_faces
-            .iter()
-            .map(|fs| fs.is_empty() || fs.iter().any(|&f| facing[f]))
-            .collect()
+        self.edge_faces.iter().map(|fs| fs.is_empty() || fs.iter().any(|&f| facing[f])).collect()
     }
 
     /// Association distance of the next frame.
@@ -768,12 +680,7 @@ impl BlueTracker {
     pub fn window_of_interest(&self, width: usize, height: usize) -> Window {
         let location = self.location_at(self.next_frame as f64);
         let margin = self.association_distance() + self.params.window_margin;
-        let (mut x0, mut y0, mut x1, mut y1) = (
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        );
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
         for p in self.vertices_at(&location) {
             x0 = x0.min(p[0]);
             y0 = y0.min(p[1]);
@@ -785,13 +692,7 @@ impl BlueTracker {
         }
         let lo = |v: f64| (v - margin).floor().max(0.0) as u32;
         let hi = |v: f64| ((v + margin).ceil() + 1.0).clamp(0.0, f64::from(u32::MAX)) as u32;
-        Window {
-            x0: lo(x0),
-            y0: lo(y0),
-            x1: hi(x1),
-            y1: hi(y1),
-        }
-        .clipped(width, height)
+        Window { x0: lo(x0), y0: lo(y0), x1: hi(x1), y1: hi(y1) }.clipped(width, height)
     }
 
     /// Process frame `frame` given its edge pixels; every call returns an
@@ -803,8 +704,7 @@ impl BlueTracker {
             // Extrapolated behind the camera (or not finite): search where
             // the target was last seen.
             predicted = self.last_tracked;
-            if let Ok(filters) = start_filters(&self.params, &predicted, time, self.range_px_per_m)
-            {
+            if let Ok(filters) = start_filters(&self.params, &predicted, time, self.range_px_per_m) {
                 self.filters = filters;
             }
         }
@@ -821,16 +721,11 @@ impl BlueTracker {
                 None
             };
             match aligned {
-                Some(model) => {
-                    self.measure(edges, &model, &predicted, self.params.refine_distance)
-                }
+                Some(model) => self.measure(edges, &model, &predicted, self.params.refine_distance),
                 None => self.measure(edges, &predicted, &predicted, distance),
             }
         } else {
-            self.failed_pass(
-                &predicted,
-                "the prediction is not in front of the camera".into(),
-            )
+            self.failed_pass(&predicted, "the prediction is not in front of the camera".into())
         };
         // Re-association (step 7) after any pass with an estimate, also one
         // that failed the consistency check (the wide strips' clutter is
@@ -839,12 +734,7 @@ impl BlueTracker {
             if !pass.estimated {
                 break;
             }
-            let refined = self.measure(
-                edges,
-                &pass.location,
-                &predicted,
-                self.params.refine_distance,
-            );
+            let refined = self.measure(edges, &pass.location, &predicted, self.params.refine_distance);
             if !refined.estimated {
                 break;
             }
@@ -865,10 +755,7 @@ impl BlueTracker {
             self.phase = Phase::Tracking;
             self.last_tracked = pass.location;
             self.lost_run = 0;
-            (
-                pass.location,
-                c.iter().flatten().copied().collect::<Vec<f64>>(),
-            )
+            (pass.location, c.iter().flatten().copied().collect::<Vec<f64>>())
         } else {
             for filter in &mut self.filters {
                 filter.advance_to(time);
@@ -877,38 +764,19 @@ impl BlueTracker {
             self.lost_run += 1;
             if self.lost_run >= self.params.coast_frames {
                 // Stop extrapolating: search where the target was last seen.
-                if let Ok(filters) =
-                    start_filters(&self.params, &self.last_tracked, time, self.range_px_per_m)
-                {
+                if let Ok(filters) = start_filters(&self.params, &self.last_tracked, time, self.range_px_per_m) {
                     self.filters = filters;
                 }
             }
-            let var: [f64; 3] = std::array::from_fn(|k| {
-                self.filters[k]
-                    .prediction_variance(0.0)
-                    .unwrap_or(f64::INFINITY)
-            });
+            let var: [f64; 3] =
+                std::array::from_fn(|k| self.filters[k].prediction_variance(0.0).unwrap_or(f64::INFINITY));
             let rho = predicted.inverse_range();
-            let cov = vec![
-                var[0],
-                0.0,
-                0.0,
-                0.0,
-                var[1],
-                0.0,
-                0.0,
-                0.0,
-                var[2] * rho.powi(4),
-            ];
+            let cov = vec![var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2] * rho.powi(4)];
             (predicted, cov)
         };
         FrameOutcome {
             frame,
-            status: if tracked {
-                Status::Tracking
-            } else {
-                Status::Lost
-            },
+            status: if tracked { Status::Tracking } else { Status::Lost },
             phase: self.phase,
             corners: self.vertices_at(&location),
             pose: Some(self.pose_at(&location)),
@@ -950,13 +818,7 @@ impl BlueTracker {
         self.edges
             .iter()
             .zip(&visible)
-            .map(|(&[i, j], &v)| {
-                if v {
-                    PredictedLine::between(vertices[i], vertices[j])
-                } else {
-                    None
-                }
-            })
+            .map(|(&[i, j], &v)| if v { PredictedLine::between(vertices[i], vertices[j]) } else { None })
             .collect()
     }
 
@@ -982,8 +844,7 @@ impl BlueTracker {
                 continue;
             }
             let point = [f64::from(feature.x), f64::from(feature.y)];
-            let orientation =
-                wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2);
+            let orientation = wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2);
             for line in &lines {
                 if orientation_difference(orientation, line.orientation) >= p.angle_tolerance {
                     continue;
@@ -1040,21 +901,13 @@ impl BlueTracker {
 
     /// Steps 2–6 with the model at `model` and association distance
     /// `distance`; `predicted` is only used for the corner deviation.
-    fn measure(
-        &self,
-        edges: &[Feature],
-        model: &TargetLocation,
-        predicted: &TargetLocation,
-        distance: f64,
-    ) -> Pass {
+    fn measure(&self, edges: &[Feature], model: &TargetLocation, predicted: &TargetLocation, distance: f64) -> Pass {
         let p = &self.params;
         let vertices = self.vertices_at(model);
         let lines = self.predicted_lines(model);
         // Step 2: data association (§2.4).
-        let mut sums: Vec<LineSums> = lines
-            .iter()
-            .map(|l| l.map_or_else(LineSums::new, |l| LineSums::with_origin(l.start)))
-            .collect();
+        let mut sums: Vec<LineSums> =
+            lines.iter().map(|l| l.map_or_else(LineSums::new, |l| LineSums::with_origin(l.start))).collect();
         let mut labelled = vec![Vec::new(); lines.len()];
         let mut unexplained = 0;
         for feature in edges {
@@ -1063,8 +916,7 @@ impl BlueTracker {
             }
             let point = [f64::from(feature.x), f64::from(feature.y)];
             // The edge runs perpendicular to the gradient.
-            let orientation =
-                wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2);
+            let orientation = wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2);
             let mut best: Option<(usize, f64)> = None;
             let mut compatible = false;
             for (k, line) in lines.iter().enumerate() {
@@ -1102,14 +954,8 @@ impl BlueTracker {
                 if s.count() < p.min_points_per_line {
                     return None;
                 }
-                let fit = if line.horizontal {
-                    fit_y_on_x(s)
-                } else {
-                    fit_x_on_y(s)
-                }?;
-                if orientation_difference(fit.line.orientation(), line.orientation)
-                    >= p.angle_tolerance
-                {
+                let fit = if line.horizontal { fit_y_on_x(s) } else { fit_x_on_y(s) }?;
+                if orientation_difference(fit.line.orientation(), line.orientation) >= p.angle_tolerance {
                     return None;
                 }
                 LineLocation::new(s, fit, min_var)
@@ -1128,8 +974,7 @@ impl BlueTracker {
                     let (Some(l1), Some(l2)) = (&fitted[k1], &fitted[k2]) else {
                         continue;
                     };
-                    let sine =
-                        (l1.fit.line.a * l2.fit.line.b - l1.fit.line.b * l2.fit.line.a).abs();
+                    let sine = (l1.fit.line.a * l2.fit.line.b - l1.fit.line.b * l2.fit.line.a).abs();
                     if sine >= min_sine && best.is_none_or(|(bs, _, _)| sine > bs) {
                         best = Some((sine, k1, k2));
                     }
@@ -1143,10 +988,7 @@ impl BlueTracker {
                 continue;
             };
             let gate = distance / sine + CORNER_GATE_SLACK_PX;
-            let (dx, dy) = (
-                corner.position[0] - vertices[v][0],
-                corner.position[1] - vertices[v][1],
-            );
+            let (dx, dy) = (corner.position[0] - vertices[v][0], corner.position[1] - vertices[v][1]);
             if !(dx.hypot(dy) <= gate) {
                 continue;
             }
@@ -1170,11 +1012,8 @@ impl BlueTracker {
             failure: None,
         };
         if corners.len() < p.min_corners {
-            pass.failure = Some(format!(
-                "{} corners measured, fewer than min_corners = {}",
-                corners.len(),
-                p.min_corners
-            ));
+            pass.failure =
+                Some(format!("{} corners measured, fewer than min_corners = {}", corners.len(), p.min_corners));
             return pass;
         }
         // Steps 5–6: BLUE (eq. 7–9) and its confidence (eq. 10–12), then
@@ -1232,18 +1071,9 @@ impl BlueTracker {
     ) -> std::result::Result<(TargetLocation, crate::estimate::BlueSolution<3>), String> {
         let p = &self.params;
         let [px, py] = self.eq7_scales();
-        let (fx, fy, u0, v0) = (
-            self.camera.fx,
-            self.camera.fy,
-            self.camera.cx,
-            self.camera.cy,
-        );
+        let (fx, fy, u0, v0) = (self.camera.fx, self.camera.fy, self.camera.cx, self.camera.cy);
         let z0 = self.nominal_range;
-        let iterations = if p.perspective_correction {
-            1 + p.perspective_iterations
-        } else {
-            1
-        };
+        let iterations = if p.perspective_correction { 1 + p.perspective_iterations } else { 1 };
         let mut estimate = *start;
         let mut solution = None;
         for _ in 0..iterations {
@@ -1253,40 +1083,22 @@ impl BlueTracker {
                 let q = self.offsets[*v];
                 let (ux, uy) = if p.perspective_correction {
                     let u = projected[*v];
-                    (
-                        (q[0] - q[2] * (u[0] - u0) / fx) / z0,
-                        (q[1] - q[2] * (u[1] - v0) / fy) / z0,
-                    )
+                    ((q[0] - q[2] * (u[0] - u0) / fx) / z0, (q[1] - q[2] * (u[1] - v0) / fy) / z0)
                 } else {
                     (q[0] / z0, q[1] / z0)
                 };
                 // Eq. 8: rows [1, 0, p_x·u_x], [0, 1, p_y·u_y] for x_f = (c_x, c_y, 1/c_z).
-                problem.add(
-                    [[1.0, 0.0, px * ux], [0.0, 1.0, py * uy]],
-                    corner.position,
-                    corner.covariance,
-                );
+                problem.add([[1.0, 0.0, px * ux], [0.0, 1.0, py * uy]], corner.position, corner.covariance);
             }
             let floor = p.min_feature_std * p.min_feature_std;
-            let s = problem
-                .solve(floor)
-                .ok_or_else(|| "eq. 9 is singular for the measured corners".to_string())?;
-            estimate = TargetLocation {
-                cx: s.estimate[0],
-                cy: s.estimate[1],
-                cz: 1.0 / s.estimate[2],
-            };
+            let s = problem.solve(floor).ok_or_else(|| "eq. 9 is singular for the measured corners".to_string())?;
+            estimate = TargetLocation { cx: s.estimate[0], cy: s.estimate[1], cz: 1.0 / s.estimate[2] };
             if !estimate.is_valid() {
-                return Err(format!(
-                    "the estimate puts the target behind the camera (1/c_z = {})",
-                    s.estimate[2]
-                ));
+                return Err(format!("the estimate puts the target behind the camera (1/c_z = {})", s.estimate[2]));
             }
             solution = Some(s);
         }
-        solution
-            .map(|s| (estimate, s))
-            .ok_or_else(|| "no estimate".to_string())
+        solution.map(|s| (estimate, s)).ok_or_else(|| "no estimate".to_string())
     }
 }
 
@@ -1303,11 +1115,7 @@ fn start_filters(
     let values = [location.cx, location.cy, location.cz];
     let px_to_unit = [1.0, 1.0, 1.0 / range_px_per_m];
     for ((filter, &value), &scale) in filters.iter_mut().zip(&values).zip(&px_to_unit) {
-        let (p, v, a) = (
-            INIT_PRIOR_PX * scale,
-            params.prior_speed * scale,
-            params.prior_acceleration * scale,
-        );
+        let (p, v, a) = (INIT_PRIOR_PX * scale, params.prior_speed * scale, params.prior_acceleration * scale);
         filter.add_prior(0, value, p * p);
         filter.add_prior(1, 0.0, v * v);
         filter.add_prior(2, 0.0, a * a);
@@ -1361,31 +1169,19 @@ mod tests {
     fn rodrigues_quarter_turn_about_z() {
         let r = rotation_from_axis_angle([0.0, 0.0, std::f64::consts::FRAC_PI_2]);
         let x = mat_vec(&r, [1.0, 0.0, 0.0]);
-        assert!(
-            x[0].abs() < 1e-12 && (x[1] - 1.0).abs() < 1e-12 && x[2].abs() < 1e-12,
-            "{x:?}"
-        );
+        assert!(x[0].abs() < 1e-12 && (x[1] - 1.0).abs() < 1e-12 && x[2].abs() < 1e-12, "{x:?}");
     }
 
     #[test]
     fn params_validate() {
         assert!(BlueParams::default().validate().is_ok());
-        let bad = BlueParams {
-            lambda: 1.0,
-            ..BlueParams::default()
-        };
+        let bad = BlueParams { lambda: 1.0, ..BlueParams::default() };
         assert!(bad.validate().is_err());
-        let bad = BlueParams {
-            min_corners: 1,
-            ..BlueParams::default()
-        };
+        let bad = BlueParams { min_corners: 1, ..BlueParams::default() };
         assert!(bad.validate().is_err());
         let parsed: BlueParams = toml::from_str("lambda = 0.7\nrefine_passes = 0").expect("toml");
         assert_eq!(parsed.lambda, 0.7);
         assert_eq!(parsed.max_edge_points, 1500);
-        assert!(
-            toml::from_str::<BlueParams>("lamda = 0.7").is_err(),
-            "unknown keys refused"
-        );
+        assert!(toml::from_str::<BlueParams>("lamda = 0.7").is_err(), "unknown keys refused");
     }
 }

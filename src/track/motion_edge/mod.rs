@@ -195,8 +195,8 @@ use crate::early::{Feature, Window};
 use crate::estimate::line_fit::{
     Line, LineFit, LineSums, fit_band_across, fit_line, fit_line_orthogonal, orientation_difference,
 };
-use crate::io::formats::Status;
 use crate::estimate::smoothing::DoubleExponentialSmoother;
+use crate::io::formats::Status;
 use crate::{Error, Result};
 
 /// What a corner without a measurement feeds its smoother.
@@ -341,18 +341,14 @@ impl MotionEdgeParams {
             if v > 0.0 && v.is_finite() {
                 Ok(())
             } else {
-                Err(Error::Parameter(format!(
-                    "motion-edge: {name} must be positive and finite, got {v}"
-                )))
+                Err(Error::Parameter(format!("motion-edge: {name} must be positive and finite, got {v}")))
             }
         };
         let non_negative = |name: &str, v: f64| {
             if v >= 0.0 && v.is_finite() {
                 Ok(())
             } else {
-                Err(Error::Parameter(format!(
-                    "motion-edge: {name} must be ≥ 0 and finite, got {v}"
-                )))
+                Err(Error::Parameter(format!("motion-edge: {name} must be ≥ 0 and finite, got {v}")))
             }
         };
         positive("delta", self.delta)?;
@@ -365,10 +361,7 @@ impl MotionEdgeParams {
         positive("zeta", self.zeta)?;
         positive("epsilon", self.epsilon)?;
         if !(self.alpha > 0.0 && self.alpha < 1.0) {
-            return Err(Error::Parameter(format!(
-                "motion-edge: alpha must be in (0, 1), got {}",
-                self.alpha
-            )));
+            return Err(Error::Parameter(format!("motion-edge: alpha must be in (0, 1), got {}", self.alpha)));
         }
         positive("sigma", f64::from(self.sigma))?;
         non_negative("motion_threshold", f64::from(self.motion_threshold))?;
@@ -388,9 +381,7 @@ impl MotionEdgeParams {
             )));
         }
         if self.lost_evidence == 0 {
-            return Err(Error::Parameter(
-                "motion-edge: lost_evidence must be at least 1".into(),
-            ));
+            return Err(Error::Parameter("motion-edge: lost_evidence must be at least 1".into()));
         }
         Ok(())
     }
@@ -419,13 +410,7 @@ impl ModelLine {
         let line = Line::through(p, q)?;
         let length = (q[0] - p[0]).hypot(q[1] - p[1]);
         let direction = [(q[0] - p[0]) / length, (q[1] - p[1]) / length];
-        Some(Self {
-            line,
-            start: p,
-            direction,
-            length,
-            orientation: line.orientation(),
-        })
+        Some(Self { line, start: p, direction, length, orientation: line.orientation() })
     }
 
     /// Position of the foot of `p` along the segment (0 at `start`, `length` at the end).
@@ -452,11 +437,7 @@ impl LineTolerance {
     /// Distance and extent `d`, every labelled pixel fitted.
     #[must_use]
     pub fn uniform(d: f64) -> Self {
-        Self {
-            distance: d,
-            extent: d,
-            trim: -d,
-        }
+        Self { distance: d, extent: d, trim: -d }
     }
 }
 
@@ -477,10 +458,7 @@ pub struct Labelling {
 /// order; `None` for a line whose corners coincide.
 #[must_use]
 pub fn model_lines(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> Vec<Option<ModelLine>> {
-    edges
-        .iter()
-        .map(|&[i, j]| ModelLine::between(corners[i], corners[j]))
-        .collect()
+    edges.iter().map(|&[i, j]| ModelLine::between(corners[i], corners[j])).collect()
 }
 
 /// Step 2 (eq. 3–4): label each motion pixel to the model line it best
@@ -498,10 +476,7 @@ pub fn label_motion_pixels(
     min_magnitude: f32,
 ) -> Labelling {
     let mut labelling = Labelling {
-        sums: lines
-            .iter()
-            .map(|l| l.map_or_else(LineSums::new, |l| LineSums::with_origin(l.start)))
-            .collect(),
+        sums: lines.iter().map(|l| l.map_or_else(LineSums::new, |l| LineSums::with_origin(l.start))).collect(),
         pixels: vec![Vec::new(); lines.len()],
         unexplained: vec![0; lines.len()],
         unexplained_total: 0,
@@ -582,8 +557,7 @@ pub fn fit_model_lines(
                 LineFitMethod::Regression => fit_line(sums),
                 LineFitMethod::Orthogonal => fit_line_orthogonal(sums),
                 LineFitMethod::Across => {
-                    let points: Vec<[f64; 2]> =
-                        pixels.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]).collect();
+                    let points: Vec<[f64; 2]> = pixels.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]).collect();
                     fit_band_across(&points, model.direction, BAND_SPLIT_STD_PX)
                 }
             };
@@ -613,9 +587,7 @@ pub fn intersect_corners(
                 return (prediction, false);
             }
             match (current(k1), current(k2)) {
-                (Some(l1), Some(l2)) => l1
-                    .intersection(&l2)
-                    .map_or((prediction, false), |c| (c, true)),
+                (Some(l1), Some(l2)) => l1.intersection(&l2).map_or((prediction, false), |c| (c, true)),
                 _ => (prediction, false),
             }
         })
@@ -625,20 +597,14 @@ pub fn intersect_corners(
 /// Step 5 (eq. 9): the largest distance of a measured corner from its
 /// prediction; `None` when no corner was measured.
 #[must_use]
-pub fn corner_deviation(
-    corners: &[[f64; 2]],
-    measured: &[bool],
-    predicted: &[[f64; 2]],
-) -> Option<f64> {
+pub fn corner_deviation(corners: &[[f64; 2]], measured: &[bool], predicted: &[[f64; 2]]) -> Option<f64> {
     corners
         .iter()
         .zip(measured)
         .zip(predicted)
         .filter(|((_, m), _)| **m)
         .map(|((c, _), p)| (c[0] - p[0]).hypot(c[1] - p[1]))
-        .fold(None, |acc: Option<f64>, d| {
-            Some(acc.map_or(d, |a| a.max(d)))
-        })
+        .fold(None, |acc: Option<f64>, d| Some(acc.map_or(d, |a| a.max(d))))
 }
 
 /// A band of labelled pixels whose perpendicular standard deviation about
@@ -701,22 +667,13 @@ impl MotionEdgeTracker {
     /// (model-vertex order) and `edges` (pairs of corner indices, model.json
     /// order). Every corner must be on exactly two edges whose lines are not
     /// parallel.
-    pub fn new(
-        corners: Vec<[f64; 2]>,
-        edges: Vec<[usize; 2]>,
-        params: MotionEdgeParams,
-    ) -> Result<Self> {
+    pub fn new(corners: Vec<[f64; 2]>, edges: Vec<[usize; 2]>, params: MotionEdgeParams) -> Result<Self> {
         params.validate()?;
         let corner_lines = corner_lines_of(&corners, &edges)?;
-        let smoothers = corners
-            .iter()
-            .map(|&c| DoubleExponentialSmoother::new(params.alpha, c))
-            .collect::<Result<Vec<_>>>()?;
+        let smoothers =
+            corners.iter().map(|&c| DoubleExponentialSmoother::new(params.alpha, c)).collect::<Result<Vec<_>>>()?;
         let n = corners.len();
-        let held_lines = model_lines(&corners, &edges)
-            .iter()
-            .map(|l| l.map(|l| l.line))
-            .collect();
+        let held_lines = model_lines(&corners, &edges).iter().map(|l| l.map(|l| l.line)).collect();
         Ok(Self {
             params,
             edges,
@@ -757,11 +714,7 @@ impl MotionEdgeTracker {
     /// the corners at rest.
     #[must_use]
     pub fn predicted_corners(&self) -> &[[f64; 2]] {
-        if self.phase == Phase::Acquiring {
-            &self.anchor
-        } else {
-            &self.predicted
-        }
+        if self.phase == Phase::Acquiring { &self.anchor } else { &self.predicted }
     }
 
     /// Predicted motion per corner, px per frame.
@@ -778,11 +731,7 @@ impl MotionEdgeTracker {
     /// clipped to the image.
     #[must_use]
     pub fn window_of_interest(&self, width: usize, height: usize) -> Window {
-        let max_motion = self
-            .trend
-            .iter()
-            .map(|b| b[0].hypot(b[1]))
-            .fold(0.0, f64::max);
+        let max_motion = self.trend.iter().map(|b| b[0].hypot(b[1])).fold(0.0, f64::max);
         let margin = self.params.window_margin
             + match self.phase {
                 Phase::Tracking => self.params.zeta + max_motion,
@@ -819,13 +768,7 @@ impl MotionEdgeTracker {
         max_spread: Option<f64>,
     ) -> Measurement {
         let lines = model_lines(model, &self.edges);
-        let labelling = label_motion_pixels(
-            motion,
-            &lines,
-            tolerances,
-            self.params.delta,
-            self.params.min_magnitude,
-        );
+        let labelling = label_motion_pixels(motion, &lines, tolerances, self.params.delta, self.params.min_magnitude);
         let mut fitted = fit_model_lines(
             &labelling,
             &lines,
@@ -840,13 +783,11 @@ impl MotionEdgeTracker {
         }
         let (corners, measured, fallback_lines) = if self.holds_lines() {
             let held = self.turned_held_lines(&fitted);
-            let (corners, measured) =
-                intersect_corners(&fitted, &held, &self.last_measured, &self.corner_lines);
+            let (corners, measured) = intersect_corners(&fitted, &held, &self.last_measured, &self.corner_lines);
             (corners, measured, held)
         } else {
             let model_lines: Vec<Option<Line>> = lines.iter().map(|l| l.map(|l| l.line)).collect();
-            let (corners, measured) =
-                intersect_corners(&fitted, &model_lines, model, &self.corner_lines);
+            let (corners, measured) = intersect_corners(&fitted, &model_lines, model, &self.corner_lines);
             (corners, measured, model_lines)
         };
         let deviation = corner_deviation(&corners, &measured, model);
@@ -854,15 +795,7 @@ impl MotionEdgeTracker {
             labelling.sums[k].count() < self.params.min_points_per_line
                 && labelling.unexplained[k] >= self.params.lost_evidence
         });
-        Measurement {
-            labelling,
-            fitted,
-            fallback_lines,
-            corners,
-            measured,
-            deviation,
-            contradicted,
-        }
+        Measurement { labelling, fitted, fallback_lines, corners, measured, deviation, contradicted }
     }
 
     /// The held lines of the lines not fitted this frame, turned with the
@@ -954,19 +887,11 @@ impl MotionEdgeTracker {
                 let (bi, bj) = (trend[i], trend[j]);
                 let across = |b: [f64; 2]| (b[0] * normal[0] + b[1] * normal[1]).abs();
                 let along = |b: [f64; 2]| (b[0] * normal[1] - b[1] * normal[0]).abs();
-                let half_band = if self.params.band_tolerance {
-                    0.5 * across(bi).max(across(bj))
-                } else {
-                    0.0
-                };
+                let half_band = if self.params.band_tolerance { 0.5 * across(bi).max(across(bj)) } else { 0.0 };
                 let distance = self.params.zeta + half_band;
                 let motion = bi[0].hypot(bi[1]).max(bj[0].hypot(bj[1]));
                 let trim = (motion + TRIM_BLUR_PX).min(length * MAX_TRIM_FRACTION);
-                LineTolerance {
-                    distance,
-                    extent: distance + 0.5 * along(bi).max(along(bj)),
-                    trim,
-                }
+                LineTolerance { distance, extent: distance + 0.5 * along(bi).max(along(bj)), trim }
             })
             .collect()
     }
@@ -977,22 +902,13 @@ impl MotionEdgeTracker {
         let tolerance = self.params.init_tolerance;
         let tolerances = vec![LineTolerance::uniform(tolerance); self.edges.len()];
         let anchor = self.anchor.clone();
-        let m = self.measure(
-            motion,
-            &anchor,
-            &tolerances,
-            Some(tolerance * ACQUISITION_SPREAD_FRACTION),
-        );
+        let m = self.measure(motion, &anchor, &tolerances, Some(tolerance * ACQUISITION_SPREAD_FRACTION));
         let any_fitted = m.fitted.iter().any(Option::is_some);
         let lost_reason = self.acquisition_failure(&m, tolerance);
         if any_fitted && lost_reason.is_none() {
             // The band centre lies half a frame after the position at rest.
             let trend_from = |m: &Measurement| -> Vec<[f64; 2]> {
-                m.corners
-                    .iter()
-                    .zip(&anchor)
-                    .map(|(c, a)| [2.0 * (c[0] - a[0]), 2.0 * (c[1] - a[1])])
-                    .collect()
+                m.corners.iter().zip(&anchor).map(|(c, a)| [2.0 * (c[0] - a[0]), 2.0 * (c[1] - a[1])]).collect()
             };
             // Refine with the tracking strips and trimmed ends that this first
             // motion implies (the wide, untrimmed fit is biased by the band's
@@ -1009,11 +925,7 @@ impl MotionEdgeTracker {
         }
         // No usable measurement: the object is where the operator put it
         // (status tracking), unless the motion contradicts that (lost).
-        let status = if lost_reason.is_some() {
-            Status::Lost
-        } else {
-            Status::Tracking
-        };
+        let status = if lost_reason.is_some() { Status::Lost } else { Status::Tracking };
         let corners = self.anchor.clone();
         self.outcome(frame, status, corners, m, lost_reason)
     }
@@ -1024,20 +936,14 @@ impl MotionEdgeTracker {
         let tolerance = self.params.init_tolerance;
         let tolerances = vec![LineTolerance::uniform(tolerance); self.edges.len()];
         let model = self.predicted.clone();
-        let m = self.measure(
-            motion,
-            &model,
-            &tolerances,
-            Some(tolerance * ACQUISITION_SPREAD_FRACTION),
-        );
+        let m = self.measure(motion, &model, &tolerances, Some(tolerance * ACQUISITION_SPREAD_FRACTION));
         let any_fitted = m.fitted.iter().any(Option::is_some);
         let failure = self.acquisition_failure(&m, tolerance);
         if any_fitted && failure.is_none() {
             let trend = self.trend.clone();
             return self.start_tracking(frame, m, &trend);
         }
-        let reason =
-            failure.unwrap_or_else(|| "lost: no motion matches the predicted model".into());
+        let reason = failure.unwrap_or_else(|| "lost: no motion matches the predicted model".into());
         self.coast(frame, m, reason)
     }
 
@@ -1050,9 +956,9 @@ impl MotionEdgeTracker {
             ));
         }
         match m.deviation {
-            Some(d) if d >= tolerance => Some(format!(
-                "a measured corner is {d:.1} px from the model (acceptance {tolerance} px)"
-            )),
+            Some(d) if d >= tolerance => {
+                Some(format!("a measured corner is {d:.1} px from the model (acceptance {tolerance} px)"))
+            }
             _ => None,
         }
     }
@@ -1062,8 +968,8 @@ impl MotionEdgeTracker {
         let alpha = self.params.alpha;
         for (i, (&c, &b)) in m.corners.iter().zip(trend).enumerate() {
             // Alpha was validated in `new`; the fallback cannot be taken.
-            self.smoothers[i] = DoubleExponentialSmoother::with_level_and_trend(alpha, c, b)
-                .unwrap_or(self.smoothers[i]);
+            self.smoothers[i] =
+                DoubleExponentialSmoother::with_level_and_trend(alpha, c, b).unwrap_or(self.smoothers[i]);
         }
         self.phase = Phase::Tracking;
         self.hold_fitted_lines(&m);
@@ -1274,7 +1180,11 @@ impl Tracker for MotionEdgeTracker {
             smoothing: GaussianParams { sigma: self.params.sigma },
             motion: Some(MotionRequest {
                 diff: TemporalDiffParams { threshold: self.params.motion_threshold },
-                list: ListSpec { window: MotionEdgeTracker::window_of_interest(self, width, height), cap: None, seed: 0 },
+                list: ListSpec {
+                    window: MotionEdgeTracker::window_of_interest(self, width, height),
+                    cap: None,
+                    seed: 0,
+                },
             }),
             ..FrameRequest::default()
         }
@@ -1292,32 +1202,20 @@ fn corner_lines_of(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> Result<Vec<[us
         Err(Error::Parameter(format!("motion-edge model: {msg}")))
     }
     if corners.len() < 3 {
-        return bad(format!(
-            "a planar polygon needs at least 3 corners, got {}",
-            corners.len()
-        ));
+        return bad(format!("a planar polygon needs at least 3 corners, got {}", corners.len()));
     }
-    if let Some(i) = corners
-        .iter()
-        .position(|c| !(c[0].is_finite() && c[1].is_finite()))
-    {
+    if let Some(i) = corners.iter().position(|c| !(c[0].is_finite() && c[1].is_finite())) {
         return bad(format!("corner {i} is not finite"));
     }
     let mut incident: Vec<Vec<usize>> = vec![Vec::new(); corners.len()];
     for (k, &[i, j]) in edges.iter().enumerate() {
         if i >= corners.len() || j >= corners.len() {
-            return bad(format!(
-                "edge {k} [{i}, {j}] names a corner beyond the {} given",
-                corners.len()
-            ));
+            return bad(format!("edge {k} [{i}, {j}] names a corner beyond the {} given", corners.len()));
         }
         if i == j {
             return bad(format!("edge {k} joins corner {i} to itself"));
         }
-        if edges[..k]
-            .iter()
-            .any(|&[a, b]| (a, b) == (i, j) || (a, b) == (j, i))
-        {
+        if edges[..k].iter().any(|&[a, b]| (a, b) == (i, j) || (a, b) == (j, i)) {
             return bad(format!("edge {k} [{i}, {j}] is listed twice"));
         }
         incident[i].push(k);
@@ -1329,16 +1227,11 @@ fn corner_lines_of(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> Result<Vec<[us
         .enumerate()
         .map(|(c, ks)| {
             let &[k1, k2] = ks.as_slice() else {
-                return bad(format!(
-                    "corner {c} is on {} edges; a planar polygon has exactly 2 per corner",
-                    ks.len()
-                ));
+                return bad(format!("corner {c} is on {} edges; a planar polygon has exactly 2 per corner", ks.len()));
             };
             match (lines[k1], lines[k2]) {
                 (Some(l1), Some(l2)) if l1.line.intersection(&l2.line).is_some() => Ok([k1, k2]),
-                _ => bad(format!(
-                    "the edges at corner {c} are degenerate or parallel"
-                )),
+                _ => bad(format!("the edges at corner {c} are degenerate or parallel")),
             }
         })
         .collect()
@@ -1354,32 +1247,20 @@ fn signed_turn(from: f64, to: f64) -> f64 {
 /// Bounding box of `points` grown by `margin`, as a window clipped to the
 /// image; the whole image if a point is not finite.
 fn bounding_window(points: &[[f64; 2]], margin: f64, width: usize, height: usize) -> Window {
-    let (mut x0, mut y0, mut x1, mut y1) = (
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    );
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
     for p in points {
         x0 = x0.min(p[0]);
         y0 = y0.min(p[1]);
         x1 = x1.max(p[0]);
         y1 = y1.max(p[1]);
     }
-    if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite() && margin.is_finite())
-    {
+    if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite() && margin.is_finite()) {
         return Window::full(width, height);
     }
     // Pixel centres are integers; `as u32` saturates negatives to 0.
     let lo = |v: f64| (v - margin).floor().max(0.0) as u32;
     let hi = |v: f64| ((v + margin).ceil() + 1.0).max(0.0).min(u32::MAX as f64) as u32;
-    Window {
-        x0: lo(x0),
-        y0: lo(y0),
-        x1: hi(x1),
-        y1: hi(y1),
-    }
-    .clipped(width, height)
+    Window { x0: lo(x0), y0: lo(y0), x1: hi(x1), y1: hi(y1) }.clipped(width, height)
 }
 
 #[cfg(test)]
@@ -1388,12 +1269,7 @@ mod tests {
     use std::f64::consts::FRAC_PI_2;
 
     fn feature(x: u32, y: u32, theta: f64) -> Feature {
-        Feature {
-            x,
-            y,
-            theta: theta as f32,
-            magnitude: 100.0,
-        }
+        Feature { x, y, theta: theta as f32, magnitude: 100.0 }
     }
 
     fn square_lines() -> Vec<Option<ModelLine>> {
@@ -1405,22 +1281,15 @@ mod tests {
     #[test]
     fn labelling_applies_eq_3_and_eq_4() {
         let lines = square_lines();
-        let tol = vec![
-            LineTolerance {
-                distance: 3.0,
-                extent: 3.0,
-                trim: -3.0
-            };
-            4
-        ];
+        let tol = vec![LineTolerance { distance: 3.0, extent: 3.0, trim: -3.0 }; 4];
         let delta = 15f64.to_radians();
         let motion = [
-            feature(30, 11, 0.0), // top line, right angle: labelled to 0
+            feature(30, 11, 0.0),                        // top line, right angle: labelled to 0
             feature(30, 12, std::f64::consts::PI - 0.1), // θ ≈ π is the same line as 0: labelled to 0
             feature(30, 11, FRAC_PI_2),                  // wrong angle: discarded
             feature(30, 16, 0.0),                        // right angle, 6 px away: discarded
             feature(49, 30, FRAC_PI_2),                  // right line: labelled to 1
-            feature(90, 10, 0.0), // on the top line's extension, beyond its extent
+            feature(90, 10, 0.0),                        // on the top line's extension, beyond its extent
         ];
         let mut weak = feature(30, 10, 0.0);
         weak.magnitude = 0.0;
@@ -1441,18 +1310,8 @@ mod tests {
     fn labelling_picks_the_nearest_matching_line() {
         // Two parallel horizontal lines 4 px apart, tolerance 3: a pixel 1 px
         // from the second goes to the second.
-        let lines = vec![
-            ModelLine::between([0.0, 10.0], [40.0, 10.0]),
-            ModelLine::between([0.0, 14.0], [40.0, 14.0]),
-        ];
-        let tol = vec![
-            LineTolerance {
-                distance: 3.0,
-                extent: 0.0,
-                trim: 0.0
-            };
-            2
-        ];
+        let lines = vec![ModelLine::between([0.0, 10.0], [40.0, 10.0]), ModelLine::between([0.0, 14.0], [40.0, 14.0])];
+        let tol = vec![LineTolerance { distance: 3.0, extent: 0.0, trim: 0.0 }; 2];
         let l = label_motion_pixels(&[feature(20, 13, 0.0)], &lines, &tol, 0.2, 0.0);
         assert!(l.pixels[0].is_empty());
         assert_eq!(l.pixels[1], vec![(20, 13)]);
@@ -1483,70 +1342,32 @@ mod tests {
     fn params_are_validated_and_read_from_toml() {
         assert!(MotionEdgeParams::default().validate().is_ok());
         for bad in [
-            MotionEdgeParams {
-                zeta: 0.0,
-                ..Default::default()
-            },
-            MotionEdgeParams {
-                alpha: 1.0,
-                ..Default::default()
-            },
-            MotionEdgeParams {
-                delta: 2.0,
-                ..Default::default()
-            },
-            MotionEdgeParams {
-                epsilon: f64::NAN,
-                ..Default::default()
-            },
-            MotionEdgeParams {
-                min_points_per_line: 1,
-                ..Default::default()
-            },
-            MotionEdgeParams {
-                vanished_motion: f64::NAN,
-                ..Default::default()
-            },
+            MotionEdgeParams { zeta: 0.0, ..Default::default() },
+            MotionEdgeParams { alpha: 1.0, ..Default::default() },
+            MotionEdgeParams { delta: 2.0, ..Default::default() },
+            MotionEdgeParams { epsilon: f64::NAN, ..Default::default() },
+            MotionEdgeParams { min_points_per_line: 1, ..Default::default() },
+            MotionEdgeParams { vanished_motion: f64::NAN, ..Default::default() },
         ] {
-            assert!(
-                matches!(bad.validate(), Err(Error::Parameter(_))),
-                "{bad:?}"
-            );
+            assert!(matches!(bad.validate(), Err(Error::Parameter(_))), "{bad:?}");
         }
         let p: MotionEdgeParams =
-            toml::from_str("zeta = 3.0\nlag_correction = false\nmissing = \"last-measurement\"")
-                .expect("toml");
+            toml::from_str("zeta = 3.0\nlag_correction = false\nmissing = \"last-measurement\"").expect("toml");
         assert_eq!(p.zeta, 3.0);
         assert!(!p.lag_correction);
         assert_eq!(p.missing, MissingMeasurement::LastMeasurement);
         assert_eq!(p.epsilon, 20.0);
-        assert!(
-            toml::from_str::<MotionEdgeParams>("zetta = 3.0").is_err(),
-            "typos are refused"
-        );
+        assert!(toml::from_str::<MotionEdgeParams>("zetta = 3.0").is_err(), "typos are refused");
     }
 
     #[test]
     fn bad_models_are_refused() {
         let square = vec![[10.0, 10.0], [50.0, 10.0], [50.0, 50.0], [10.0, 50.0]];
         let p = MotionEdgeParams::default;
-        assert!(
-            MotionEdgeTracker::new(square.clone(), vec![[0, 1], [1, 2], [2, 3], [3, 0]], p())
-                .is_ok()
-        );
+        assert!(MotionEdgeTracker::new(square.clone(), vec![[0, 1], [1, 2], [2, 3], [3, 0]], p()).is_ok());
         assert!(MotionEdgeTracker::new(square.clone(), vec![[0, 1], [1, 2], [2, 3]], p()).is_err());
-        assert!(
-            MotionEdgeTracker::new(square.clone(), vec![[0, 1], [1, 2], [2, 3], [3, 9]], p())
-                .is_err()
-        );
-        assert!(
-            MotionEdgeTracker::new(
-                square.clone(),
-                vec![[0, 1], [1, 2], [2, 3], [3, 0], [0, 2]],
-                p()
-            )
-            .is_err()
-        );
+        assert!(MotionEdgeTracker::new(square.clone(), vec![[0, 1], [1, 2], [2, 3], [3, 9]], p()).is_err());
+        assert!(MotionEdgeTracker::new(square.clone(), vec![[0, 1], [1, 2], [2, 3], [3, 0], [0, 2]], p()).is_err());
         let collinear = vec![[0.0, 0.0], [10.0, 0.0], [20.0, 0.0]];
         assert!(MotionEdgeTracker::new(collinear, vec![[0, 1], [1, 2], [2, 0]], p()).is_err());
     }
@@ -1554,43 +1375,18 @@ mod tests {
     #[test]
     fn window_is_the_clipped_bounding_box_plus_margin() {
         let square = vec![[10.0, 10.0], [50.0, 10.0], [50.0, 50.0], [10.0, 50.0]];
-        let params = MotionEdgeParams {
-            window_margin: 2.0,
-            init_tolerance: 4.0,
-            ..Default::default()
-        };
-        let t = MotionEdgeTracker::new(square, vec![[0, 1], [1, 2], [2, 3], [3, 0]], params)
-            .expect("tracker");
+        let params = MotionEdgeParams { window_margin: 2.0, init_tolerance: 4.0, ..Default::default() };
+        let t = MotionEdgeTracker::new(square, vec![[0, 1], [1, 2], [2, 3], [3, 0]], params).expect("tracker");
         // Acquiring: margin 2 + 4 = 6 → columns 4..=56, rows 4..=56.
-        assert_eq!(
-            t.window_of_interest(640, 480),
-            Window {
-                x0: 4,
-                y0: 4,
-                x1: 57,
-                y1: 57
-            }
-        );
-        assert_eq!(
-            t.window_of_interest(30, 20),
-            Window {
-                x0: 4,
-                y0: 4,
-                x1: 30,
-                y1: 20
-            }
-        );
+        assert_eq!(t.window_of_interest(640, 480), Window { x0: 4, y0: 4, x1: 57, y1: 57 });
+        assert_eq!(t.window_of_interest(30, 20), Window { x0: 4, y0: 4, x1: 30, y1: 20 });
     }
 
     #[test]
     fn frame_zero_without_motion_reports_the_operator_corners() {
         let square = vec![[10.0, 10.0], [50.0, 10.0], [50.0, 50.0], [10.0, 50.0]];
-        let mut t = MotionEdgeTracker::new(
-            square.clone(),
-            vec![[0, 1], [1, 2], [2, 3], [3, 0]],
-            Default::default(),
-        )
-        .expect("tracker");
+        let mut t = MotionEdgeTracker::new(square.clone(), vec![[0, 1], [1, 2], [2, 3], [3, 0]], Default::default())
+            .expect("tracker");
         let out = t.update(0, &[]);
         assert_eq!(out.status, Status::Tracking);
         assert_eq!(out.phase, Phase::Acquiring);
