@@ -13,7 +13,7 @@
 //! variance of eq. 4, n the number of points, s̄ and S the mean and the
 //! centred sum of squares of the independent coordinate
 //! ([`CornerCovariance::LineLocation`], the default, checked against Monte
-//! Carlo in `tests/blue_logic.rs`). Taking Σ_kk = σ² of eq. 4 itself, as the
+//! Carlo in `tests/trackers/blue_logic.rs`). Taking Σ_kk = σ² of eq. 4 itself, as the
 //! paper prints it, is [`CornerCovariance::PointVariance`]: it weighs a line
 //! by its scatter only, not by its number of points or its extent.
 

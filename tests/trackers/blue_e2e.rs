@@ -10,7 +10,7 @@
 //! tracker's reason and the frames with the largest errors.
 //! All three run on the GPU too (about 25 s on lavapipe, 2 cores).
 
-mod common;
+use crate::common;
 
 use pipetrack::backend::{CpuBackend, EarlyVision, GpuBackend};
 use pipetrack::cli::score::score;

@@ -2,7 +2,7 @@
 //! edges, zero crossings, pyramids) over a short moving sequence, through
 //! `GpuBackend` (one submission per frame, slot ring, pipelined stream,
 //! texture input) and `CpuBackend`.
-mod common;
+use crate::common;
 
 use pipetrack::GrayImage;
 use pipetrack::backend::{CpuBackend, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, ListSpec, Pyramids};

@@ -6,7 +6,7 @@
 //! twins pick the same children). Edge pyramid levels: `atol 1e-4, rtol 1e-5`
 //! (sums of four values times ¼ in the same order on both sides; the
 //! tolerance only absorbs a possible reassociation by the GPU compiler).
-mod common;
+use crate::common;
 
 use pipetrack::FloatImage;
 use pipetrack::early::cpf;

@@ -13,7 +13,7 @@
 //! `tracking`; an object that jumps away is reported `lost`, and a line is
 //! still written for every frame.
 
-mod common;
+use crate::common;
 
 use pipetrack::backend::{BackendKind, CpuBackend, EarlyVision, GpuBackend};
 use pipetrack::cli::score::{Score, score};

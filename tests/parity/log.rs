@@ -1,5 +1,5 @@
 //! GPU/CPU parity of `shaders/log.wgsl` against its twin in src/early/log.rs.
-mod common;
+use crate::common;
 
 use pipetrack::early::log;
 use pipetrack::testimage::natural;

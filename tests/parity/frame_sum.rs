@@ -1,7 +1,7 @@
 //! GPU/CPU parity of `shaders/frame_sum.wgsl` against `early::frame_sum`.
 //!
 //! Tolerance: exact (one correctly rounded f32 addition per pixel).
-mod common;
+use crate::common;
 
 use pipetrack::early::frame_sum;
 use pipetrack::early::gaussian::{self, GaussianParams};

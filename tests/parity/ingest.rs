@@ -1,6 +1,6 @@
 //! GPU/CPU parity of the ingest shaders: `shaders/ingest.wgsl` (packed bytes)
 //! and `shaders/ingest_texture.wgsl` (R8Unorm / Rgba8Unorm textures).
-mod common;
+use crate::common;
 
 use pipetrack::GpuContext;
 use pipetrack::early::ingest;

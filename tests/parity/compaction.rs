@@ -4,7 +4,7 @@
 //! Tolerance: none. Compaction only compares and copies, and the subsample
 //! uses the same u32 integer arithmetic in both twins, so the lists must be
 //! equal element for element (θ and magnitude bit for bit).
-mod common;
+use crate::common;
 
 use pipetrack::early::compaction::{self, CompactionParams, MAX_CAP};
 use pipetrack::early::{Feature, Window};

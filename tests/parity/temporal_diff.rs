@@ -5,7 +5,7 @@
 //! within [`NEAR_THRESHOLD`] of the threshold, which are counted and
 //! allowed. (The difference is one correctly rounded f32 subtraction on both
 //! sides, so in practice there are none.)
-mod common;
+use crate::common;
 
 use pipetrack::FloatImage;
 use pipetrack::early::gaussian::{self, GaussianParams};

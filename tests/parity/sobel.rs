@@ -8,7 +8,7 @@
 //!   CPU magnitude is ≥ 1e-2 (below that the angle is ill-defined);
 //! - where the CPU gradient is exactly zero, the GPU must write the guarded
 //!   values exactly: direction 0, theta π/2.
-mod common;
+use crate::common;
 
 use std::f32::consts::{FRAC_PI_2, PI};
 

@@ -16,7 +16,7 @@
 //!   slopes near each other), and such pixels must stay under 0.5 % of the
 //!   edgels. Elsewhere gx, gy within 5e-3 (two LoG errors) and offsets within
 //!   1e-2 (slopes are ≥ 1, so t moves by at most ~4e-3).
-mod common;
+use crate::common;
 
 use std::f32::consts::TAU;
 

@@ -1,5 +1,5 @@
 //! GPU/CPU parity of `shaders/gaussian.wgsl` against its twin in src/early/gaussian.rs.
-mod common;
+use crate::common;
 
 use pipetrack::early::gaussian;
 use pipetrack::testimage::natural;

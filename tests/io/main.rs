@@ -1,0 +1,8 @@
+//! Files and commands: sequence folders and their errors, scoring, the
+//! synthetic scenes, and the `pipetrack` binary on good and bad input.
+
+mod cli;
+mod score;
+mod sequence_io;
+mod synth;
+mod synth_target3dof;

@@ -1,0 +1,18 @@
+//! Early vision: every stage's GPU shader against its CPU twin on lavapipe
+//! (one module per stage), both backends on whole frames, and naga validation
+//! of every shader.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod backend;
+mod compaction;
+mod cpf;
+mod frame_sum;
+mod gaussian;
+mod ingest;
+mod log;
+mod sobel;
+mod temporal_diff;
+mod zero_crossing;
+mod shader_validation;

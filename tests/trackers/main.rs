@@ -1,0 +1,10 @@
+//! The trackers: their paper steps on hand-made features (`*_logic`) and
+//! end to end on rendered sequences through both backends (`*_e2e`).
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod blue_e2e;
+mod blue_logic;
+mod motion_edge_e2e;
+mod motion_edge_logic;
