@@ -12,7 +12,7 @@ mod frame_sum;
 mod gaussian;
 mod ingest;
 mod log;
+mod shader_validation;
 mod sobel;
 mod temporal_diff;
 mod zero_crossing;
-mod shader_validation;

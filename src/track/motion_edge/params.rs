@@ -1,0 +1,196 @@
+//! Parameters of the motion-edge tracker: the paper's values as defaults,
+//! every one documented and bounded ([`MotionEdgeParams::validate`]), and the
+//! switchable extensions where the paper's literal method fails (module doc of
+//! [`super`]).
+
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Result};
+
+/// What a corner without a measurement feeds its smoother.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MissingMeasurement {
+    /// Its own prediction: the corner keeps its velocity.
+    Prediction,
+    /// Its last measurement again: the prediction slows to a stop (paper
+    /// Fig. 2). Default: no motion pixels means no visible motion.
+    #[default]
+    LastMeasurement,
+}
+
+/// Where the next frame's model lines are predicted (step 6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Prediction {
+    /// Eq. 12 for every corner: Brown's forecast of the smoothed corners.
+    /// Lags by several frames' worth of acceleration (module doc).
+    Smoothed,
+    /// A corner measured in this and the previous frame moves on by its last
+    /// measured displacement; eq. 12 for the others (tracking start, motion
+    /// resuming after frames without motion pixels, lost). Default.
+    #[default]
+    MeasuredVelocity,
+}
+
+/// How step 3 fits a line to its labelled pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LineFitMethod {
+    /// Eq. 5–8 as printed: y on x, or x on y when y spreads more.
+    Regression,
+    /// Perpendicular errors minimised (what the paper's "minimizes errors in
+    /// both x and y" asks for); unbiased on thick bands at any slope, as
+    /// long as the band is clearly longer than it is thick.
+    Orthogonal,
+    /// Eq. 5–6 in the predicted line's frame: the offset across the model
+    /// line regressed on the position along it
+    /// ([`crate::estimate::line_fit::fit_line_across`]). Unbiased on bands of any thickness
+    /// and slope, also as thick as they are long. Default.
+    #[default]
+    Across,
+}
+
+/// Parameters of the motion-edge tracker (paper 000), all with defaults, so a
+/// `--config` TOML file may set any subset (unknown keys are refused).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MotionEdgeParams {
+    /// Angle tolerance δ of eq. 3, radians. The paper gives no value; 15°:
+    /// Sobel orientations of blurred edges are good to a few degrees, a model
+    /// line turns little in a frame, and 15° still rejects 5/6 of clutter of
+    /// random orientation (2δ/π = 1/6) and separates lines meeting at > 30°.
+    pub delta: f64,
+    /// Distance threshold ζ of eq. 4, px. Tables 1–3 test 3, 5, 10, 15: 3 and
+    /// 5 give the smallest errors, 10–15 mislabel at 3.9–4.5 px/frame; 5 is as
+    /// accurate as 3 in the tables and leaves room for blur tails and for
+    /// prediction error when the object accelerates.
+    pub zeta: f64,
+    /// Corner check ε of eq. 9, px. Tables test 20, 26, 32 with no significant
+    /// difference; the tightest, 20, detects loss soonest.
+    pub epsilon: f64,
+    /// Smoothing constant α of eq. 10–12 (paper: 0.2), 0 < α < 1.
+    pub alpha: f64,
+    /// Gaussian σ the backend smooths frames with before eq. 1 (not given in
+    /// the paper), px.
+    pub sigma: f32,
+    /// Threshold on |temporal difference| (eq. 1) in grey levels (0..255): well
+    /// above sensor noise of a smoothed frame, well below edge contrasts.
+    pub motion_threshold: f32,
+    /// Fewest labelled pixels that update a line (≥ 2); fewer keep its prediction.
+    pub min_points_per_line: usize,
+    /// Extra margin of the window of interest beyond ζ plus a frame's
+    /// predicted motion (covers blur and acceleration), px.
+    pub window_margin: f64,
+    /// Labelling distance and corner acceptance distance while acquiring (and
+    /// re-acquiring), px: must exceed one frame's motion when tracking starts.
+    pub init_tolerance: f64,
+    /// Report corners at the current frame rather than at the band centre
+    /// half a frame earlier (module doc).
+    pub lag_correction: bool,
+    /// Widen ζ by half the predicted band width (module doc); off: eq. 4 as printed.
+    pub band_tolerance: bool,
+    /// Motion pixels with a weaker Sobel magnitude carry no edge orientation
+    /// (eq. 2 is undefined where the gradient vanishes, and noise where it is
+    /// small) and are ignored. Sobel units on the sum of two frames of 0..255
+    /// grey levels: an edge steep enough to pass `motion_threshold` (≥ 10 grey
+    /// levels, σ ≈ 1) gives ≳ 25 at the band's ends; noise of a smoothed frame
+    /// gives a few units. Default 10.
+    pub min_magnitude: f32,
+    /// What a line or corner without motion pixels does (module doc).
+    pub missing: MissingMeasurement,
+    /// Unlabelled pixels of a starved line's orientation that declare it
+    /// contradicted, i.e. the object lost (module doc).
+    pub lost_evidence: usize,
+    /// A tracking frame in which no line is fitted right after a frame in
+    /// which every corner was measured moving at least this, px/frame, loses
+    /// the track (module doc, "vanished motion"); infinity disables the
+    /// check. Default 1.
+    pub vanished_motion: f64,
+    /// Line fit of step 3.
+    pub line_fit: LineFitMethod,
+    /// Re-labelling passes around the fitted lines after the first one
+    /// (module doc, "Re-centred labelling"); 0: the paper's single pass.
+    pub refine_iterations: usize,
+    /// Prediction of the next frame's corners (module doc, "Prediction under
+    /// acceleration").
+    pub prediction: Prediction,
+}
+
+impl Default for MotionEdgeParams {
+    fn default() -> Self {
+        Self {
+            delta: 15f64.to_radians(),
+            zeta: 5.0,
+            epsilon: 20.0,
+            alpha: 0.2,
+            sigma: 1.0,
+            motion_threshold: 10.0,
+            min_points_per_line: 10,
+            window_margin: 8.0,
+            init_tolerance: 24.0,
+            lag_correction: true,
+            band_tolerance: true,
+            min_magnitude: 10.0,
+            missing: MissingMeasurement::LastMeasurement,
+            lost_evidence: 50,
+            vanished_motion: 1.0,
+            refine_iterations: 3,
+            line_fit: LineFitMethod::Across,
+            prediction: Prediction::MeasuredVelocity,
+        }
+    }
+}
+
+impl MotionEdgeParams {
+    /// Check every parameter's range (`Error::Parameter` naming the first bad one).
+    pub fn validate(&self) -> Result<()> {
+        let positive = |name: &str, v: f64| {
+            if v > 0.0 && v.is_finite() {
+                Ok(())
+            } else {
+                Err(Error::Parameter(format!("motion-edge: {name} must be positive and finite, got {v}")))
+            }
+        };
+        let non_negative = |name: &str, v: f64| {
+            if v >= 0.0 && v.is_finite() {
+                Ok(())
+            } else {
+                Err(Error::Parameter(format!("motion-edge: {name} must be ≥ 0 and finite, got {v}")))
+            }
+        };
+        positive("delta", self.delta)?;
+        if self.delta > std::f64::consts::FRAC_PI_2 {
+            return Err(Error::Parameter(format!(
+                "motion-edge: delta is an angle tolerance in radians, at most π/2, got {}",
+                self.delta
+            )));
+        }
+        positive("zeta", self.zeta)?;
+        positive("epsilon", self.epsilon)?;
+        if !(self.alpha > 0.0 && self.alpha < 1.0) {
+            return Err(Error::Parameter(format!("motion-edge: alpha must be in (0, 1), got {}", self.alpha)));
+        }
+        positive("sigma", f64::from(self.sigma))?;
+        non_negative("motion_threshold", f64::from(self.motion_threshold))?;
+        if self.min_points_per_line < 2 {
+            return Err(Error::Parameter(format!(
+                "motion-edge: min_points_per_line must be at least 2, got {}",
+                self.min_points_per_line
+            )));
+        }
+        non_negative("window_margin", self.window_margin)?;
+        positive("init_tolerance", self.init_tolerance)?;
+        non_negative("min_magnitude", f64::from(self.min_magnitude))?;
+        if !(self.vanished_motion >= 0.0) {
+            return Err(Error::Parameter(format!(
+                "motion-edge: vanished_motion must be ≥ 0, got {}",
+                self.vanished_motion
+            )));
+        }
+        if self.lost_evidence == 0 {
+            return Err(Error::Parameter("motion-edge: lost_evidence must be at least 1".into()));
+        }
+        Ok(())
+    }
+}

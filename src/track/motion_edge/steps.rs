@@ -1,0 +1,234 @@
+//! The steps of paper 000 §2 in order, each a function of the predicted model
+//! and this frame's motion pixels: model lines (step 1), labelling (eq. 3–4),
+//! line fits (eq. 4–8), corners (intersections) and the deviation check (eq. 9).
+
+use super::params::LineFitMethod;
+use crate::early::Feature;
+use crate::estimate::line_fit::{
+    Line, LineFit, LineSums, fit_band_across, fit_line, fit_line_orthogonal, orientation_difference,
+};
+
+/// A band of labelled pixels whose perpendicular standard deviation about
+/// the pooled fit exceeds this is fitted as two edges (the edge at t−1 and at
+/// t, [`fit_band_across`]), px: a band about 8 px wide or more, where the two
+/// edges' responses (each ±2 px) are resolved.
+pub(super) const BAND_SPLIT_STD_PX: f64 = 2.5;
+
+/// A model line at its predicted position: the line, its end points
+/// (corners) and its orientation (the paper's per-line description).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModelLine {
+    /// The line through the two corners.
+    pub line: Line,
+    /// First end point.
+    pub start: [f64; 2],
+    /// Unit direction from `start` to the other end point.
+    pub direction: [f64; 2],
+    /// Length of the segment.
+    pub length: f64,
+    /// Undirected orientation in [0, π), the convention of θ in eq. 2.
+    pub orientation: f64,
+}
+
+impl ModelLine {
+    /// The model line from corner `p` to corner `q`; `None` when they coincide.
+    #[must_use]
+    pub fn between(p: [f64; 2], q: [f64; 2]) -> Option<Self> {
+        let line = Line::through(p, q)?;
+        let length = (q[0] - p[0]).hypot(q[1] - p[1]);
+        let direction = [(q[0] - p[0]) / length, (q[1] - p[1]) / length];
+        Some(Self { line, start: p, direction, length, orientation: line.orientation() })
+    }
+
+    /// Position of the foot of `p` along the segment (0 at `start`, `length` at the end).
+    #[must_use]
+    pub fn along(&self, p: [f64; 2]) -> f64 {
+        (p[0] - self.start[0]) * self.direction[0] + (p[1] - self.start[1]) * self.direction[1]
+    }
+}
+
+/// How far from a model line its pixels may lie, and which of them are fitted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LineTolerance {
+    /// Largest |d| of eq. 4, px.
+    pub distance: f64,
+    /// How far beyond the segment's end points a pixel's foot may lie, px.
+    pub extent: f64,
+    /// Only pixels whose foot lies in [trim, length − trim] are fitted (a
+    /// negative trim fits beyond the end points); the others near the line
+    /// are explained by it but not fitted (module doc, "Trimmed ends").
+    pub trim: f64,
+}
+
+impl LineTolerance {
+    /// Distance and extent `d`, every labelled pixel fitted.
+    #[must_use]
+    pub fn uniform(d: f64) -> Self {
+        Self { distance: d, extent: d, trim: -d }
+    }
+}
+
+/// Motion pixels labelled to model lines (step 2).
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Labelling {
+    /// Sums for the line fit, per model line.
+    pub sums: Vec<LineSums>,
+    /// Labelled pixels per model line.
+    pub pixels: Vec<Vec<(u32, u32)>>,
+    /// Per model line: pixels of its orientation (eq. 3) labelled to no line.
+    pub unexplained: Vec<usize>,
+    /// Pixels of a model line's orientation labelled to no line (each counted once).
+    pub unexplained_total: usize,
+}
+
+/// Step 1: the model lines through the predicted corners, in model edge
+/// order; `None` for a line whose corners coincide.
+#[must_use]
+pub fn model_lines(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> Vec<Option<ModelLine>> {
+    edges.iter().map(|&[i, j]| ModelLine::between(corners[i], corners[j])).collect()
+}
+
+/// Step 2 (eq. 3–4): label each motion pixel to the model line it best
+/// matches — orientation within `delta` (modulo π), perpendicular distance
+/// within the line's tolerance, foot within the segment extended by the
+/// tolerance's extent — choosing the smallest distance; discard the rest.
+/// Of a line's pixels only those within its trimmed extent are kept for the
+/// fit. Pixels weaker than `min_magnitude` have no orientation and are skipped.
+#[must_use]
+pub fn label_motion_pixels(
+    motion: &[Feature],
+    lines: &[Option<ModelLine>],
+    tolerances: &[LineTolerance],
+    delta: f64,
+    min_magnitude: f32,
+) -> Labelling {
+    let mut labelling = Labelling {
+        sums: lines.iter().map(|l| l.map_or_else(LineSums::new, |l| LineSums::with_origin(l.start))).collect(),
+        pixels: vec![Vec::new(); lines.len()],
+        unexplained: vec![0; lines.len()],
+        unexplained_total: 0,
+    };
+    let mut compatible = Vec::with_capacity(lines.len());
+    for feature in motion {
+        if !(feature.magnitude >= min_magnitude) || !feature.theta.is_finite() {
+            continue;
+        }
+        let p = [f64::from(feature.x), f64::from(feature.y)];
+        let theta = f64::from(feature.theta);
+        compatible.clear();
+        let mut best: Option<(usize, f64)> = None;
+        for (k, (line, tolerance)) in lines.iter().zip(tolerances).enumerate() {
+            let Some(line) = line else { continue };
+            // Eq. 3: orientation agreement, undirected.
+            if orientation_difference(theta, line.orientation) >= delta {
+                continue;
+            }
+            compatible.push(k);
+            // Eq. 4: perpendicular distance, and the segment's extent.
+            let d = line.line.distance(p);
+            let s = line.along(p);
+            if d < tolerance.distance
+                && s >= -tolerance.extent
+                && s <= line.length + tolerance.extent
+                && best.is_none_or(|(_, bd)| d < bd)
+            {
+                best = Some((k, d));
+            }
+        }
+        match best {
+            Some((k, _)) => {
+                let (Some(line), tolerance) = (&lines[k], &tolerances[k]) else {
+                    continue;
+                };
+                let s = line.along(p);
+                if s >= tolerance.trim && s <= line.length - tolerance.trim {
+                    labelling.sums[k].add(p[0], p[1]);
+                    labelling.pixels[k].push((feature.x, feature.y));
+                }
+            }
+            None if !compatible.is_empty() => {
+                labelling.unexplained_total += 1;
+                for &k in &compatible {
+                    labelling.unexplained[k] += 1;
+                }
+            }
+            None => {}
+        }
+    }
+    labelling
+}
+
+/// Step 3 (eq. 5–8): least-squares line per model line with at least
+/// `min_points` labelled pixels; `None` keeps the predicted line. A fit
+/// turned `delta` or more from its model line (eq. 3 applied to the whole
+/// line: scattered clutter rather than an edge) is refused too.
+#[must_use]
+pub fn fit_model_lines(
+    labelling: &Labelling,
+    lines: &[Option<ModelLine>],
+    min_points: usize,
+    delta: f64,
+    method: LineFitMethod,
+) -> Vec<Option<LineFit>> {
+    labelling
+        .sums
+        .iter()
+        .zip(lines)
+        .zip(&labelling.pixels)
+        .map(|((sums, model), pixels)| {
+            let model = model.as_ref()?;
+            if sums.count() < min_points {
+                return None;
+            }
+            let fit = match method {
+                LineFitMethod::Regression => fit_line(sums),
+                LineFitMethod::Orthogonal => fit_line_orthogonal(sums),
+                LineFitMethod::Across => {
+                    let points: Vec<[f64; 2]> = pixels.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]).collect();
+                    fit_band_across(&points, model.direction, BAND_SPLIT_STD_PX)
+                }
+            };
+            fit.filter(|f| orientation_difference(f.line.orientation(), model.orientation) < delta)
+        })
+        .collect()
+}
+
+/// Step 4: each corner is the intersection of its two model lines, fitted
+/// where fitted, `fallback_lines` (the predicted lines, or the lines held
+/// from earlier fits) otherwise. Returns the corners and whether each was
+/// measured (at least one of its lines fitted and the lines not parallel);
+/// an unmeasured corner is its `fallback_corners` entry.
+#[must_use]
+pub fn intersect_corners(
+    fitted: &[Option<LineFit>],
+    fallback_lines: &[Option<Line>],
+    fallback_corners: &[[f64; 2]],
+    corner_lines: &[[usize; 2]],
+) -> (Vec<[f64; 2]>, Vec<bool>) {
+    let current = |k: usize| fitted[k].map(|f| f.line).or(fallback_lines[k]);
+    corner_lines
+        .iter()
+        .zip(fallback_corners)
+        .map(|(&[k1, k2], &prediction)| {
+            if fitted[k1].is_none() && fitted[k2].is_none() {
+                return (prediction, false);
+            }
+            match (current(k1), current(k2)) {
+                (Some(l1), Some(l2)) => l1.intersection(&l2).map_or((prediction, false), |c| (c, true)),
+                _ => (prediction, false),
+            }
+        })
+        .unzip()
+}
+
+/// Step 5 (eq. 9): the largest distance of a measured corner from its
+/// prediction; `None` when no corner was measured.
+#[must_use]
+pub fn corner_deviation(corners: &[[f64; 2]], measured: &[bool], predicted: &[[f64; 2]]) -> Option<f64> {
+    corners
+        .iter()
+        .zip(measured)
+        .zip(predicted)
+        .map(|((c, _), p)| (c[0] - p[0]).hypot(c[1] - p[1]))
+        .fold(None, |acc: Option<f64>, d| Some(acc.map_or(d, |a| a.max(d))))
+}
