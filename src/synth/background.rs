@@ -10,6 +10,7 @@ use super::canvas::*;
 use crate::image::{FloatImage, GrayImage};
 use crate::{Error, Result};
 
+/// Add zero-mean Gaussian noise of standard deviation `noise_sigma` (grey
 /// levels) to `image`, clamp to 0..255 and round to the nearest integer (halves
 /// away from zero) into `out` (resized if needed). Gaussian deviates come from
 /// the Box–Muller transform of `rng`'s uniforms; with `noise_sigma == 0` the

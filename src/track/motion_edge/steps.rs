@@ -229,6 +229,7 @@ pub fn corner_deviation(corners: &[[f64; 2]], measured: &[bool], predicted: &[[f
         .iter()
         .zip(measured)
         .zip(predicted)
+        .filter(|((_, m), _)| **m)
         .map(|((c, _), p)| (c[0] - p[0]).hypot(c[1] - p[1]))
         .fold(None, |acc: Option<f64>, d| Some(acc.map_or(d, |a| a.max(d))))
 }
