@@ -7,7 +7,7 @@
 //! textured background, Gaussian pixel noise σ = 2, 200 frames (three and a
 //! half swings at the paper's speeds, turning points included).
 //!
-//! Acceptance (the issue): at the paper's 1.1, 3.9 and 4.5 px/frame peak
+//! Acceptance: at the paper's 1.1, 3.9 and 4.5 px/frame peak
 //! speeds every frame is `tracking` on both backends, with mean corner error
 //! ≤ 0.5 px and per-frame error ≤ 2 px; at 16 px/frame every frame is still
 //! `tracking`; an object that jumps away is reported `lost`, and a line is

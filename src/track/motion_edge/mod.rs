@@ -45,10 +45,10 @@
 //! v/2 (0.55 px at its 1.1 px/frame; 8 px at 16 px/frame).
 //!
 //! This tracker keeps the whole measure–predict loop in that "band time"
-//! (option (b) of the issue: measurements are the band centres at t − ½ and
+//! (measurements are the band centres at t − ½ and
 //! the one-step forecast is the centre of the *next* frame's band, t + ½,
 //! exactly where the next motion pixels will be, so labelling is unbiased),
-//! and moves only the *reported* corners to the current frame (option (a)):
+//! and moves only the *reported* corners to the current frame:
 //! with `lag_correction` (default) a measured corner is reported at
 //! m_t + ½·v_t, where v_t is its last measured displacement m_t − m_{t−1}
 //! when it was measured in both frames (the smoother's trend lags under
@@ -119,10 +119,10 @@
 //!   one — the aperture problem), a corner with neither is reported where it
 //!   was last measured, and its smoother is fed that last measurement again,
 //!   which makes the predictions slow down as the paper describes for
-//!   cycles without data (§2, Fig. 2). The issue suggested feeding the
-//!   prediction itself ([`MissingMeasurement::Prediction`], kept as an
-//!   option: lines and corners coast at the smoother's velocity); on a
-//!   pendulum that overshoots every turning point, by the lagging trend.
+//!   cycles without data (§2, Fig. 2). Feeding the prediction itself
+//!   ([`MissingMeasurement::Prediction`], an option: lines and corners coast
+//!   at the smoother's velocity) overshoots every turning point of a
+//!   pendulum, by the lagging trend.
 //! - **Lines without motion pixels turn with the object**: a held line is
 //!   not frozen. An edge that moves along itself gets (almost) no motion
 //!   pixels, but the object may still turn: on the pendulum the rectangle
