@@ -221,7 +221,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             println!("{score}");
             Ok(())
         }
-        Command::Demo => demo(),
+        Command::Demo => {
+            pipetrack::cli::demo::run_demo(&pipetrack::cli::demo::default_root(), &mut std::io::stdout().lock())?;
+            Ok(())
+        }
         Command::Reproduce { tracker, config } => {
             if tracker != "motion-edge" {
                 return Err(pipetrack::Error::Parameter(format!(
@@ -243,35 +246,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Bench { sizes, json, stages, seconds } => bench(&sizes.0, json, &stages, seconds),
     }
-}
-
-/// `pipetrack demo`: a 120-frame pendulum at 3.9 px/frame, tracked on the
-/// default backend, overlays in a temp folder, score printed.
-fn demo() -> anyhow::Result<()> {
-    let root = std::env::temp_dir().join(format!("pipetrack-demo-{}", std::process::id()));
-    let seq_dir = root.join("sequence");
-    let overlay = root.join("overlay");
-    std::fs::create_dir_all(&root).with_context(|| format!("creating {}", root.display()))?;
-    let extra = [("speed".to_string(), "3.9".to_string())];
-    synth::generate("pendulum", &seq_dir, Some(120), 1, &extra)?;
-    let seq = Sequence::open(&seq_dir, false)?;
-    let opts = TrackOptions {
-        tracker: "motion-edge".into(),
-        backend: BackendKind::Gpu,
-        config: None,
-        overlay: Some(overlay.clone()),
-        progress: true,
-    };
-    let pred_path = root.join("track.jsonl");
-    let summary = run::track_to_file(&seq, &opts, &pred_path)?;
-    let score = pipetrack::cli::score::score_file(seq.require_truth()?, &pred_path)?;
-    println!("pipetrack demo: pendulum, 120 frames at 3.9 px/frame, tracker motion-edge on {}", summary.backend);
-    println!("sequence: {}", seq_dir.display());
-    println!("output:   {}", pred_path.display());
-    println!("overlays: {}", overlay.display());
-    println!("{:.1} frames/s", summary.fps);
-    println!("{score}");
-    Ok(())
 }
 
 fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) -> anyhow::Result<()> {

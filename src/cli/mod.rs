@@ -1,7 +1,8 @@
 //! The commands of SPEC §5 that are more than a call into [`crate::track`]:
-//! scoring a run against the truth, benchmarking the backends, reproducing a
+//! the demo, scoring a run against the truth, benchmarking the backends, reproducing a
 //! paper's tables. `src/main.rs` parses the command line and calls these.
 
 pub mod bench;
+pub mod demo;
 pub mod reproduce;
 pub mod score;
