@@ -38,7 +38,8 @@ pub fn gpu(test: &str) -> Option<(&'static GpuContext, MutexGuard<'static, ()>)>
     }
 }
 
-/// The sizes every parity test covers: VGA, an odd size, and tiny ones.
+/// The sizes every parity test covers: VGA, an odd size, and tiny ones
+/// (kept in sync with the tests [`per_size!`] makes).
 pub const PARITY_SIZES: &[(usize, usize)] = &[(640, 480), (257, 243), (1, 1), (2, 3)];
 
 fn parity_dir() -> PathBuf {
@@ -154,4 +155,38 @@ fn report(name: &str, cpu: &Image<f32>, gpu: &Image<f32>, bad: &[(usize, f32, f3
         lines.join("\n"),
         dir.display()
     );
+}
+
+/// One `#[test]` per size of [`PARITY_SIZES`], plus any `name = (w, h)`
+/// given, each calling `$check(width, height)`, so that one failing size does
+/// not hide the others: `per_size!(gaussian_parity);` makes the tests
+/// `gaussian_parity::w640_h480`, `gaussian_parity::w257_h243`, ….
+#[macro_export]
+macro_rules! per_size {
+    ($check:ident $(; $name:ident = ($w:expr, $h:expr))*) => {
+        mod $check {
+            #[test]
+            fn w640_h480() {
+                super::$check(640, 480)
+            }
+            #[test]
+            fn w257_h243() {
+                super::$check(257, 243)
+            }
+            #[test]
+            fn w1_h1() {
+                super::$check(1, 1)
+            }
+            #[test]
+            fn w2_h3() {
+                super::$check(2, 3)
+            }
+            $(
+                #[test]
+                fn $name() {
+                    super::$check($w, $h)
+                }
+            )*
+        }
+    };
 }
