@@ -62,6 +62,9 @@ fn texels(format: wgpu::TextureFormat, r: &[u8], g: &[u8], b: &[u8]) -> Vec<u8> 
         .collect()
 }
 
+/// A test image: width, height, and the R, G, B bytes of its pixels.
+type Channels = (usize, usize, Vec<u8>, Vec<u8>, Vec<u8>);
+
 /// One texture of each accepted format ingests to exactly the grey image its
 /// bytes give on the CPU: natural images in every channel at every parity
 /// size, and a ramp through all 256 levels of each channel (where sRGB
@@ -73,7 +76,7 @@ fn parity_ingest_texture_every_format_exact() {
     let (ramp_r, ramp_g, ramp_b) =
         (ramp(|i| (i % 256) as u8), ramp(|i| 255 - (i % 256) as u8), ramp(|i| ((i % 256) * 7 + i / 256 * 50) as u8));
     for format in ingest::TEXTURE_FORMATS {
-        let mut cases: Vec<(usize, usize, Vec<u8>, Vec<u8>, Vec<u8>)> = common::PARITY_SIZES
+        let mut cases: Vec<Channels> = common::PARITY_SIZES
             .iter()
             .map(|&(w, h)| {
                 let (r, g, b) = (natural(w, h, 1), natural(w, h, 2), natural(w, h, 3));
