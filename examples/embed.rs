@@ -60,30 +60,34 @@ pub fn plate_corners(t: usize) -> [[f64; 2]; 4] {
     [[-hu, -hv], [hu, -hv], [hu, hv], [-hu, hv]].map(|[u, v]| [centre[0] + u * c + v * s, centre[1] - u * s + v * c])
 }
 
-/// Vertex of the scene: position in pipetrack pixel coordinates, RGB colour.
+/// Vertex of the scene: clip-space position, RGB colour.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct Vertex {
-    position: [f32; 2],
+    clip: [f32; 2],
     colour: [f32; 3],
 }
 
-/// Vertex and fragment shader of the scene: pixel coordinates to clip space
-/// (pixel centres at integer coordinates, as pipetrack measures), colour
-/// interpolated across each triangle.
+impl Vertex {
+    /// A vertex at pipetrack pixel coordinates `(x, y)`: pixel centres sit at
+    /// integer coordinates there and at half-integers in wgpu's framebuffer.
+    fn at(x: f64, y: f64, colour: [f32; 3]) -> Self {
+        let ndc_x = (x + 0.5) / f64::from(WIDTH) * 2.0 - 1.0;
+        let ndc_y = 1.0 - (y + 0.5) / f64::from(HEIGHT) * 2.0;
+        Self { clip: [ndc_x as f32, ndc_y as f32], colour }
+    }
+}
+
+/// Vertex and fragment shader of the scene: colour interpolated across each triangle.
 const SCENE_WGSL: &str = r"
 struct Out {
     @builtin(position) clip: vec4<f32>,
     @location(0) colour: vec3<f32>,
 }
 
-const SIZE: vec2<f32> = vec2<f32>(256.0, 192.0);
-
 @vertex
-fn vs(@location(0) position: vec2<f32>, @location(1) colour: vec3<f32>) -> Out {
-    let framebuffer = position + vec2<f32>(0.5, 0.5);
-    let ndc = vec2<f32>(framebuffer.x / SIZE.x * 2.0 - 1.0, 1.0 - framebuffer.y / SIZE.y * 2.0);
-    return Out(vec4<f32>(ndc, 0.0, 1.0), colour);
+fn vs(@location(0) clip: vec2<f32>, @location(1) colour: vec3<f32>) -> Out {
+    return Out(vec4<f32>(clip, 0.0, 1.0), colour);
 }
 
 @fragment
@@ -108,24 +112,23 @@ pub fn create_device() -> Result<(wgpu::Device, wgpu::Queue, String)> {
     Ok((device, queue, adapter.get_info().name))
 }
 
-/// The triangles of frame `t`: a shaded background, then the plate.
+/// The triangles of frame `t`: a background shaded from top to bottom, then the plate.
 fn scene(t: usize) -> Vec<Vertex> {
-    let (w, h) = (WIDTH as f32 - 0.5, HEIGHT as f32 - 0.5);
-    let v = |x: f32, y: f32, colour: [f32; 3]| Vertex { position: [x, y], colour };
+    let (x0, y0, x1, y1) = (-0.5, -0.5, f64::from(WIDTH) - 0.5, f64::from(HEIGHT) - 0.5);
     let (top, bottom) = ([0.10, 0.16, 0.30], [0.22, 0.20, 0.16]);
     let mut vertices = vec![
-        v(-0.5, -0.5, top),
-        v(w, -0.5, top),
-        v(w, h, bottom),
-        v(-0.5, -0.5, top),
-        v(w, h, bottom),
-        v(-0.5, h, bottom),
+        Vertex::at(x0, y0, top),
+        Vertex::at(x1, y0, top),
+        Vertex::at(x1, y1, bottom),
+        Vertex::at(x0, y0, top),
+        Vertex::at(x1, y1, bottom),
+        Vertex::at(x0, y1, bottom),
     ];
-    let p = plate_corners(t).map(|[x, y]| [x as f32, y as f32]);
+    let p = plate_corners(t);
     let (warm, pale) = ([0.95, 0.62, 0.20], [0.98, 0.80, 0.45]);
     let colours = [pale, warm, warm, pale];
     for i in [0, 1, 2, 0, 2, 3] {
-        vertices.push(v(p[i][0], p[i][1], colours[i]));
+        vertices.push(Vertex::at(p[i][0], p[i][1], colours[i]));
     }
     vertices
 }

@@ -57,8 +57,9 @@ pub(crate) fn check_device(limits: &wgpu::Limits, features: wgpu::Features) -> R
 ///
 /// Create one with [`GpuContext::new`] (pipetrack finds a Vulkan adapter) or
 /// [`GpuContext::from_device`] (you hand over your own device and queue).
-/// Pipelines are compiled once, on first use or by [`GpuContext::warm_up`],
-/// and cached for the life of the context. Cloning is cheap (shared state).
+/// Pipelines are compiled once, on first use (a [`crate::GpuBackend`]
+/// compiles the ones every frame needs when it is made), and cached for the
+/// life of the context. Cloning is cheap (shared state).
 #[derive(Clone)]
 pub struct GpuContext {
     pub(crate) device: wgpu::Device,
