@@ -1,5 +1,34 @@
 //! pipetrack: model-based visual tracking with early vision on the GPU
 //! (WGSL compute shaders through wgpu) and a CPU twin of every stage.
+//!
+//! # Embedding
+//!
+//! A wgpu program hands pipetrack its own device and queue, and its frames
+//! as textures; a tracker turns each frame into a [`FrameResult`] (corners,
+//! pose, status):
+//!
+//! ```no_run
+//! # fn demo(device: wgpu::Device, queue: wgpu::Queue, textures: &[wgpu::Texture]) -> pipetrack::Result<()> {
+//! use pipetrack::{GpuBackend, GpuContext, MotionEdgeParams, MotionEdgeTracker, track_frames};
+//! // The device was created with `required_limits: pipetrack::required_limits()`.
+//! let ctx = GpuContext::from_device(device, queue)?;
+//! let mut backend = GpuBackend::new(ctx);
+//! let corners = vec![[100.0, 80.0], [150.0, 80.0], [150.0, 115.0], [100.0, 115.0]];
+//! let edges = vec![[0, 1], [1, 2], [2, 3], [3, 0]];
+//! let mut tracker = MotionEdgeTracker::new(corners, edges, MotionEdgeParams::default())?;
+//! let size = (textures[0].width() as usize, textures[0].height() as usize);
+//! track_frames(&mut tracker, &mut backend, textures.iter().map(Ok), size, |_frame, _outcome, result| {
+//!     println!("{:?} {:?}", result.status, result.corners);
+//!     Ok(())
+//! })?;
+//! # Ok(()) }
+//! ```
+//!
+//! Frames may also be grey bytes ([`GrayImage`]) on either backend
+//! ([`GpuBackend`], [`CpuBackend`]); [`track_step`] runs one frame at a time.
+//! Texture formats and what their grey level is:
+//! [`early::ingest`]. `examples/embed.rs` renders a scene with wgpu and
+//! tracks it this way.
 #![deny(missing_docs)]
 
 pub mod backend;
@@ -14,6 +43,14 @@ pub mod synth;
 pub mod testimage;
 pub mod track;
 
+pub use backend::{BackendKind, CpuBackend, EarlyVision, FrameFeatures, FrameRequest, GpuBackend};
+pub use early::ingest::TEXTURE_FORMATS;
 pub use error::{Error, Result};
-pub use gpu::{GpuContext, GpuImage};
+pub use gpu::{GpuContext, GpuImage, required_features, required_limits};
 pub use image::{FloatImage, GrayImage, Image};
+pub use io::Sequence;
+pub use io::formats::{FrameResult, Pose, Status};
+pub use track::run::{AsFrame, Frame, track_frames, track_step};
+pub use track::{
+    BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Phase, Tracker,
+};

@@ -164,8 +164,9 @@ impl GpuBackend {
         self.record_and_submit(slot, request, |rec, s| ingest::encode_bytes(rec, &s.packed, &s.luma))
     }
 
-    /// Submit a frame that is already a texture on this backend's device
-    /// (`R8Unorm` or `Rgba8Unorm`, with `TEXTURE_BINDING` usage).
+    /// Submit a frame that is already a texture on this backend's device (a
+    /// format of [`crate::early::ingest::TEXTURE_FORMATS`], with
+    /// `TEXTURE_BINDING` usage; colour is reduced to luma as that module says).
     pub fn submit_texture(&mut self, texture: &wgpu::Texture, request: &FrameRequest) -> Result<Ticket> {
         let (w, h) = (texture.width() as usize, texture.height() as usize);
         let slot = self.prepare_slot(w, h, request)?;
@@ -370,5 +371,9 @@ impl EarlyVision for GpuBackend {
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {
         let t = self.submit(frame, request)?;
         self.finish(t)
+    }
+
+    fn process_texture(&mut self, texture: &wgpu::Texture, request: &FrameRequest) -> Result<FrameFeatures> {
+        GpuBackend::process_texture(self, texture, request)
     }
 }

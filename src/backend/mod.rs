@@ -162,6 +162,15 @@ pub trait EarlyVision {
     /// current sequence (the motion stage differences it against the previous one).
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures>;
 
+    /// Like [`process`](Self::process) for a frame held in a wgpu texture
+    /// (formats: [`crate::early::ingest::TEXTURE_FORMATS`]). Only a backend on
+    /// the texture's device can read it; the default is
+    /// [`Error::TextureOnCpu`](crate::Error::TextureOnCpu).
+    fn process_texture(&mut self, texture: &wgpu::Texture, request: &FrameRequest) -> Result<FrameFeatures> {
+        let _ = (texture, request);
+        Err(crate::Error::TextureOnCpu { backend: self.name() })
+    }
+
     /// Forget the previous frame: the next frame starts a new sequence.
     fn reset(&mut self);
 

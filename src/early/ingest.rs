@@ -1,10 +1,27 @@
-//! Ingest: a frame (8-bit grey bytes, or a caller's R8Unorm / Rgba8Unorm
-//! texture) becomes the f32 grey image, 0..255 scale, that every stage reads.
+//! Ingest: a frame (8-bit grey bytes, or a caller's texture in one of
+//! [`TEXTURE_FORMATS`]) becomes the f32 grey image, 0..255 scale, that every
+//! stage reads.
+//!
+//! # What a texture's grey level is
+//!
+//! A texture frame gives exactly the grey image its bytes give through the
+//! byte path: [`gray_from_texels`] turns the texture's stored bytes into the
+//! [`GrayImage`] whose ingest equals the texture's ingest, pixel for pixel.
+//!
+//! - `R8Unorm`: the byte itself.
+//! - `Rgba8Unorm`, `Bgra8Unorm`: BT.601 luma of the R, G, B bytes
+//!   ([`luma_u8`]), alpha ignored.
+//! - `Rgba8UnormSrgb`, `Bgra8UnormSrgb`: the same luma of the *stored*
+//!   (sRGB-encoded) bytes. The GPU samples these formats linearised, so the
+//!   shader re-encodes each channel to sRGB before the luma weights. The grey
+//!   level is then the luma Y′ of gamma-encoded values, as for a PNG file read
+//!   with [`crate::io::decode_gray`], not linear luminance; the same pixels
+//!   give the same grey level whether they sit in an sRGB or a unorm texture.
 
 use bytemuck::{Pod, Zeroable};
 
 use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
-use crate::image::{FloatImage, GrayImage, luma};
+use crate::image::{FloatImage, GrayImage};
 use crate::{Error, Result};
 
 /// Shader for byte frames.
@@ -13,15 +30,77 @@ pub(crate) const SHADER: ShaderDef = ShaderDef { name: "ingest", source: include
 pub(crate) const TEXTURE_SHADER: ShaderDef =
     ShaderDef { name: "ingest_texture", source: include_str!("../../shaders/ingest_texture.wgsl") };
 
+/// The texture formats [`ingest_texture_gpu`] and
+/// [`crate::backend::GpuBackend::submit_texture`] read.
+pub const TEXTURE_FORMATS: [wgpu::TextureFormat; 5] = [
+    wgpu::TextureFormat::R8Unorm,
+    wgpu::TextureFormat::Rgba8Unorm,
+    wgpu::TextureFormat::Bgra8Unorm,
+    wgpu::TextureFormat::Rgba8UnormSrgb,
+    wgpu::TextureFormat::Bgra8UnormSrgb,
+];
+
 /// Uniform block of both ingest shaders; kept in sync with their `Params`.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct IngestUniform {
     width: u32,
     height: u32,
-    rgba: u32,
+    /// A [`TexelKind`] for `from_texture`; unused by `from_bytes`.
+    kind: u32,
     _pad: u32,
 }
+
+/// How `from_texture` turns a texel into bytes; kept in sync with the
+/// shader's `KIND_*` constants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum TexelKind {
+    /// One grey channel (`R8Unorm`).
+    Gray = 0,
+    /// Colour, channels stored as unorm bytes.
+    Colour = 1,
+    /// Colour, channels stored sRGB-encoded (sampled linearised).
+    SrgbColour = 2,
+}
+
+/// The [`TexelKind`] of a supported format, and where R, G and B sit in a
+/// texel's bytes; an unsupported format is [`Error::TextureFormat`].
+fn texel_layout(format: wgpu::TextureFormat) -> Result<(TexelKind, [usize; 3])> {
+    use wgpu::TextureFormat as F;
+    Ok(match format {
+        F::R8Unorm => (TexelKind::Gray, [0, 0, 0]),
+        F::Rgba8Unorm => (TexelKind::Colour, [0, 1, 2]),
+        F::Bgra8Unorm => (TexelKind::Colour, [2, 1, 0]),
+        F::Rgba8UnormSrgb => (TexelKind::SrgbColour, [0, 1, 2]),
+        F::Bgra8UnormSrgb => (TexelKind::SrgbColour, [2, 1, 0]),
+        other => return Err(Error::TextureFormat(other)),
+    })
+}
+
+/// Bytes per texel of `format`, one of [`TEXTURE_FORMATS`] (1 or 4); any
+/// other format is [`Error::TextureFormat`].
+pub fn texel_bytes(format: wgpu::TextureFormat) -> Result<usize> {
+    Ok(match texel_layout(format)?.0 {
+        TexelKind::Gray => 1,
+        TexelKind::Colour | TexelKind::SrgbColour => 4,
+    })
+}
+
+/// BT.601 luma of 8-bit R, G, B rounded to the nearest integer, halves up,
+/// in exact integer arithmetic: `(299 r + 587 g + 114 b + 500) / 1000`. The
+/// texture ingest shader computes the same. (It equals
+/// `crate::image::luma(r, g, b).round()` except where the exact value is a
+/// half, where f32 rounding of that sum may land on either side.)
+#[must_use]
+pub const fn luma_u8(r: u8, g: u8, b: u8) -> u8 {
+    let sum = LUMA_WEIGHTS[0] * r as u32 + LUMA_WEIGHTS[1] * g as u32 + LUMA_WEIGHTS[2] * b as u32;
+    ((sum + LUMA_SCALE / 2) / LUMA_SCALE) as u8
+}
+
+/// BT.601 weights of R, G, B in thousandths (they sum to [`LUMA_SCALE`]).
+const LUMA_WEIGHTS: [u32; 3] = [299, 587, 114];
+/// Denominator of [`LUMA_WEIGHTS`].
+const LUMA_SCALE: u32 = 1000;
 
 /// CPU twin of `from_bytes`: grey bytes to f32.
 #[must_use]
@@ -37,12 +116,34 @@ pub fn ingest_gray_into(frame: &GrayImage, dst: &mut FloatImage) {
     }
 }
 
-/// CPU twin of `from_texture` for Rgba8Unorm: `rgba` holds 4 bytes per pixel, row-major.
-pub fn ingest_rgba(rgba: &[u8], width: usize, height: usize) -> Result<FloatImage> {
-    if rgba.len() != width * height * 4 {
-        return Err(Error::Size(format!("{} RGBA bytes for {width}x{height}", rgba.len())));
+/// The grey frame that a `width`×`height` texture of `format` holding
+/// `texels` (its stored bytes, rows tightly packed, [`texel_bytes`] per
+/// texel) gives: the byte-path twin of `from_texture` (see the module doc).
+/// Feeding the result to the byte path gives what the texture path gives.
+pub fn gray_from_texels(texels: &[u8], width: usize, height: usize, format: wgpu::TextureFormat) -> Result<GrayImage> {
+    let (kind, [r, g, b]) = texel_layout(format)?;
+    let size = texel_bytes(format)?;
+    if texels.len() != width * height * size {
+        return Err(Error::Size(format!("{} bytes of {format:?} texels for {width}x{height}", texels.len())));
     }
-    FloatImage::from_vec(width, height, rgba.chunks_exact(4).map(|p| luma(p[0], p[1], p[2])).collect())
+    let data = match kind {
+        TexelKind::Gray => texels.to_vec(),
+        TexelKind::Colour | TexelKind::SrgbColour => {
+            texels.chunks_exact(size).map(|p| luma_u8(p[r], p[g], p[b])).collect()
+        }
+    };
+    GrayImage::from_vec(width, height, data)
+}
+
+/// CPU twin of [`ingest_texture_gpu`]: the f32 grey image of a texture's
+/// stored bytes (arguments as [`gray_from_texels`]).
+pub fn ingest_texture_cpu(
+    texels: &[u8],
+    width: usize,
+    height: usize,
+    format: wgpu::TextureFormat,
+) -> Result<FloatImage> {
+    Ok(ingest_gray(&gray_from_texels(texels, width, height, format)?))
 }
 
 /// Bytes of `frame` packed four to a u32 word (zero-padded), as `from_bytes` reads them.
@@ -61,26 +162,44 @@ pub(crate) fn pack_bytes(bytes: &[u8]) -> Vec<u32> {
 /// Record `from_bytes`: `packed` (a storage buffer of packed bytes) into `dst`.
 pub(crate) fn encode_bytes(rec: &mut Recorder<'_>, packed: &wgpu::Buffer, dst: &GpuImage) -> Result<()> {
     let (w, h) = (dst.width(), dst.height());
-    let u = IngestUniform { width: w as u32, height: h as u32, rgba: 0, _pad: 0 };
+    let u = IngestUniform { width: w as u32, height: h as u32, kind: 0, _pad: 0 };
     rec.dispatch(&SHADER, "from_bytes", &u, &[&dst.buffer, packed], workgroups_2d(w, h))
 }
 
-/// Record `from_texture`: a texture of the same size as `dst` into `dst`.
+/// Check that `texture` can be read as a frame: a supported format, a plain
+/// 2-D single-sampled texture with `TEXTURE_BINDING` usage. Returns its kind.
+fn check_texture(texture: &wgpu::Texture) -> Result<TexelKind> {
+    let (kind, _) = texel_layout(texture.format())?;
+    if !texture.usage().contains(wgpu::TextureUsages::TEXTURE_BINDING) {
+        return Err(Error::Texture("it needs TextureUsages::TEXTURE_BINDING".into()));
+    }
+    if texture.dimension() != wgpu::TextureDimension::D2 {
+        return Err(Error::Texture(format!("it is {:?}; frames are D2 textures", texture.dimension())));
+    }
+    if texture.sample_count() != 1 {
+        return Err(Error::Texture(format!("it has {} samples per pixel; resolve it first", texture.sample_count())));
+    }
+    Ok(kind)
+}
+
+/// Record `from_texture`: a texture of the same size as `dst` into `dst`
+/// (mip level 0 and array layer 0 of it).
 pub(crate) fn encode_texture(rec: &mut Recorder<'_>, texture: &wgpu::Texture, dst: &GpuImage) -> Result<()> {
-    let rgba = match texture.format() {
-        wgpu::TextureFormat::R8Unorm => 0,
-        wgpu::TextureFormat::Rgba8Unorm => 1,
-        f => return Err(Error::Parameter(format!("texture format {f:?}: pipetrack takes R8Unorm or Rgba8Unorm"))),
-    };
+    let kind = check_texture(texture)?;
     let (w, h) = (dst.width(), dst.height());
     if (texture.width() as usize, texture.height() as usize) != (w, h) {
         return Err(Error::Size(format!("texture {}x{} for a {w}x{h} frame", texture.width(), texture.height())));
     }
-    if !texture.usage().contains(wgpu::TextureUsages::TEXTURE_BINDING) {
-        return Err(Error::Parameter("the frame texture needs TextureUsages::TEXTURE_BINDING".into()));
-    }
-    let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
-    let u = IngestUniform { width: w as u32, height: h as u32, rgba, _pad: 0 };
+    let view = texture.create_view(&wgpu::TextureViewDescriptor {
+        label: Some("pipetrack.ingest_texture.frame"),
+        dimension: Some(wgpu::TextureViewDimension::D2),
+        base_mip_level: 0,
+        mip_level_count: Some(1),
+        base_array_layer: 0,
+        array_layer_count: Some(1),
+        ..Default::default()
+    });
+    let u = IngestUniform { width: w as u32, height: h as u32, kind: kind as u32, _pad: 0 };
     rec.dispatch_with(
         &TEXTURE_SHADER,
         "from_texture",
@@ -122,10 +241,49 @@ mod tests {
     }
 
     #[test]
-    fn rgba_luma_uses_bt601_weights() {
-        let img = ingest_rgba(&[255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 255], 3, 1).unwrap();
-        assert!((img.get(0, 0) - 76.245).abs() < 1e-3);
-        assert!((img.get(1, 0) - 149.685).abs() < 1e-3);
-        assert!((img.get(2, 0) - 29.07).abs() < 1e-3);
+    fn rgba_luma_uses_bt601_weights_rounded() {
+        // 0.299·255 = 76.245, 0.587·255 = 149.685, 0.114·255 = 29.07.
+        let img = ingest_texture_cpu(
+            &[255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 255],
+            3,
+            1,
+            wgpu::TextureFormat::Rgba8Unorm,
+        )
+        .unwrap();
+        assert_eq!(img.data(), &[76.0, 150.0, 29.0]);
+    }
+
+    #[test]
+    fn luma_rounds_halves_up_and_keeps_grey() {
+        // 299·4 + 587·40 + 114·16 = 26500: exactly 26.5.
+        assert_eq!(luma_u8(4, 40, 16), 27);
+        for v in [0, 1, 127, 254, 255] {
+            assert_eq!(luma_u8(v, v, v), v);
+        }
+    }
+
+    #[test]
+    fn bgra_and_srgb_texels_give_the_grey_of_their_bytes() {
+        use wgpu::TextureFormat as F;
+        let rgba = [10, 200, 30, 255, 255, 0, 0, 7];
+        let bgra = [30, 200, 10, 255, 0, 0, 255, 7];
+        let expected = [luma_u8(10, 200, 30), luma_u8(255, 0, 0)];
+        for (format, texels) in
+            [(F::Rgba8Unorm, rgba), (F::Bgra8Unorm, bgra), (F::Rgba8UnormSrgb, rgba), (F::Bgra8UnormSrgb, bgra)]
+        {
+            assert_eq!(gray_from_texels(&texels, 2, 1, format).unwrap().data(), &expected, "{format:?}");
+        }
+        assert_eq!(gray_from_texels(&[9, 8], 1, 2, F::R8Unorm).unwrap().data(), &[9, 8]);
+    }
+
+    #[test]
+    fn other_formats_and_wrong_lengths_are_errors() {
+        let err = gray_from_texels(&[0; 4], 1, 1, wgpu::TextureFormat::Rgba8Uint).unwrap_err();
+        assert!(matches!(err, Error::TextureFormat(wgpu::TextureFormat::Rgba8Uint)), "{err:?}");
+        assert!(err.to_string().contains("Rgba8UnormSrgb"), "{err}");
+        assert!(matches!(gray_from_texels(&[0; 3], 1, 1, wgpu::TextureFormat::Rgba8Unorm), Err(Error::Size(_))));
+        for f in TEXTURE_FORMATS {
+            assert!(texel_bytes(f).is_ok(), "{f:?}");
+        }
     }
 }

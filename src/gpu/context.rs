@@ -18,12 +18,48 @@ pub(crate) struct ShaderDef {
 /// Storage buffers one pipetrack shader may bind at most.
 const NEEDED_STORAGE_BUFFERS: u32 = 8;
 
+/// The device limits pipetrack needs: wgpu's downlevel defaults (which every
+/// compute-capable adapter meets) with 8 storage buffers per shader stage.
+///
+/// Create your device with these (or higher) limits before handing it to
+/// [`GpuContext::from_device`], which checks every one of them.
+/// Larger frames may need `max_storage_buffer_binding_size` and
+/// `max_buffer_size` raised further: a frame's f32 image takes `4·w·h` bytes.
+#[must_use]
+pub fn required_limits() -> wgpu::Limits {
+    wgpu::Limits { max_storage_buffers_per_shader_stage: NEEDED_STORAGE_BUFFERS, ..wgpu::Limits::downlevel_defaults() }
+}
+
+/// The device features pipetrack needs: none beyond core WebGPU.
+#[must_use]
+pub fn required_features() -> wgpu::Features {
+    wgpu::Features::empty()
+}
+
+/// Check `limits` and `features` (a device's) against [`required_limits`]
+/// and [`required_features`]; the error names the first limit that falls short.
+pub(crate) fn check_device(limits: &wgpu::Limits, features: wgpu::Features) -> Result<()> {
+    let mut short = None;
+    required_limits().check_limits_with_fail_fn(limits, true, |limit, needed, available| {
+        short.get_or_insert(Error::Limit { limit, needed, available });
+    });
+    if let Some(e) = short {
+        return Err(e);
+    }
+    let missing = required_features() - features;
+    if !missing.is_empty() {
+        return Err(Error::MissingFeatures(missing));
+    }
+    Ok(())
+}
+
 /// A wgpu device and queue with pipetrack's pipelines built on it.
 ///
 /// Create one with [`GpuContext::new`] (pipetrack finds a Vulkan adapter) or
 /// [`GpuContext::from_device`] (you hand over your own device and queue).
-/// Pipelines are compiled once, on first use or by [`GpuContext::warm_up`],
-/// and cached for the life of the context. Cloning is cheap (shared state).
+/// Pipelines are compiled once, on first use (a [`crate::GpuBackend`]
+/// compiles the ones every frame needs when it is made), and cached for the
+/// life of the context. Cloning is cheap (shared state).
 #[derive(Clone)]
 pub struct GpuContext {
     pub(crate) device: wgpu::Device,
@@ -52,26 +88,26 @@ impl GpuContext {
         let instance = wgpu::Instance::new(desc);
         let adapter = match wgpu::util::initialize_adapter_from_env(&instance, None).await {
             Ok(a) => a,
-            Err(_) => instance
-                .request_adapter(&wgpu::RequestAdapterOptions {
-                    power_preference: wgpu::PowerPreference::from_env()
-                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
-                    ..Default::default()
-                })
-                .await
-                .map_err(|e| Error::NoAdapter(e.to_string()))?,
+            Err(_) => {
+                instance
+                    .request_adapter(&wgpu::RequestAdapterOptions {
+                        power_preference: wgpu::PowerPreference::from_env()
+                            .unwrap_or(wgpu::PowerPreference::HighPerformance),
+                        ..Default::default()
+                    })
+                    .await?
+            }
         };
         let info = adapter.get_info();
-        let mut limits = wgpu::Limits::downlevel_defaults();
+        let mut limits = required_limits();
         let available = adapter.limits();
-        limits.max_storage_buffers_per_shader_stage = NEEDED_STORAGE_BUFFERS;
         limits.max_storage_buffer_binding_size = available.max_storage_buffer_binding_size;
         limits.max_buffer_size = available.max_buffer_size;
         limits.max_compute_workgroup_storage_size = available.max_compute_workgroup_storage_size.min(32 * 1024);
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("pipetrack"),
-                required_features: wgpu::Features::empty(),
+                required_features: required_features(),
                 required_limits: limits,
                 ..Default::default()
             })
@@ -80,15 +116,12 @@ impl GpuContext {
     }
 
     /// Use the caller's own device and queue (for embedding pipetrack in a
-    /// wgpu program). The device must allow 8 storage buffers per stage.
+    /// wgpu program). The device must have been created with at least
+    /// [`required_limits`] and [`required_features`]; every limit is checked,
+    /// and the error ([`Error::Limit`], [`Error::MissingFeatures`]) names the
+    /// one that falls short.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Result<Self> {
-        let limits = device.limits();
-        if limits.max_storage_buffers_per_shader_stage < NEEDED_STORAGE_BUFFERS {
-            return Err(Error::Unsuitable(format!(
-                "max_storage_buffers_per_shader_stage is {}, pipetrack needs {NEEDED_STORAGE_BUFFERS}",
-                limits.max_storage_buffers_per_shader_stage
-            )));
-        }
+        check_device(&device.limits(), device.features())?;
         let name = format!("{:?} (caller's device)", device.adapter_info().name);
         Ok(Self::wrap(device, queue, name))
     }
@@ -170,11 +203,31 @@ impl GpuContext {
         });
         self.wait()?;
         rx.recv().map_err(|_| Error::Gpu("map callback dropped".into()))??;
-        let bytes = {
-            let view = buffer.get_mapped_range(range).map_err(|e| Error::Gpu(format!("mapped range: {e}")))?;
-            view.to_vec()
-        };
+        let bytes = buffer.get_mapped_range(range)?.to_vec();
         buffer.unmap();
         Ok(bytes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn required_limits_pass_their_own_check() {
+        check_device(&required_limits(), required_features()).unwrap();
+        check_device(&wgpu::Limits::default(), wgpu::Features::empty()).unwrap();
+    }
+
+    #[test]
+    fn a_short_limit_is_named() {
+        let err = check_device(&wgpu::Limits::downlevel_defaults(), wgpu::Features::empty()).unwrap_err();
+        assert!(
+            matches!(err, Error::Limit { limit: "max_storage_buffers_per_shader_stage", needed: 8, available: 4 }),
+            "{err:?}"
+        );
+        assert!(err.to_string().contains("max_storage_buffers_per_shader_stage is 4, pipetrack needs 8"), "{err}");
+        let err = check_device(&wgpu::Limits::downlevel_webgl2_defaults(), wgpu::Features::empty()).unwrap_err();
+        assert!(matches!(err, Error::Limit { .. }), "{err:?}");
     }
 }

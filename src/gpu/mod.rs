@@ -8,8 +8,8 @@
 mod context;
 mod recorder;
 
-pub use context::GpuContext;
 pub(crate) use context::ShaderDef;
+pub use context::{GpuContext, required_features, required_limits};
 pub use recorder::GpuImage;
 pub(crate) use recorder::{FrameArena, Recorder, run_once, workgroups_2d};
 

@@ -1,6 +1,9 @@
 //! Running a tracker over a sequence: frames → backend → tracker → JSON
 //! Lines, with optional overlays and a progress bar. The `track` and `demo`
-//! commands and the end-to-end tests all go through [`track_sequence`].
+//! commands and the end-to-end tests all go through [`track_sequence`], which
+//! walks [`track_frames`]; an embedder drives the same loop with its own
+//! frames, as bytes or as wgpu textures ([`Frame`]), or calls
+//! [`track_step`] once per frame from its own render loop.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -123,7 +126,7 @@ pub fn track_sequence(
     track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), |frame, outcome, result| {
         serde_json::to_writer(&mut *out, result).map_err(|e| Error::io("output", e.into()))?;
         writeln!(out).map_err(|e| Error::io("output", e))?;
-        if let Some(dir) = &overlay {
+        if let (Some(dir), Some(frame)) = (&overlay, frame.gray()) {
             let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
             let img =
                 crate::io::overlay::draw_overlay(frame, &outcome.corners, &seq.model.edges, outcome.status, &labelled);
@@ -149,34 +152,125 @@ pub fn track_sequence(
     })
 }
 
-/// The per-frame loop shared by every caller: ask the tracker what it needs,
-/// run the backend on the frame, let the tracker update, hand the outcome
-/// and its output line to `sink`. Frames must be `size`; errors stop the run.
-pub fn track_frames<I>(
+/// One frame handed to the per-frame loop: grey bytes, or a wgpu texture on
+/// the GPU backend's device (read as [`crate::early::ingest`] describes).
+#[derive(Clone, Copy, Debug)]
+pub enum Frame<'a> {
+    /// An 8-bit grey frame in memory (any backend).
+    Gray(&'a GrayImage),
+    /// A texture on the device of a [`crate::backend::GpuBackend`]; a CPU
+    /// backend answers [`Error::TextureOnCpu`].
+    Texture(&'a wgpu::Texture),
+}
+
+impl Frame<'_> {
+    /// Width and height in pixels.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        match self {
+            Frame::Gray(g) => g.size(),
+            Frame::Texture(t) => (t.width() as usize, t.height() as usize),
+        }
+    }
+
+    /// The grey image, for a byte frame.
+    #[must_use]
+    pub fn gray(&self) -> Option<&GrayImage> {
+        match self {
+            Frame::Gray(g) => Some(g),
+            Frame::Texture(_) => None,
+        }
+    }
+}
+
+/// Anything [`track_frames`] takes as a frame: a [`GrayImage`] (owned or
+/// borrowed), a `&wgpu::Texture`, or a [`Frame`].
+pub trait AsFrame {
+    /// This frame as a [`Frame`].
+    fn as_frame(&self) -> Frame<'_>;
+}
+
+impl AsFrame for GrayImage {
+    fn as_frame(&self) -> Frame<'_> {
+        Frame::Gray(self)
+    }
+}
+
+impl AsFrame for &GrayImage {
+    fn as_frame(&self) -> Frame<'_> {
+        Frame::Gray(self)
+    }
+}
+
+impl AsFrame for &wgpu::Texture {
+    fn as_frame(&self) -> Frame<'_> {
+        Frame::Texture(self)
+    }
+}
+
+impl AsFrame for Frame<'_> {
+    fn as_frame(&self) -> Frame<'_> {
+        *self
+    }
+}
+
+/// One turn of the per-frame loop: ask the tracker what it needs for a frame
+/// of this size, run the backend on `frame`, let the tracker update with the
+/// features as frame `index`. Returns the tracker's outcome and its output
+/// line, timed from the request to the outcome.
+///
+/// The backend differences each frame against the one before (motion), so
+/// successive calls must be successive frames of one sequence; call
+/// [`EarlyVision::reset`] before the first.
+pub fn track_step(
+    tracker: &mut dyn Tracker,
+    backend: &mut dyn EarlyVision,
+    index: usize,
+    frame: Frame<'_>,
+) -> Result<(FrameOutcome, FrameResult)> {
+    let t0 = Instant::now();
+    let (w, h) = frame.size();
+    let request = tracker.request(w, h);
+    let features = match frame {
+        Frame::Gray(g) => backend.process(g, &request)?,
+        Frame::Texture(t) => backend.process_texture(t, &request)?,
+    };
+    let obs = Observations {
+        motion: features.motion.as_deref(),
+        edges: features.edges.as_deref(),
+        zero_crossings: features.zero_crossings.as_deref(),
+    };
+    let outcome = tracker.track(index, &obs);
+    backend.recycle(features);
+    let result = outcome.to_result(t0.elapsed().as_secs_f64() * 1e3);
+    Ok((outcome, result))
+}
+
+/// The per-frame loop shared by every caller: reset the backend, then for
+/// each frame [`track_step`] and hand the frame, its outcome and its output
+/// line to `sink`. Frames are grey images or textures (see [`AsFrame`]) and
+/// must all be `size` (a different size is [`Error::Size`]); errors stop the run.
+pub fn track_frames<I, F>(
     tracker: &mut dyn Tracker,
     backend: &mut dyn EarlyVision,
     frames: I,
     size: (usize, usize),
-    mut sink: impl FnMut(&GrayImage, &FrameOutcome, &FrameResult) -> Result<()>,
+    mut sink: impl FnMut(Frame<'_>, &FrameOutcome, &FrameResult) -> Result<()>,
 ) -> Result<()>
 where
-    I: IntoIterator<Item = Result<GrayImage>>,
+    I: IntoIterator<Item = Result<F>>,
+    F: AsFrame,
 {
     backend.reset();
     for (i, frame) in frames.into_iter().enumerate() {
         let frame = frame?;
-        let t0 = Instant::now();
-        let request = tracker.request(size.0, size.1);
-        let features = backend.process(&frame, &request)?;
-        let obs = Observations {
-            motion: features.motion.as_deref(),
-            edges: features.edges.as_deref(),
-            zero_crossings: features.zero_crossings.as_deref(),
-        };
-        let outcome = tracker.track(i, &obs);
-        backend.recycle(features);
-        let result = outcome.to_result(t0.elapsed().as_secs_f64() * 1e3);
-        sink(&frame, &outcome, &result)?;
+        let frame = frame.as_frame();
+        if frame.size() != size {
+            let (w, h) = frame.size();
+            return Err(Error::Size(format!("frame {i} is {w}x{h}, the sequence is {}x{}", size.0, size.1)));
+        }
+        let (outcome, result) = track_step(tracker, backend, i, frame)?;
+        sink(frame, &outcome, &result)?;
     }
     Ok(())
 }
