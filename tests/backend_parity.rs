@@ -1,7 +1,8 @@
 //! The two backends give the same frame results: the whole chain (motion,
 //! edges, zero crossings, pyramids) over a short moving sequence, through
 //! `GpuBackend` (one submission per frame, slot ring, pipelined stream,
-//! texture input) and `CpuBackend`.
+//! texture input) and `CpuBackend`, with one request throughout and with
+//! requests that change every frame.
 mod common;
 
 use pipetrack::GrayImage;
