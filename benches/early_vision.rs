@@ -6,7 +6,7 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use pipetrack::GpuContext;
-use pipetrack::cli::bench::{Inputs, STAGES, cpu_body, cpu_frames_per_call, gpu_body, gpu_frames_per_call};
+use pipetrack::cli::bench::{Inputs, cpu_body, cpu_frames_per_call, gpu_body, gpu_frames_per_call, stages};
 
 const SIZES: &[(usize, usize)] = &[(256, 242), (640, 480), (1280, 720)];
 
@@ -24,7 +24,7 @@ fn early_vision(c: &mut Criterion) {
     for &(w, h) in SIZES {
         let inp = Inputs::new(w, h).expect("bench inputs");
         let size = format!("{w}x{h}");
-        for &stage in STAGES {
+        for stage in stages() {
             let mut group = c.benchmark_group(stage);
             group.sample_size(10);
             group.throughput(Throughput::Elements((w * h * cpu_frames_per_call(stage)) as u64));

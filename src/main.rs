@@ -249,7 +249,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) -> anyhow::Result<()> {
-    let all = pipetrack::cli::bench::STAGES;
+    let all = pipetrack::cli::bench::stages();
     let chosen: Vec<&str> = if stages.is_empty() {
         all.to_vec()
     } else {

@@ -1,7 +1,8 @@
 //! The CPU backend: the CPU twins of every stage, with buffers reused from
 //! frame to frame so the per-frame loop does not allocate images.
 
-use super::{EarlyVision, FrameFeatures, FrameRequest, Pyramids};
+use super::plan::{EdgelPart, FramePlan, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
+use super::{EarlyVision, FrameFeatures, FrameRequest};
 use crate::Result;
 use crate::early::Feature;
 use crate::early::compaction::compact_cpu;
@@ -17,20 +18,103 @@ use crate::image::{FloatImage, GrayImage};
 /// Early vision on the CPU (rayon threads across rows for large frames).
 #[derive(Debug)]
 pub struct CpuBackend {
-    luma: FloatImage,
+    images: Images,
     tmp: FloatImage,
     tmp2: FloatImage,
-    smoothed: FloatImage,
-    previous: Option<FloatImage>,
-    motion_mask: FloatImage,
-    sum: FloatImage,
-    sobel_sum: SobelOutput,
-    sobel_edges: SobelOutput,
-    log: FloatImage,
-    edgels: Edgels,
+    /// What `images.previous` holds, if it holds a usable previous frame.
+    previous: Option<PreviousFrame>,
     /// Lists and pyramids handed back by [`EarlyVision::recycle`], refilled
     /// by the next frame (no per-frame allocation, no copy of the levels).
     spare: FrameFeatures,
+}
+
+/// The images a plan's steps read and write, one field per [`Plane`],
+/// Sobel set and the edgels.
+#[derive(Debug)]
+struct Images {
+    luma: FloatImage,
+    smoothed: FloatImage,
+    previous: FloatImage,
+    motion_mask: FloatImage,
+    sum: FloatImage,
+    log: FloatImage,
+    sobel_of_sum: SobelOutput,
+    sobel_of_frame: SobelOutput,
+    edgels: Edgels,
+}
+
+impl Images {
+    fn new() -> Self {
+        Self {
+            luma: FloatImage::new(0, 0),
+            smoothed: FloatImage::new(0, 0),
+            previous: FloatImage::new(0, 0),
+            motion_mask: FloatImage::new(0, 0),
+            sum: FloatImage::new(0, 0),
+            log: FloatImage::new(0, 0),
+            sobel_of_sum: SobelOutput::new(0, 0),
+            sobel_of_frame: SobelOutput::new(0, 0),
+            edgels: Edgels::new(0, 0),
+        }
+    }
+
+    fn sobel(&self, set: SobelPlanes) -> &SobelOutput {
+        match set {
+            SobelPlanes::OfSum => &self.sobel_of_sum,
+            SobelPlanes::OfFrame => &self.sobel_of_frame,
+        }
+    }
+
+    fn source(&self, source: Source) -> &FloatImage {
+        match source {
+            Source::Plane(p) => {
+                plane(&self.luma, &self.smoothed, &self.previous, &self.motion_mask, &self.sum, &self.log, p)
+            }
+            Source::Sobel(set, part) => {
+                let s = self.sobel(set);
+                match part {
+                    SobelPart::Gx => &s.gx,
+                    SobelPart::Gy => &s.gy,
+                    SobelPart::Magnitude => &s.magnitude,
+                    SobelPart::Direction => &s.direction,
+                    SobelPart::Theta => &s.theta,
+                }
+            }
+            Source::Edgels(EdgelPart::Strength) => &self.edgels.strength,
+            Source::Edgels(EdgelPart::Direction) => &self.edgels.direction,
+        }
+    }
+
+    /// Sobel of plane `input` into set `output` (disjoint fields of `self`).
+    fn sobel_into(&mut self, input: Plane, output: SobelPlanes) {
+        let Self { luma, smoothed, previous, motion_mask, sum, log, sobel_of_sum, sobel_of_frame, .. } = self;
+        let src = plane(luma, smoothed, previous, motion_mask, sum, log, input);
+        let dst = match output {
+            SobelPlanes::OfSum => sobel_of_sum,
+            SobelPlanes::OfFrame => sobel_of_frame,
+        };
+        sobel_cpu(src, dst);
+    }
+}
+
+/// The image of `p` among the single planes.
+fn plane<'a>(
+    luma: &'a FloatImage,
+    smoothed: &'a FloatImage,
+    previous: &'a FloatImage,
+    motion_mask: &'a FloatImage,
+    sum: &'a FloatImage,
+    log: &'a FloatImage,
+    p: Plane,
+) -> &'a FloatImage {
+    match p {
+        Plane::Luma => luma,
+        Plane::Smoothed => smoothed,
+        Plane::Previous => previous,
+        Plane::MotionMask => motion_mask,
+        Plane::Sum => sum,
+        Plane::Log => log,
+    }
 }
 
 impl Default for CpuBackend {
@@ -44,17 +128,10 @@ impl CpuBackend {
     #[must_use]
     pub fn new() -> Self {
         Self {
-            luma: FloatImage::new(0, 0),
+            images: Images::new(),
             tmp: FloatImage::new(0, 0),
             tmp2: FloatImage::new(0, 0),
-            smoothed: FloatImage::new(0, 0),
             previous: None,
-            motion_mask: FloatImage::new(0, 0),
-            sum: FloatImage::new(0, 0),
-            sobel_sum: SobelOutput::new(0, 0),
-            sobel_edges: SobelOutput::new(0, 0),
-            log: FloatImage::new(0, 0),
-            edgels: Edgels::new(0, 0),
             spare: FrameFeatures::default(),
         }
     }
@@ -74,88 +151,63 @@ impl EarlyVision for CpuBackend {
     }
 
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {
+        let (w, h) = frame.size();
+        let plan = FramePlan::new(request, w, h, self.previous.as_ref());
         let mut out = FrameFeatures::default();
-        // An empty list (reusing a recycled allocation when there is one).
-        fn list_from(spare: &mut Option<Vec<Feature>>) -> Vec<Feature> {
-            let mut list = spare.take().unwrap_or_default();
-            list.clear();
-            list
-        }
-        if self.previous.as_ref().is_some_and(|p| p.size() != frame.size()) {
-            self.previous = None;
-        }
-        ingest_gray_into(frame, &mut self.luma);
-        if request.needs_smoothing() {
-            smooth_cpu(&self.luma, &request.smoothing, &mut self.tmp, &mut self.smoothed)?;
-        }
-
-        if let Some(m) = &request.motion {
-            let mut list = list_from(&mut self.spare.motion);
-            if let Some(prev) = &self.previous {
-                // 000 eq. 1: G*_t − G*_{t+1}, thresholded; eq. 2 on the sum of both.
-                // Fused: one pass over both frames writes the mask and the sum.
-                temporal_diff::temporal_diff_and_sum_cpu(
-                    prev,
-                    &self.smoothed,
-                    &m.diff,
-                    &mut self.motion_mask,
-                    &mut self.sum,
-                )?;
-                sobel_cpu(&self.sum, &mut self.sobel_sum);
-                compact_cpu(
-                    &self.motion_mask,
-                    &self.sobel_sum.theta,
-                    &self.sobel_sum.magnitude,
-                    &m.list.compaction(0.5),
-                    &mut list,
-                )?;
-            }
-            out.motion = Some(list);
-        }
-
-        if let Some(e) = &request.edges {
-            let src = if e.smoothed { &self.smoothed } else { &self.luma };
-            sobel_cpu(src, &mut self.sobel_edges);
-            let mut list = list_from(&mut self.spare.edges);
-            let s = &self.sobel_edges;
-            compact_cpu(&s.magnitude, &s.direction, &s.magnitude, &e.list.compaction(e.threshold), &mut list)?;
-            out.edges = Some(list);
-        }
-
-        if let Some(z) = &request.zero_crossings {
-            log_cpu(&self.luma, &z.log, &mut self.tmp, &mut self.tmp2, &mut self.log)?;
-            zero_crossings_cpu(&self.log, &z.crossings, &mut self.edgels);
-            let mut list = list_from(&mut self.spare.zero_crossings);
-            let ed = &self.edgels;
-            compact_cpu(&ed.strength, &ed.direction, &ed.strength, &z.list.compaction(0.0), &mut list)?;
-            out.zero_crossings = Some(list);
-        }
-
-        if request.builds_pyramids() {
-            // Computed straight into the levels handed out (recycled ones
-            // when the caller gave them back): no copy of every level.
-            let (mut cpf_levels, mut edge_levels) = self.spare.pyramids.take().unwrap_or_default();
-            cpf::cpf_cpu(&self.luma, &mut cpf_levels);
-            if request.edges.is_none() || request.edges.is_some_and(|e| e.smoothed) {
-                sobel_cpu(&self.luma, &mut self.sobel_edges);
-            }
-            cpf::edge_pyramids_cpu(&self.sobel_edges.gx, &self.sobel_edges.gy, &mut edge_levels)?;
-            if request.pyramids == Pyramids::Return {
-                out.pyramids = Some((cpf_levels, edge_levels));
-            } else {
-                self.spare.pyramids = Some((cpf_levels, edge_levels));
+        let img = &mut self.images;
+        ingest_gray_into(frame, &mut img.luma);
+        for step in plan.steps() {
+            match *step {
+                Step::Smooth(p) => smooth_cpu(&img.luma, &p, &mut self.tmp, &mut img.smoothed)?,
+                // 000 eq. 1: G*_t − G*_{t+1}, thresholded, and the sum of both
+                // for eq. 2, fused into one pass over the two frames.
+                Step::DiffAndSum(p) => temporal_diff::temporal_diff_and_sum_cpu(
+                    &img.previous,
+                    &img.smoothed,
+                    &p,
+                    &mut img.motion_mask,
+                    &mut img.sum,
+                )?,
+                Step::Sobel { input, output } => img.sobel_into(input, output),
+                Step::Log(p) => log_cpu(&img.luma, &p, &mut self.tmp, &mut self.tmp2, &mut img.log)?,
+                Step::ZeroCrossings(p) => zero_crossings_cpu(&img.log, &p, &mut img.edgels),
+                Step::Compact { list, select, theta, magnitude, params } => {
+                    let mut features = recycled_list(self.spare.list_mut(list));
+                    compact_cpu(img.source(select), img.source(theta), img.source(magnitude), &params, &mut features)?;
+                    *out.list_mut(list) = Some(features);
+                }
+                Step::EmptyList(list) => *out.list_mut(list) = Some(recycled_list(self.spare.list_mut(list))),
+                Step::Pyramids { gradient, returned } => {
+                    // Computed straight into the levels handed out (recycled
+                    // ones when the caller gave them back): no copy of every level.
+                    let (mut cpf_levels, mut edge_levels) = self.spare.pyramids.take().unwrap_or_default();
+                    cpf::cpf_cpu(&img.luma, &mut cpf_levels);
+                    let g = img.sobel(gradient);
+                    cpf::edge_pyramids_cpu(&g.gx, &g.gy, &mut edge_levels)?;
+                    if returned {
+                        out.pyramids = Some((cpf_levels, edge_levels));
+                    } else {
+                        self.spare.pyramids = Some((cpf_levels, edge_levels));
+                    }
+                }
             }
         }
-
-        if request.motion.is_some() {
-            // Keep this frame's smoothed image as the next frame's "previous".
-            match &mut self.previous {
-                Some(p) => std::mem::swap(p, &mut self.smoothed),
-                None => self.previous = Some(self.smoothed.clone()),
-            }
+        // This frame's smoothed image becomes the next frame's previous one
+        // when the plan says so; the swapped-out buffer is overwritten by the
+        // next smoothing.
+        self.previous = plan.next_previous();
+        if self.previous.is_some() {
+            std::mem::swap(&mut img.previous, &mut img.smoothed);
         }
         Ok(out)
     }
+}
+
+/// An empty list, reusing a recycled allocation when there is one.
+fn recycled_list(spare: &mut Option<Vec<Feature>>) -> Vec<Feature> {
+    let mut list = spare.take().unwrap_or_default();
+    list.clear();
+    list
 }
 
 #[cfg(test)]

@@ -3,7 +3,8 @@
 //! compact lists read back, and a ring of frame slots so that uploading,
 //! computing and reading back successive frames overlap.
 
-use super::{EarlyVision, FrameFeatures, FrameRequest, Pyramids};
+use super::plan::{EdgelPart, FramePlan, List, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
+use super::{EarlyVision, FrameFeatures, FrameRequest};
 use crate::early::compaction::{self, CompactionGpu};
 use crate::early::cpf::{self, CpfGpu, EdgePyramidGpu};
 use crate::early::sobel::{self, SobelGpu};
@@ -50,18 +51,16 @@ struct Slot {
     smoothed: GpuImage,
     motion_mask: Option<GpuImage>,
     sum: Option<GpuImage>,
-    sobel_sum: Option<SobelGpu>,
-    sobel_frame: Option<SobelGpu>,
+    sobel_of_sum: Option<SobelGpu>,
+    sobel_of_frame: Option<SobelGpu>,
     log: Option<GpuImage>,
     edgels: Option<EdgelsGpu>,
     cpf: Option<(CpfGpu, EdgePyramidGpu)>,
     motion_list: Option<CompactionGpu>,
     edge_list: Option<CompactionGpu>,
     crossing_list: Option<CompactionGpu>,
-    /// What the pending submission asked for (None when the slot is free).
-    pending: Option<FrameRequest>,
-    /// Whether the pending frame had a previous frame to difference against.
-    had_previous: bool,
+    /// The submitted frame's plan and submission (None when the slot is free).
+    pending: Option<(FramePlan, wgpu::SubmissionIndex)>,
 }
 
 impl Slot {
@@ -83,8 +82,8 @@ impl Slot {
             smoothed: img("smoothed"),
             motion_mask: None,
             sum: None,
-            sobel_sum: None,
-            sobel_frame: None,
+            sobel_of_sum: None,
+            sobel_of_frame: None,
             log: None,
             edgels: None,
             cpf: None,
@@ -92,7 +91,113 @@ impl Slot {
             edge_list: None,
             crossing_list: None,
             pending: None,
-            had_previous: false,
+        }
+    }
+
+    /// Allocate every buffer `plan` uses that the slot does not have yet.
+    fn allocate(&mut self, ctx: &GpuContext, plan: &FramePlan) -> Result<()> {
+        let (w, h) = (self.width, self.height);
+        for step in plan.steps() {
+            match *step {
+                Step::Smooth(_) | Step::EmptyList(_) => {}
+                Step::DiffAndSum(_) => {
+                    self.motion_mask.get_or_insert_with(|| GpuImage::new(ctx, w, h, "motion_mask"));
+                    self.sum.get_or_insert_with(|| GpuImage::new(ctx, w, h, "frame_sum"));
+                }
+                Step::Sobel { output, .. } => {
+                    self.sobel_set_mut(output).get_or_insert_with(|| SobelGpu::new(ctx, w, h));
+                }
+                Step::Log(_) => {
+                    self.log.get_or_insert_with(|| GpuImage::new(ctx, w, h, "log"));
+                }
+                Step::ZeroCrossings(_) => {
+                    self.edgels.get_or_insert_with(|| EdgelsGpu::new(ctx, w, h));
+                }
+                Step::Compact { list, params, .. } => {
+                    let scratch = self.list_mut(list);
+                    if !scratch.as_ref().is_some_and(|l| l.fits(w * h, params.cap)) {
+                        *scratch = Some(CompactionGpu::new(ctx, w * h, params.cap)?);
+                    }
+                }
+                Step::Pyramids { .. } => {
+                    self.cpf.get_or_insert_with(|| (CpfGpu::new(ctx, w, h), EdgePyramidGpu::new(ctx, w, h)));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn sobel_set_mut(&mut self, set: SobelPlanes) -> &mut Option<SobelGpu> {
+        match set {
+            SobelPlanes::OfSum => &mut self.sobel_of_sum,
+            SobelPlanes::OfFrame => &mut self.sobel_of_frame,
+        }
+    }
+
+    fn list_mut(&mut self, list: List) -> &mut Option<CompactionGpu> {
+        match list {
+            List::Motion => &mut self.motion_list,
+            List::Edges => &mut self.edge_list,
+            List::ZeroCrossings => &mut self.crossing_list,
+        }
+    }
+
+    fn sobel_set(&self, set: SobelPlanes) -> Result<&SobelGpu> {
+        opt(match set {
+            SobelPlanes::OfSum => &self.sobel_of_sum,
+            SobelPlanes::OfFrame => &self.sobel_of_frame,
+        })
+    }
+
+    fn list(&self, list: List) -> Result<&CompactionGpu> {
+        opt(match list {
+            List::Motion => &self.motion_list,
+            List::Edges => &self.edge_list,
+            List::ZeroCrossings => &self.crossing_list,
+        })
+    }
+}
+
+/// A slot's buffers as a plan names them, with the previous frame's
+/// smoothed image (which lives in another slot).
+struct FrameImages<'a> {
+    slot: &'a Slot,
+    previous: Option<&'a GpuImage>,
+}
+
+impl FrameImages<'_> {
+    fn plane(&self, p: Plane) -> Result<&GpuImage> {
+        let s = self.slot;
+        match p {
+            Plane::Luma => Ok(&s.luma),
+            Plane::Smoothed => Ok(&s.smoothed),
+            Plane::Previous => self.previous.ok_or_else(|| Error::Gpu("plan reads a previous frame it has not".into())),
+            Plane::MotionMask => opt(&s.motion_mask),
+            Plane::Sum => opt(&s.sum),
+            Plane::Log => opt(&s.log),
+        }
+    }
+
+    fn source(&self, source: Source) -> Result<&GpuImage> {
+        match source {
+            Source::Plane(p) => self.plane(p),
+            Source::Sobel(set, part) => {
+                let sob = self.slot.sobel_set(set)?;
+                Ok(match part {
+                    SobelPart::Gx => &sob.gx,
+                    SobelPart::Gy => &sob.gy,
+                    SobelPart::Magnitude => &sob.magnitude,
+                    SobelPart::Direction => &sob.direction,
+                    SobelPart::Theta => &sob.theta,
+                })
+            }
+            Source::Edgels(part) => {
+                let ed = opt(&self.slot.edgels)?;
+                Ok(match part {
+                    EdgelPart::Strength => &ed.strength,
+                    EdgelPart::Direction => &ed.direction,
+                })
+            }
         }
     }
 }
@@ -105,8 +210,8 @@ pub struct GpuBackend {
     ctx: GpuContext,
     slots: Vec<Option<Slot>>,
     next_slot: usize,
-    /// Slot holding the previous frame's smoothed image, if any.
-    previous: Option<usize>,
+    /// Slot holding the previous frame's smoothed image, and what it is.
+    previous: Option<(usize, PreviousFrame)>,
     stats: FrameStats,
 }
 
@@ -154,14 +259,14 @@ impl GpuBackend {
     /// with [`GpuBackend::finish`]; up to two frames may be in flight.
     pub fn submit(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<Ticket> {
         let (w, h) = frame.size();
-        let slot = self.prepare_slot(w, h, request)?;
+        let (slot, plan) = self.prepare_slot(w, h, request)?;
         let s = self.slots[slot].as_ref().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
         let packed = ingest::pack_bytes(frame.data());
         if !packed.is_empty() {
             self.ctx.queue.write_buffer(&s.packed, 0, bytemuck::cast_slice(&packed));
         }
         self.stats.bytes_uploaded = (packed.len() * 4) as u64;
-        self.record_and_submit(slot, request, |rec, s| ingest::encode_bytes(rec, &s.packed, &s.luma))
+        self.record_and_submit(slot, plan, |rec, s| ingest::encode_bytes(rec, &s.packed, &s.luma))
     }
 
     /// Submit a frame that is already a texture on this backend's device (a
@@ -169,9 +274,9 @@ impl GpuBackend {
     /// `TEXTURE_BINDING` usage; colour is reduced to luma as that module says).
     pub fn submit_texture(&mut self, texture: &wgpu::Texture, request: &FrameRequest) -> Result<Ticket> {
         let (w, h) = (texture.width() as usize, texture.height() as usize);
-        let slot = self.prepare_slot(w, h, request)?;
+        let (slot, plan) = self.prepare_slot(w, h, request)?;
         self.stats.bytes_uploaded = 0;
-        self.record_and_submit(slot, request, |rec, s| ingest::encode_texture(rec, texture, &s.luma))
+        self.record_and_submit(slot, plan, |rec, s| ingest::encode_texture(rec, texture, &s.luma))
     }
 
     /// Process a texture frame and wait for its features.
@@ -203,8 +308,9 @@ impl GpuBackend {
         Ok(())
     }
 
-    /// Pick the next slot, (re)allocating its buffers for this size and request.
-    fn prepare_slot(&mut self, w: usize, h: usize, request: &FrameRequest) -> Result<usize> {
+    /// Pick the next slot, plan the frame, and (re)allocate the slot's
+    /// buffers for this size and plan.
+    fn prepare_slot(&mut self, w: usize, h: usize, request: &FrameRequest) -> Result<(usize, FramePlan)> {
         let slot = self.next_slot;
         if self.slots[slot].as_ref().is_some_and(|s| s.pending.is_some()) {
             return Err(Error::Gpu(format!("more than {} frames in flight: finish a ticket first", SLOTS - 1)));
@@ -212,134 +318,102 @@ impl GpuBackend {
         if self.slots[slot].as_ref().is_none_or(|s| (s.width, s.height) != (w, h)) {
             self.slots[slot] = Some(Slot::new(&self.ctx, w, h));
         }
-        if self.previous.is_some_and(|p| self.slots[p].as_ref().is_none_or(|s| (s.width, s.height) != (w, h))) {
-            self.previous = None;
-        }
-        let ctx = &self.ctx;
+        // The ring never puts two consecutive frames in one slot; a previous
+        // frame in this very slot would be overwritten, so it does not count.
+        let previous = self.previous.filter(|&(p, _)| p != slot).map(|(_, kept)| kept);
+        let plan = FramePlan::new(request, w, h, previous.as_ref());
         let s = self.slots[slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
-        let area = w * h;
-        if let Some(m) = &request.motion {
-            s.motion_mask.get_or_insert_with(|| GpuImage::new(ctx, w, h, "motion_mask"));
-            s.sum.get_or_insert_with(|| GpuImage::new(ctx, w, h, "frame_sum"));
-            s.sobel_sum.get_or_insert_with(|| SobelGpu::new(ctx, w, h));
-            ensure_list(ctx, &mut s.motion_list, area, m.list.cap)?;
-        }
-        if let Some(e) = &request.edges {
-            s.sobel_frame.get_or_insert_with(|| SobelGpu::new(ctx, w, h));
-            ensure_list(ctx, &mut s.edge_list, area, e.list.cap)?;
-        }
-        if let Some(z) = &request.zero_crossings {
-            s.log.get_or_insert_with(|| GpuImage::new(ctx, w, h, "log"));
-            s.edgels.get_or_insert_with(|| EdgelsGpu::new(ctx, w, h));
-            ensure_list(ctx, &mut s.crossing_list, area, z.list.cap)?;
-        }
-        if request.builds_pyramids() {
-            s.sobel_frame.get_or_insert_with(|| SobelGpu::new(ctx, w, h));
-            s.cpf.get_or_insert_with(|| (CpfGpu::new(ctx, w, h), EdgePyramidGpu::new(ctx, w, h)));
-        }
-        Ok(slot)
+        s.allocate(&self.ctx, &plan)?;
+        Ok((slot, plan))
     }
 
-    /// Record ingest (by `ingest`) and every requested stage into one encoder, then submit.
+    /// Record ingest (by `ingest`) and every step of `plan` into one encoder, then submit.
     fn record_and_submit(
         &mut self,
         slot: usize,
-        request: &FrameRequest,
+        plan: FramePlan,
         ingest: impl FnOnce(&mut Recorder<'_>, &Slot) -> Result<()>,
     ) -> Result<Ticket> {
-        let previous = self.previous.filter(|&p| p != slot);
+        let previous_slot = self.previous.map(|(p, _)| p).filter(|&p| p != slot && plan.reads_previous());
         let (before, rest) = self.slots.split_at(slot);
         let (this, after) = rest.split_first().ok_or_else(|| Error::Gpu("bad slot".into()))?;
         let s = this.as_ref().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
-        let prev_smoothed = previous.and_then(|p| {
+        let previous = previous_slot.and_then(|p| {
             let other = if p < slot { before[p].as_ref() } else { after[p - slot - 1].as_ref() };
             other.map(|o| &o.smoothed)
         });
+        let images = FrameImages { slot: s, previous };
+        let area = s.width * s.height;
 
         let mut rec = Recorder::new(&self.ctx, &s.arena);
         ingest(&mut rec, s)?;
-        if request.needs_smoothing() {
-            gaussian::encode(&mut rec, &s.luma, &s.tmp, &s.smoothed, &request.smoothing)?;
-        }
-        let had_previous = prev_smoothed.is_some();
-        if let (Some(m), Some(prev)) = (&request.motion, prev_smoothed) {
-            let (mask, sum, sob, list) = (opt(&s.motion_mask)?, opt(&s.sum)?, opt(&s.sobel_sum)?, opt(&s.motion_list)?);
-            // 000 eq. 1 and eq. 2, as in the CPU backend.
-            temporal_diff::encode(&mut rec, prev, &s.smoothed, mask, &m.diff)?;
-            frame_sum::encode(&mut rec, prev, &s.smoothed, sum)?;
-            sobel::encode(&mut rec, sum, sob)?;
-            let p = m.list.compaction(0.5);
-            compaction::encode(&mut rec, mask, &sob.theta, &sob.magnitude, &p, list)?;
-            list.encode_readback(&mut rec, readback_prefetch(m.list.cap, s.width * s.height));
-        }
-        let sobel_of_frame_done = if let Some(e) = &request.edges {
-            let sob = opt(&s.sobel_frame)?;
-            sobel::encode(&mut rec, if e.smoothed { &s.smoothed } else { &s.luma }, sob)?;
-            let list = opt(&s.edge_list)?;
-            let p = e.list.compaction(e.threshold);
-            compaction::encode(&mut rec, &sob.magnitude, &sob.direction, &sob.magnitude, &p, list)?;
-            list.encode_readback(&mut rec, readback_prefetch(e.list.cap, s.width * s.height));
-            !e.smoothed
-        } else {
-            false
-        };
-        if let Some(z) = &request.zero_crossings {
-            let (l, ed, list) = (opt(&s.log)?, opt(&s.edgels)?, opt(&s.crossing_list)?);
-            log::encode(&mut rec, &s.luma, &s.tmp, &s.tmp2, l, &z.log)?;
-            zero_crossing::encode(&mut rec, l, ed, &z.crossings)?;
-            let p = z.list.compaction(0.0);
-            compaction::encode(&mut rec, &ed.strength, &ed.direction, &ed.strength, &p, list)?;
-            list.encode_readback(&mut rec, readback_prefetch(z.list.cap, s.width * s.height));
-        }
-        if request.builds_pyramids() {
-            let sob = opt(&s.sobel_frame)?;
-            if !sobel_of_frame_done {
-                sobel::encode(&mut rec, &s.luma, sob)?;
+        for step in plan.steps() {
+            match *step {
+                Step::Smooth(p) => gaussian::encode(&mut rec, &s.luma, &s.tmp, &s.smoothed, &p)?,
+                Step::DiffAndSum(p) => {
+                    // 000 eq. 1 and the sum of eq. 2, as in the CPU backend.
+                    let (prev, cur) = (images.plane(Plane::Previous)?, &s.smoothed);
+                    temporal_diff::encode(&mut rec, prev, cur, images.plane(Plane::MotionMask)?, &p)?;
+                    frame_sum::encode(&mut rec, prev, cur, images.plane(Plane::Sum)?)?;
+                }
+                Step::Sobel { input, output } => sobel::encode(&mut rec, images.plane(input)?, s.sobel_set(output)?)?,
+                Step::Log(p) => log::encode(&mut rec, &s.luma, &s.tmp, &s.tmp2, images.plane(Plane::Log)?, &p)?,
+                Step::ZeroCrossings(p) => {
+                    zero_crossing::encode(&mut rec, images.plane(Plane::Log)?, opt(&s.edgels)?, &p)?;
+                }
+                Step::Compact { list, select, theta, magnitude, params } => {
+                    let scratch = s.list(list)?;
+                    let (sel, th, mag) = (images.source(select)?, images.source(theta)?, images.source(magnitude)?);
+                    compaction::encode(&mut rec, sel, th, mag, &params, scratch)?;
+                    scratch.encode_readback(&mut rec, readback_prefetch(params.cap, area));
+                }
+                Step::EmptyList(_) => {}
+                Step::Pyramids { gradient, .. } => {
+                    let (c, e) = opt(&s.cpf)?;
+                    let g = s.sobel_set(gradient)?;
+                    cpf::encode(&mut rec, &s.luma, c)?;
+                    cpf::encode_edges(&mut rec, &g.gx, &g.gy, e)?;
+                }
             }
-            let (c, e) = opt(&s.cpf)?;
-            cpf::encode(&mut rec, &s.luma, c)?;
-            cpf::encode_edges(&mut rec, &sob.gx, &sob.gy, e)?;
         }
         self.stats.dispatches = rec.dispatch_count();
-        rec.submit();
+        let submitted = rec.submit();
 
+        self.previous = plan.next_previous().map(|kept| (slot, kept));
         let s = self.slots[slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
-        s.pending = Some(request.clone());
-        s.had_previous = had_previous;
-        self.previous = if request.needs_smoothing() { Some(slot) } else { None };
+        s.pending = Some((plan, submitted));
         self.next_slot = (slot + 1) % SLOTS;
         Ok(Ticket { slot })
     }
 
-    /// Wait for a submitted frame and read back its lists.
+    /// Wait for a submitted frame (its own submission only, not other work
+    /// on the device) and read back its lists.
     pub fn finish(&mut self, ticket: Ticket) -> Result<FrameFeatures> {
         let s = self.slots[ticket.slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
-        let request = s.pending.take().ok_or_else(|| Error::Gpu("ticket already finished".into()))?;
+        let (plan, submitted) = s.pending.take().ok_or_else(|| Error::Gpu("ticket already finished".into()))?;
+        self.ctx.wait_for(submitted)?;
         let mut out = FrameFeatures::default();
         let mut bytes = 0u64;
-        let mut read = |list: &Option<CompactionGpu>| -> Result<Vec<crate::early::Feature>> {
-            let v = opt(list)?.read(&self.ctx)?;
-            bytes += 4 + 16 * v.len() as u64;
-            Ok(v)
-        };
-        if request.motion.is_some() {
-            out.motion = Some(if s.had_previous { read(&s.motion_list)? } else { Vec::new() });
-        }
-        if request.edges.is_some() {
-            out.edges = Some(read(&s.edge_list)?);
-        }
-        if request.zero_crossings.is_some() {
-            out.zero_crossings = Some(read(&s.crossing_list)?);
-        }
-        if request.pyramids == Pyramids::Return {
-            let (c, e) = opt(&s.cpf)?;
-            let pyr = c.download(&self.ctx)?;
-            let edges = e.download(&self.ctx)?;
-            bytes += 4
-                * (pyr.hierarchies.iter().flatten().map(|l| l.data().len()).sum::<usize>()
-                    + edges.horizontal.iter().chain(&edges.vertical).map(|l| l.data().len()).sum::<usize>())
-                    as u64;
-            out.pyramids = Some((pyr, edges));
+        for step in plan.steps() {
+            match *step {
+                Step::Compact { list, .. } => {
+                    let v = s.list(list)?.read(&self.ctx)?;
+                    bytes += 4 + 16 * v.len() as u64;
+                    *out.list_mut(list) = Some(v);
+                }
+                Step::EmptyList(list) => *out.list_mut(list) = Some(Vec::new()),
+                Step::Pyramids { returned: true, .. } => {
+                    let (c, e) = opt(&s.cpf)?;
+                    let pyr = c.download(&self.ctx)?;
+                    let edges = e.download(&self.ctx)?;
+                    bytes += 4
+                        * (pyr.hierarchies.iter().flatten().map(|l| l.data().len()).sum::<usize>()
+                            + edges.horizontal.iter().chain(&edges.vertical).map(|l| l.data().len()).sum::<usize>())
+                            as u64;
+                    out.pyramids = Some((pyr, edges));
+                }
+                _ => {}
+            }
         }
         self.stats.bytes_read_back = bytes;
         Ok(out)
@@ -348,15 +422,6 @@ impl GpuBackend {
 
 fn opt<T>(v: &Option<T>) -> Result<&T> {
     v.as_ref().ok_or_else(|| Error::Gpu("stage buffers not allocated".into()))
-}
-
-/// Allocate (or grow) a slot's compaction scratch for `area` pixels and `cap`.
-fn ensure_list(ctx: &GpuContext, list: &mut Option<CompactionGpu>, area: usize, cap: Option<u32>) -> Result<()> {
-    let fits = list.as_ref().is_some_and(|l| l.fits(area, cap));
-    if !fits {
-        *list = Some(CompactionGpu::new(ctx, area, cap)?);
-    }
-    Ok(())
 }
 
 impl EarlyVision for GpuBackend {

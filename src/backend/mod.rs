@@ -5,13 +5,16 @@
 //! only those stages and hands back compact [`FrameFeatures`]. The
 //! [`CpuBackend`] runs the CPU twins; the [`GpuBackend`] records every pass of
 //! a frame into one command encoder, submits once and reads back only the
-//! lists.
+//! lists. Both walk the same [`FramePlan`], derived from the request once
+//! per frame.
 
 mod cpu;
 mod gpu;
+pub mod plan;
 
 pub use cpu::CpuBackend;
 pub use gpu::{FrameStats, GpuBackend, Ticket};
+pub use plan::FramePlan;
 
 use crate::Result;
 use crate::early::compaction::CompactionParams;
@@ -86,7 +89,8 @@ pub struct ZeroCrossingRequest {
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct FrameRequest {
     /// Smoothing applied to each frame (needed by `motion`, and by `edges`
-    /// when `smoothed`); defaults to σ = 1.
+    /// when `smoothed`); defaults to σ = 1. Motion differences a frame only
+    /// against a predecessor smoothed with the same σ (see [`FramePlan`]).
     pub smoothing: GaussianParams,
     /// Motion pixels (000).
     pub motion: Option<MotionRequest>,
@@ -129,21 +133,14 @@ impl FrameRequest {
             pyramids: Pyramids::Keep,
         }
     }
-
-    /// Whether any stage needs the smoothed frame.
-    pub(crate) fn builds_pyramids(&self) -> bool {
-        self.pyramids != Pyramids::Off
-    }
-
-    pub(crate) fn needs_smoothing(&self) -> bool {
-        self.motion.is_some() || self.edges.is_some_and(|e| e.smoothed)
-    }
 }
 
 /// What a backend hands back for one frame: only the lists asked for.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct FrameFeatures {
-    /// Motion pixels; empty on the first frame of a sequence (no previous frame).
+    /// Motion pixels; empty on the first frame of a sequence, and on a frame
+    /// whose predecessor was not smoothed with the same σ (the
+    /// previous-frame rule of [`FramePlan`]).
     pub motion: Option<Vec<Feature>>,
     /// Edge pixels.
     pub edges: Option<Vec<Feature>>,
@@ -153,13 +150,25 @@ pub struct FrameFeatures {
     pub pyramids: Option<(CpfPyramids, EdgePyramids)>,
 }
 
+impl FrameFeatures {
+    /// The field holding `list`.
+    pub(crate) fn list_mut(&mut self, list: plan::List) -> &mut Option<Vec<Feature>> {
+        match list {
+            plan::List::Motion => &mut self.motion,
+            plan::List::Edges => &mut self.edges,
+            plan::List::ZeroCrossings => &mut self.zero_crossings,
+        }
+    }
+}
+
 /// An early-vision backend: CPU twins or GPU shaders, same answers.
 pub trait EarlyVision {
     /// A human-readable name: the adapter for the GPU, thread count for the CPU.
     fn name(&self) -> String;
 
     /// Compute what `request` asks for on `frame`, the next frame of the
-    /// current sequence (the motion stage differences it against the previous one).
+    /// current sequence (the motion stage differences it against the previous
+    /// one, under the previous-frame rule of [`FramePlan`]).
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures>;
 
     /// Like [`process`](Self::process) for a frame held in a wgpu texture

@@ -6,7 +6,8 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use crate::backend::{CpuBackend, EarlyVision, FrameRequest, FrameStats, GpuBackend};
+use crate::backend::plan::PreviousFrame;
+use crate::backend::{CpuBackend, EarlyVision, FramePlan, FrameRequest, FrameStats, GpuBackend};
 use crate::early::compaction::{self, CompactionGpu, CompactionParams};
 use crate::early::cpf::{self, CpfGpu, CpfPyramids};
 use crate::early::gaussian::{self, GaussianParams};
@@ -20,9 +21,22 @@ use crate::image::{FloatImage, GrayImage};
 use crate::testimage::natural;
 use crate::{Error, Result};
 
-/// The stages benchmarked, by the names used in shader files and bench ids.
-pub const STAGES: &[&str] =
-    &["gaussian", "temporal_diff", "frame_sum", "sobel", "log", "zero_crossing", "cpf", "compaction", "chain"];
+/// The whole frame, every stage of the full chain: the last benchmark.
+const CHAIN: &str = "chain";
+
+/// The stages benchmarked, by the names used in shader files and bench ids:
+/// those the plan of [`FrameRequest::full_chain`] runs on a frame that has a
+/// previous one (so motion runs too), in plan order, then `chain`.
+#[must_use]
+pub fn stages() -> Vec<&'static str> {
+    // Which stages a plan runs does not depend on the frame size.
+    let (w, h) = (1, 1);
+    let request = FrameRequest::full_chain(w, h);
+    let previous = PreviousFrame { width: w, height: h, smoothing: request.smoothing };
+    let mut names = FramePlan::new(&request, w, h, Some(&previous)).stage_names();
+    names.push(CHAIN);
+    names
+}
 
 /// Frames in the synthetic sequence the chain benchmark streams through.
 const CHAIN_FRAMES: usize = 8;
@@ -99,7 +113,7 @@ pub fn cpu_body<'a>(stage: &str, inp: &'a Inputs) -> Result<Body<'a>> {
             let mut list = Vec::new();
             Box::new(move || compaction::compact_cpu(&s.magnitude, &s.direction, &s.magnitude, &p, &mut list))
         }
-        "chain" => {
+        CHAIN => {
             let mut backend = CpuBackend::new();
             let request = FrameRequest::full_chain(w, h);
             let mut i = 0;
@@ -110,7 +124,7 @@ pub fn cpu_body<'a>(stage: &str, inp: &'a Inputs) -> Result<Body<'a>> {
                 Ok(())
             })
         }
-        other => return Err(Error::Parameter(format!("unknown stage {other:?}; known: {}", STAGES.join(", ")))),
+        other => return Err(Error::Parameter(format!("unknown stage {other:?}; known: {}", stages().join(", ")))),
     })
 }
 
@@ -124,7 +138,7 @@ fn compaction_params(w: usize, h: usize) -> CompactionParams {
 /// (upload, compute, readback) through [`GpuBackend::process_stream`].
 pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result<Body<'a>> {
     let (w, h) = inp.luma.size();
-    if stage == "chain" {
+    if stage == CHAIN {
         let mut backend = GpuBackend::new(ctx.clone());
         let request = FrameRequest::full_chain(w, h);
         return Ok(Box::new(move || backend.process_stream(&inp.frames, &request, |_, _| {})));
@@ -141,9 +155,8 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
     let pyr = CpfGpu::new(ctx, w, h);
     let list = CompactionGpu::new(ctx, w * h, Some(1500))?;
     let arena = FrameArena::new(ctx);
-    let stage: &'static str = STAGES
-        .iter()
-        .copied()
+    let stage: &'static str = stages()
+        .into_iter()
         .find(|s| *s == stage)
         .ok_or_else(|| Error::Parameter(format!("unknown stage {stage:?}")))?;
     // Inputs that are outputs of earlier stages are computed once up front.
@@ -156,8 +169,7 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
         for _ in 0..GPU_REPEATS {
             record_stage(&mut rec, stage, &luma, &s0, &s1, [&t1, &t2, &t3], &sob, &edg, &pyr, &list, w, h)?;
         }
-        rec.submit();
-        ctx.wait()
+        ctx.wait_for(rec.submit())
     }))
 }
 
@@ -195,7 +207,7 @@ fn record_stage(
 /// Frames' worth of work one call of a GPU body does.
 #[must_use]
 pub fn gpu_frames_per_call(stage: &str) -> usize {
-    if stage == "chain" { CHAIN_FRAMES } else { GPU_REPEATS }
+    if stage == CHAIN { CHAIN_FRAMES } else { GPU_REPEATS }
 }
 
 /// Frames' worth of work one call of a CPU body does.
@@ -307,4 +319,23 @@ pub fn compare(
         }
     }
     Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows, gpu_chain })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every stage the full chain's plan runs has a benchmark body, and the
+    /// list ends with the whole chain.
+    #[test]
+    fn every_planned_stage_has_a_cpu_body() {
+        let names = stages();
+        assert_eq!(names.last(), Some(&CHAIN));
+        assert!(names.len() > 1);
+        let inputs = Inputs::new(12, 9).unwrap();
+        for stage in names {
+            let mut body = cpu_body(stage, &inputs).unwrap();
+            body().unwrap();
+        }
+    }
 }

@@ -377,7 +377,7 @@ impl CompactionGpu {
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("compaction.readback") });
             enc.copy_buffer_to_buffer(list, prefetched * FEATURE_BYTES, &self.staging, at, size);
-            ctx.queue.submit([enc.finish()]);
+            ctx.wait_for(ctx.queue.submit([enc.finish()]))?;
             let rest = ctx.read_buffer(&self.staging, at..at + size)?;
             out.extend(bytemuck::pod_collect_to_vec::<u8, Feature>(&rest));
         }

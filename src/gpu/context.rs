@@ -186,13 +186,26 @@ impl GpuContext {
         }
     }
 
-    /// Block until all submitted work is done (bounded by a timeout).
+    /// Block until all work submitted to the device so far is done, the
+    /// embedding application's included (bounded by a timeout).
     pub(crate) fn wait(&self) -> Result<()> {
         self.device.poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(super::POLL_TIMEOUT) })?;
         Ok(())
     }
 
-    /// Map `buffer` for reading (the whole of `range`), wait, and copy its bytes out.
+    /// Block until the submission `index` is done (bounded by a timeout),
+    /// without waiting for work submitted after it.
+    pub(crate) fn wait_for(&self, index: wgpu::SubmissionIndex) -> Result<()> {
+        self.device.poll(wgpu::PollType::Wait { submission_index: Some(index), timeout: Some(super::POLL_TIMEOUT) })?;
+        Ok(())
+    }
+
+    /// Map `buffer` for reading (the whole of `range`) and copy its bytes out.
+    ///
+    /// Call it after [`GpuContext::wait_for`] on the submission that last
+    /// wrote `buffer`: the mapping then completes on a non-blocking poll and
+    /// nothing else is waited for. If that submission is still running, this
+    /// falls back to waiting for all submitted work.
     pub(crate) fn read_buffer(&self, buffer: &wgpu::Buffer, range: std::ops::Range<u64>) -> Result<Vec<u8>> {
         if range.is_empty() {
             return Ok(Vec::new());
@@ -201,8 +214,18 @@ impl GpuContext {
         buffer.map_async(wgpu::MapMode::Read, range.clone(), move |r| {
             let _ = tx.send(r);
         });
-        self.wait()?;
-        rx.recv().map_err(|_| Error::Gpu("map callback dropped".into()))??;
+        self.device.poll(wgpu::PollType::Poll)?;
+        let mapped = match rx.try_recv() {
+            Ok(mapped) => mapped,
+            Err(std::sync::mpsc::TryRecvError::Empty) => {
+                self.wait()?;
+                rx.recv().map_err(|_| Error::Gpu("map callback dropped".into()))?
+            }
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                return Err(Error::Gpu("map callback dropped".into()));
+            }
+        };
+        mapped?;
         let bytes = buffer.get_mapped_range(range)?.to_vec();
         buffer.unmap();
         Ok(bytes)

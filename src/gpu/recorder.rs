@@ -86,7 +86,7 @@ impl GpuImage {
         let mut enc =
             ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pipetrack.download") });
         enc.copy_buffer_to_buffer(&self.buffer, 0, &staging, 0, (n.max(1) * 4) as u64);
-        ctx.queue.submit([enc.finish()]);
+        ctx.wait_for(ctx.queue.submit([enc.finish()]))?;
         let bytes = ctx.read_buffer(&staging, 0..(n * 4) as u64)?;
         let data: Vec<T> = bytemuck::pod_collect_to_vec(&bytes);
         Image::from_vec(self.width, self.height, data)
@@ -294,7 +294,8 @@ impl<'a> Recorder<'a> {
         }
     }
 
-    /// Write the uniform blocks and submit everything recorded as one command buffer.
+    /// Write the uniform blocks and submit everything recorded as one command
+    /// buffer; wait for the returned index with [`GpuContext::wait_for`].
     pub(crate) fn submit(self) -> wgpu::SubmissionIndex {
         if !self.uniforms.is_empty() {
             self.ctx.queue.write_buffer(&self.arena.uniforms, 0, &self.uniforms);
@@ -303,12 +304,11 @@ impl<'a> Recorder<'a> {
     }
 }
 
-/// Run `record` on a fresh recorder and wait for the GPU: the standalone path
+/// Run `record` on a fresh recorder and wait for its submission: the standalone path
 /// used by per-stage functions in tests and benches.
 pub(crate) fn run_once(ctx: &GpuContext, record: impl FnOnce(&mut Recorder<'_>) -> Result<()>) -> Result<()> {
     let arena = FrameArena::new(ctx);
     let mut rec = Recorder::new(ctx, &arena);
     record(&mut rec)?;
-    rec.submit();
-    ctx.wait()
+    ctx.wait_for(rec.submit())
 }

@@ -1,11 +1,19 @@
 //! The two backends give the same frame results: the whole chain (motion,
 //! edges, zero crossings, pyramids) over a short moving sequence, through
 //! `GpuBackend` (one submission per frame, slot ring, pipelined stream,
-//! texture input) and `CpuBackend`.
+//! texture input) and `CpuBackend`, with one request throughout and with
+//! requests that change every frame.
 use crate::common;
 
 use pipetrack::GrayImage;
-use pipetrack::backend::{CpuBackend, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, ListSpec, Pyramids};
+use pipetrack::backend::{
+    CpuBackend, EarlyVision, EdgeRequest, FrameFeatures, FrameRequest, GpuBackend, ListSpec, MotionRequest, Pyramids,
+    ZeroCrossingRequest,
+};
+use pipetrack::early::gaussian::GaussianParams;
+use pipetrack::early::log::LogParams;
+use pipetrack::early::temporal_diff::TemporalDiffParams;
+use pipetrack::early::zero_crossing::ZeroCrossingParams;
 use pipetrack::early::{Feature, Window};
 use pipetrack::testimage::natural;
 
@@ -145,5 +153,209 @@ fn too_many_frames_in_flight_is_an_error_not_a_hang() {
     assert!(gpu.submit(&frames[3], &request).is_err());
     for t in [a, b, c] {
         gpu.finish(t).unwrap();
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Requests that change from frame to frame. A tracker asks for different
+// stages, windows and caps on every frame; both backends must still give the
+// same lists, and motion must always difference two consecutive frames
+// smoothed the same way (the previous-frame rule of `FramePlan`).
+
+/// Frames of the changing-request scenarios: an awkward size, ≥ 12 frames.
+const CHANGING: (usize, usize) = (57, 43);
+
+fn motion(spec: ListSpec) -> MotionRequest {
+    MotionRequest { diff: TemporalDiffParams::default(), list: spec }
+}
+
+fn edges(smoothed: bool, spec: ListSpec) -> EdgeRequest {
+    EdgeRequest { threshold: 60.0, smoothed, list: spec }
+}
+
+fn crossings(spec: ListSpec) -> ZeroCrossingRequest {
+    ZeroCrossingRequest { log: LogParams::default(), crossings: ZeroCrossingParams::default(), list: spec }
+}
+
+/// Whether a frame processed with `r` leaves a smoothed image behind: the
+/// stages that read the smoothed frame are motion and smoothed edges.
+fn smooths(r: &FrameRequest) -> bool {
+    r.motion.is_some() || r.edges.is_some_and(|e| e.smoothed)
+}
+
+/// Run `requests` (one per frame) on both backends over a moving sequence and
+/// compare frame by frame; also check every motion list against the rule:
+/// empty unless the previous frame was smoothed with the same σ, and then
+/// equal to the motion of a fresh backend fed only those two frames.
+fn run_changing_requests(test: &str, (w, h): (usize, usize), requests: &[FrameRequest]) {
+    let Some((ctx, _g)) = common::gpu(test) else { return };
+    let frames = sequence(w, h, requests.len());
+    let mut cpu = CpuBackend::new();
+    let mut gpu = GpuBackend::new(ctx.clone());
+    let mut moving_frames = 0;
+    for (i, (f, r)) in frames.iter().zip(requests).enumerate() {
+        let what = format!("{test}/{w}x{h}/frame{i}");
+        let c = cpu.process(f, r).unwrap();
+        let g = gpu.process(f, r).unwrap();
+        same_features(&what, &c, &g);
+        assert_eq!(c.motion.is_some(), r.motion.is_some(), "{what}: motion presence");
+        assert_eq!(c.edges.is_some(), r.edges.is_some(), "{what}: edges presence");
+        assert_eq!(c.zero_crossings.is_some(), r.zero_crossings.is_some(), "{what}: crossings presence");
+        assert_eq!(c.pyramids.is_some(), r.pyramids == Pyramids::Return, "{what}: pyramids presence");
+        let (Some(m), Some(mr)) = (&c.motion, &r.motion) else { continue };
+        let consecutive = i > 0 && smooths(&requests[i - 1]) && requests[i - 1].smoothing == r.smoothing;
+        if !consecutive {
+            assert!(m.is_empty(), "{what}: motion without a consecutive previous frame smoothed alike");
+            continue;
+        }
+        let mut fresh = CpuBackend::new();
+        let first = FrameRequest { smoothing: r.smoothing, motion: Some(*mr), ..FrameRequest::default() };
+        fresh.process(&frames[i - 1], &first).unwrap();
+        let expected = fresh.process(f, r).unwrap().motion.unwrap();
+        same_lists(&format!("{what}/motion against frames {} and {i} alone", i - 1), &expected, m);
+        moving_frames += usize::from(!m.is_empty());
+    }
+    assert!(moving_frames > 0, "{test}: no frame had motion pixels to compare");
+}
+
+#[test]
+fn changing_requests_mix_motion_and_edges() {
+    let (w, h) = CHANGING;
+    let full = ListSpec::full(w, h);
+    let r = |motion_on: bool, edge: Option<bool>| FrameRequest {
+        motion: motion_on.then(|| motion(full)),
+        edges: edge.map(|smoothed| edges(smoothed, full)),
+        ..FrameRequest::default()
+    };
+    let requests = [
+        r(true, None),
+        r(true, None),
+        r(false, Some(true)), // smooths without motion: the next frame's motion differences against it
+        r(true, None),
+        r(false, Some(false)), // does not smooth: the next frame's motion is empty
+        r(true, None),
+        r(true, Some(false)),
+        r(false, None), // nothing at all
+        r(true, Some(true)),
+        r(true, Some(true)),
+        r(false, Some(false)),
+        r(false, Some(true)),
+        r(true, None),
+        r(true, Some(false)),
+    ];
+    run_changing_requests("changing_requests_mix_motion_and_edges", (w, h), &requests);
+}
+
+#[test]
+fn changing_requests_with_crossings_and_pyramids() {
+    let (w, h) = CHANGING;
+    let full = ListSpec::full(w, h);
+    let requests: Vec<FrameRequest> = (0..15)
+        .map(|i| FrameRequest {
+            motion: (i % 5 != 2).then(|| motion(full)),
+            edges: [None, Some(false), Some(true), None][i % 4].map(|s| edges(s, full)),
+            zero_crossings: (i % 2 == 0).then(|| crossings(full)),
+            pyramids: [Pyramids::Off, Pyramids::Keep, Pyramids::Return][i % 3],
+            ..FrameRequest::default()
+        })
+        .collect();
+    run_changing_requests("changing_requests_with_crossings_and_pyramids", (w, h), &requests);
+}
+
+#[test]
+fn changing_requests_with_moving_shrinking_windows_and_caps() {
+    let (w, h) = CHANGING;
+    let requests: Vec<FrameRequest> = (0..14u32)
+        .map(|i| {
+            // Windows drift right and down and shrink until empty (frames
+            // 10 and up), some reaching past the frame; caps come and go.
+            let x0 = 2 * i;
+            let y0 = i;
+            let window = Window {
+                x0,
+                y0,
+                x1: (x0 + (w as u32 + 6).saturating_sub(7 * i)),
+                y1: y0 + (h as u32).saturating_sub(4 * i),
+            };
+            let cap = [None, Some(25), Some(400), Some(0), None, Some(3)][i as usize % 6];
+            let spec = ListSpec { window, cap, seed: 17 * i };
+            let mut r = FrameRequest::full_chain(w, h);
+            r.motion = Some(motion(ListSpec { cap: cap.map(|c| c + 1), ..spec }));
+            r.edges = Some(edges(i % 2 == 0, ListSpec { seed: 3 + i, ..spec }));
+            r.zero_crossings = (i % 3 != 1).then(|| crossings(ListSpec { cap: None, ..spec }));
+            r.pyramids = if i % 4 == 0 { Pyramids::Return } else { Pyramids::Off };
+            r
+        })
+        .collect();
+    assert!(requests.iter().any(|r| r.motion.unwrap().list.window.clipped(w, h).is_empty()));
+    run_changing_requests("changing_requests_with_moving_shrinking_windows_and_caps", (w, h), &requests);
+}
+
+#[test]
+fn changing_smoothing_restarts_motion() {
+    let (w, h) = CHANGING;
+    let full = ListSpec::full(w, h);
+    let sigmas = [1.0, 1.0, 1.0, 1.6, 1.6, 1.0, 1.6, 1.6, 1.6, 1.0, 1.0, 2.0, 2.0];
+    let requests: Vec<FrameRequest> = sigmas
+        .iter()
+        .enumerate()
+        .map(|(i, &sigma)| FrameRequest {
+            smoothing: GaussianParams { sigma },
+            motion: (i % 4 != 2).then(|| motion(full)),
+            edges: (i % 4 == 2).then(|| edges(true, full)),
+            ..FrameRequest::default()
+        })
+        .collect();
+    run_changing_requests("changing_smoothing_restarts_motion", (w, h), &requests);
+}
+
+#[test]
+fn changing_requests_on_a_tiny_frame() {
+    let (w, h) = (5, 4);
+    let full = ListSpec::full(w, h);
+    let requests: Vec<FrameRequest> = (0..13)
+        .map(|i| FrameRequest {
+            motion: (i % 3 != 1).then(|| motion(full)),
+            edges: [None, Some(true), Some(false)][i % 3].map(|s| edges(s, full)),
+            zero_crossings: (i % 2 == 1).then(|| crossings(full)),
+            pyramids: [Pyramids::Return, Pyramids::Off, Pyramids::Keep, Pyramids::Return][i % 4],
+            ..FrameRequest::default()
+        })
+        .collect();
+    run_changing_requests("changing_requests_on_a_tiny_frame", (w, h), &requests);
+}
+
+/// Frames in flight in the slot ring with a different request each: the
+/// previous frame of a submission is the one submitted just before it.
+#[test]
+fn changing_requests_in_flight_equal_cpu() {
+    let Some((ctx, _g)) = common::gpu("changing_requests_in_flight_equal_cpu") else { return };
+    let (w, h) = CHANGING;
+    let full = ListSpec::full(w, h);
+    let frames = sequence(w, h, 12);
+    let requests: Vec<FrameRequest> = (0..frames.len())
+        .map(|i| FrameRequest {
+            motion: (i % 3 != 1).then(|| motion(full)),
+            edges: [Some(true), Some(false), None, Some(false)][i % 4].map(|s| edges(s, full)),
+            pyramids: if i % 5 == 0 { Pyramids::Return } else { Pyramids::Keep },
+            ..FrameRequest::default()
+        })
+        .collect();
+    let mut cpu = CpuBackend::new();
+    let mut gpu = GpuBackend::new(ctx.clone());
+    let mut in_flight = std::collections::VecDeque::new();
+    let mut compare = |i: usize, g: FrameFeatures| {
+        let c = cpu.process(&frames[i], &requests[i]).unwrap();
+        same_features(&format!("in_flight/frame{i}"), &c, &g);
+    };
+    for (i, (f, r)) in frames.iter().zip(&requests).enumerate() {
+        if in_flight.len() == 2 {
+            let (j, t) = in_flight.pop_front().unwrap();
+            compare(j, gpu.finish(t).unwrap());
+        }
+        in_flight.push_back((i, gpu.submit(f, r).unwrap()));
+    }
+    while let Some((j, t)) = in_flight.pop_front() {
+        compare(j, gpu.finish(t).unwrap());
     }
 }
