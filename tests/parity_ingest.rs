@@ -45,8 +45,8 @@ fn parity_ingest_bytes_exact() {
     let Some((ctx, _g)) = common::gpu("parity_ingest_bytes_exact") else { return };
     for &(w, h) in common::PARITY_SIZES {
         let frame = natural(w, h, 7);
-        let cpu = ingest::ingest_gray(&frame);
-        let gpu = ingest::ingest_gray_gpu(ctx, &frame).unwrap();
+        let cpu = ingest::ingest(&frame);
+        let gpu = ingest::ingest_gpu(ctx, &frame).unwrap();
         common::assert_equal(&format!("ingest/{w}x{h}"), &cpu, &gpu);
     }
 }
@@ -58,7 +58,7 @@ fn parity_ingest_texture_r8_exact() {
         let frame = natural(w, h, 8);
         let t = texture(ctx, w, h, wgpu::TextureFormat::R8Unorm, frame.data());
         let gpu = ingest::ingest_texture_gpu(ctx, &t).unwrap();
-        common::assert_equal(&format!("ingest_texture/r8/{w}x{h}"), &ingest::ingest_gray(&frame), &gpu);
+        common::assert_equal(&format!("ingest_texture/r8/{w}x{h}"), &ingest::ingest(&frame), &gpu);
     }
 }
 
@@ -70,7 +70,7 @@ fn parity_ingest_texture_rgba8_luma() {
         let rgba: Vec<u8> = (0..w * h).flat_map(|i| [r.data()[i], g.data()[i], b.data()[i], 255]).collect();
         let t = texture(ctx, w, h, wgpu::TextureFormat::Rgba8Unorm, &rgba);
         let gpu = ingest::ingest_texture_gpu(ctx, &t).unwrap();
-        let cpu = ingest::ingest_rgba(&rgba, w, h).unwrap();
+        let cpu = ingest::ingest_texture_cpu(&rgba, w, h).unwrap();
         common::assert_close(&format!("ingest_texture/rgba8/{w}x{h}"), &cpu, &gpu, LUMA_ATOL, 0.0);
     }
 }

@@ -4,14 +4,14 @@
 use super::{EarlyVision, FrameFeatures, FrameRequest, Pyramids};
 use crate::Result;
 use crate::early::Feature;
-use crate::early::compaction::compact_cpu;
-use crate::early::cpf;
-use crate::early::gaussian::smooth_cpu;
-use crate::early::ingest::ingest_gray_into;
+use crate::early::compaction::compaction_cpu;
+use crate::early::gaussian::gaussian_cpu;
+use crate::early::ingest::ingest_cpu;
 use crate::early::log::log_cpu;
 use crate::early::sobel::{SobelOutput, sobel_cpu};
 use crate::early::temporal_diff;
-use crate::early::zero_crossing::{Edgels, zero_crossings_cpu};
+use crate::early::zero_crossing::{Edgels, zero_crossing_cpu};
+use crate::early::{cpf, edge_pyramid};
 use crate::image::{FloatImage, GrayImage};
 
 /// Early vision on the CPU (rayon threads across rows for large frames).
@@ -84,9 +84,9 @@ impl EarlyVision for CpuBackend {
         if self.previous.as_ref().is_some_and(|p| p.size() != frame.size()) {
             self.previous = None;
         }
-        ingest_gray_into(frame, &mut self.luma);
+        ingest_cpu(frame, &mut self.luma);
         if request.needs_smoothing() {
-            smooth_cpu(&self.luma, &request.smoothing, &mut self.tmp, &mut self.smoothed)?;
+            gaussian_cpu(&self.luma, &request.smoothing, &mut self.tmp, &mut self.smoothed)?;
         }
 
         if let Some(m) = &request.motion {
@@ -102,7 +102,7 @@ impl EarlyVision for CpuBackend {
                     &mut self.sum,
                 )?;
                 sobel_cpu(&self.sum, &mut self.sobel_sum);
-                compact_cpu(
+                compaction_cpu(
                     &self.motion_mask,
                     &self.sobel_sum.theta,
                     &self.sobel_sum.magnitude,
@@ -118,16 +118,16 @@ impl EarlyVision for CpuBackend {
             sobel_cpu(src, &mut self.sobel_edges);
             let mut list = list_from(&mut self.spare.edges);
             let s = &self.sobel_edges;
-            compact_cpu(&s.magnitude, &s.direction, &s.magnitude, &e.list.compaction(e.threshold), &mut list)?;
+            compaction_cpu(&s.magnitude, &s.direction, &s.magnitude, &e.list.compaction(e.threshold), &mut list)?;
             out.edges = Some(list);
         }
 
         if let Some(z) = &request.zero_crossings {
             log_cpu(&self.luma, &z.log, &mut self.tmp, &mut self.tmp2, &mut self.log)?;
-            zero_crossings_cpu(&self.log, &z.crossings, &mut self.edgels);
+            zero_crossing_cpu(&self.log, &z.crossings, &mut self.edgels);
             let mut list = list_from(&mut self.spare.zero_crossings);
             let ed = &self.edgels;
-            compact_cpu(&ed.strength, &ed.direction, &ed.strength, &z.list.compaction(0.0), &mut list)?;
+            compaction_cpu(&ed.strength, &ed.direction, &ed.strength, &z.list.compaction(0.0), &mut list)?;
             out.zero_crossings = Some(list);
         }
 
@@ -139,7 +139,7 @@ impl EarlyVision for CpuBackend {
             if request.edges.is_none() || request.edges.is_some_and(|e| e.smoothed) {
                 sobel_cpu(&self.luma, &mut self.sobel_edges);
             }
-            cpf::edge_pyramids_cpu(&self.sobel_edges.gx, &self.sobel_edges.gy, &mut edge_levels)?;
+            edge_pyramid::edge_pyramid_cpu(&self.sobel_edges.gx, &self.sobel_edges.gy, &mut edge_levels)?;
             if request.pyramids == Pyramids::Return {
                 out.pyramids = Some((cpf_levels, edge_levels));
             } else {

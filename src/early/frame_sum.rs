@@ -8,7 +8,7 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::gaussian::PARALLEL_PIXELS;
+use super::rows::for_each_row;
 use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
 use crate::image::FloatImage;
 use crate::{Error, Result};
@@ -41,15 +41,8 @@ pub fn frame_sum_cpu(a: &FloatImage, b: &FloatImage, out: &mut FloatImage) -> Re
     if w == 0 || h == 0 {
         return Ok(());
     }
-    if w * h >= PARALLEL_PIXELS {
-        a.data()
-            .par_chunks(w)
-            .zip(b.data().par_chunks(w))
-            .zip(out.data_mut().par_chunks_mut(w))
-            .for_each(|((x, y), o)| sum_row(x, y, o));
-    } else {
-        sum_row(a.data(), b.data(), out.data_mut());
-    }
+    let rows = a.data().par_chunks(w).zip(b.data().par_chunks(w)).zip(out.data_mut().par_chunks_mut(w));
+    for_each_row(w * h, rows, |((x, y), o)| sum_row(x, y, o));
     Ok(())
 }
 

@@ -25,12 +25,12 @@ struct IngestUniform {
 
 /// CPU twin of `from_bytes`: grey bytes to f32.
 #[must_use]
-pub fn ingest_gray(frame: &GrayImage) -> FloatImage {
+pub fn ingest(frame: &GrayImage) -> FloatImage {
     frame.to_f32()
 }
 
 /// CPU twin of `from_bytes` into a caller-allocated image.
-pub fn ingest_gray_into(frame: &GrayImage, dst: &mut FloatImage) {
+pub fn ingest_cpu(frame: &GrayImage, dst: &mut FloatImage) {
     dst.resize(frame.width(), frame.height());
     for (d, &s) in dst.data_mut().iter_mut().zip(frame.data()) {
         *d = f32::from(s);
@@ -38,7 +38,7 @@ pub fn ingest_gray_into(frame: &GrayImage, dst: &mut FloatImage) {
 }
 
 /// CPU twin of `from_texture` for Rgba8Unorm: `rgba` holds 4 bytes per pixel, row-major.
-pub fn ingest_rgba(rgba: &[u8], width: usize, height: usize) -> Result<FloatImage> {
+pub fn ingest_texture_cpu(rgba: &[u8], width: usize, height: usize) -> Result<FloatImage> {
     if rgba.len() != width * height * 4 {
         return Err(Error::Size(format!("{} RGBA bytes for {width}x{height}", rgba.len())));
     }
@@ -59,7 +59,7 @@ pub(crate) fn pack_bytes(bytes: &[u8]) -> Vec<u32> {
 }
 
 /// Record `from_bytes`: `packed` (a storage buffer of packed bytes) into `dst`.
-pub(crate) fn encode_bytes(rec: &mut Recorder<'_>, packed: &wgpu::Buffer, dst: &GpuImage) -> Result<()> {
+pub(crate) fn encode(rec: &mut Recorder<'_>, packed: &wgpu::Buffer, dst: &GpuImage) -> Result<()> {
     let (w, h) = (dst.width(), dst.height());
     let u = IngestUniform { width: w as u32, height: h as u32, rgba: 0, _pad: 0 };
     rec.dispatch(&SHADER, "from_bytes", &u, &[&dst.buffer, packed], workgroups_2d(w, h))
@@ -91,7 +91,7 @@ pub(crate) fn encode_texture(rec: &mut Recorder<'_>, texture: &wgpu::Texture, ds
 }
 
 /// GPU: ingest grey bytes and read the f32 image back (tests and benches).
-pub fn ingest_gray_gpu(ctx: &GpuContext, frame: &GrayImage) -> Result<FloatImage> {
+pub fn ingest_gpu(ctx: &GpuContext, frame: &GrayImage) -> Result<FloatImage> {
     use wgpu::util::DeviceExt;
     let packed = pack_bytes(frame.data());
     let words = if packed.is_empty() { vec![0u32] } else { packed };
@@ -101,7 +101,7 @@ pub fn ingest_gray_gpu(ctx: &GpuContext, frame: &GrayImage) -> Result<FloatImage
         usage: wgpu::BufferUsages::STORAGE,
     });
     let dst = GpuImage::new(ctx, frame.width(), frame.height(), "ingest.dst");
-    run_once(ctx, |rec| encode_bytes(rec, &buf, &dst))?;
+    run_once(ctx, |rec| encode(rec, &buf, &dst))?;
     dst.download(ctx)
 }
 
@@ -123,7 +123,7 @@ mod tests {
 
     #[test]
     fn rgba_luma_uses_bt601_weights() {
-        let img = ingest_rgba(&[255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 255], 3, 1).unwrap();
+        let img = ingest_texture_cpu(&[255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 255], 3, 1).unwrap();
         assert!((img.get(0, 0) - 76.245).abs() < 1e-3);
         assert!((img.get(1, 0) - 149.685).abs() < 1e-3);
         assert!((img.get(2, 0) - 29.07).abs() < 1e-3);

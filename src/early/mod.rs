@@ -1,8 +1,10 @@
 //! Early vision: every stage exists twice, as a WGSL shader in `shaders/`
 //! and as a CPU twin here, with the same parameters, the same clamp-to-edge
-//! border policy and the same output layout. Each module holds one stage:
-//! its parameters, its CPU twin, its GPU `encode`, and a standalone
-//! `*_gpu` function for tests and benches.
+//! border policy and the same output layout. Each module holds one stage
+//! `<stage>` (named like its shader): its parameters, its CPU twin
+//! `<stage>_cpu` writing into caller-allocated outputs, the allocating
+//! convenience `<stage>` over it, its GPU recording `encode`, and the
+//! standalone `<stage>_gpu` (upload, run, read back) for tests and benches.
 
 /// `fn $name(args)` that runs `$body(args)` compiled for AVX2 where the CPU
 /// has it (std caches the detection) and for the baseline target otherwise.
@@ -34,10 +36,12 @@ macro_rules! simd_dispatch {
 pub mod angle;
 pub mod compaction;
 pub mod cpf;
+pub mod edge_pyramid;
 pub mod frame_sum;
 pub mod gaussian;
 pub mod ingest;
 pub mod log;
+pub(crate) mod rows;
 pub mod sobel;
 pub mod temporal_diff;
 pub mod zero_crossing;

@@ -41,7 +41,7 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
 use super::angle::fast_atan;
-use super::gaussian::PARALLEL_PIXELS;
+use super::rows::for_each_row;
 use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
 use crate::image::FloatImage;
 use crate::{Error, Result};
@@ -247,31 +247,16 @@ pub fn sobel_cpu(src: &FloatImage, out: &mut SobelOutput) {
     }
     let s = src.data();
     let SobelOutput { gx, gy, magnitude, direction, theta } = out;
-    if w * h >= PARALLEL_PIXELS {
-        (
-            gx.data_mut().par_chunks_mut(w),
-            gy.data_mut().par_chunks_mut(w),
-            magnitude.data_mut().par_chunks_mut(w),
-            direction.data_mut().par_chunks_mut(w),
-            theta.data_mut().par_chunks_mut(w),
-        )
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(y, (gx, gy, magnitude, direction, theta))| {
-                sobel_row(s, w, h, y, Rows { gx, gy, magnitude, direction, theta });
-            });
-    } else {
-        gx.data_mut()
-            .chunks_mut(w)
-            .zip(gy.data_mut().chunks_mut(w))
-            .zip(magnitude.data_mut().chunks_mut(w))
-            .zip(direction.data_mut().chunks_mut(w))
-            .zip(theta.data_mut().chunks_mut(w))
-            .enumerate()
-            .for_each(|(y, ((((gx, gy), magnitude), direction), theta))| {
-                sobel_row(s, w, h, y, Rows { gx, gy, magnitude, direction, theta });
-            });
-    }
+    let planes = (
+        gx.data_mut().par_chunks_mut(w),
+        gy.data_mut().par_chunks_mut(w),
+        magnitude.data_mut().par_chunks_mut(w),
+        direction.data_mut().par_chunks_mut(w),
+        theta.data_mut().par_chunks_mut(w),
+    );
+    for_each_row(w * h, planes.into_par_iter().enumerate(), |(y, (gx, gy, magnitude, direction, theta))| {
+        sobel_row(s, w, h, y, Rows { gx, gy, magnitude, direction, theta });
+    });
 }
 
 /// CPU twin, allocating its outputs: the five Sobel planes of `src`.

@@ -9,7 +9,7 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::gaussian::PARALLEL_PIXELS;
+use super::rows::for_each_row;
 use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
 use crate::image::FloatImage;
 use crate::{Error, Result};
@@ -97,15 +97,9 @@ pub fn temporal_diff_and_sum_cpu(
         diff_row(p, c, m, t);
         super::frame_sum::sum_row(p, c, s);
     };
-    if w * h >= PARALLEL_PIXELS {
-        (prev.data().par_chunks(w).zip(cur.data().par_chunks(w)))
-            .zip(mask.data_mut().par_chunks_mut(w).zip(sum.data_mut().par_chunks_mut(w)))
-            .for_each(rows);
-    } else {
-        (prev.data().chunks(w).zip(cur.data().chunks(w)))
-            .zip(mask.data_mut().chunks_mut(w).zip(sum.data_mut().chunks_mut(w)))
-            .for_each(rows);
-    }
+    let planes = (prev.data().par_chunks(w).zip(cur.data().par_chunks(w)))
+        .zip(mask.data_mut().par_chunks_mut(w).zip(sum.data_mut().par_chunks_mut(w)));
+    for_each_row(w * h, planes, rows);
     Ok(())
 }
 
@@ -125,19 +119,8 @@ pub fn temporal_diff_cpu(
         return Ok(());
     }
     let t = params.threshold;
-    if w * h >= PARALLEL_PIXELS {
-        prev.data()
-            .par_chunks(w)
-            .zip(cur.data().par_chunks(w))
-            .zip(out.data_mut().par_chunks_mut(w))
-            .for_each(|((p, c), o)| diff_row(p, c, o, t));
-    } else {
-        prev.data()
-            .chunks(w)
-            .zip(cur.data().chunks(w))
-            .zip(out.data_mut().chunks_mut(w))
-            .for_each(|((p, c), o)| diff_row(p, c, o, t));
-    }
+    let rows = prev.data().par_chunks(w).zip(cur.data().par_chunks(w)).zip(out.data_mut().par_chunks_mut(w));
+    for_each_row(w * h, rows, |((p, c), o)| diff_row(p, c, o, t));
     Ok(())
 }
 
