@@ -32,13 +32,25 @@ use rayon::prelude::*;
 
 use super::rows::for_each_row;
 use super::{Feature, Window};
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once};
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "compaction", source: include_str!("../../shaders/compaction.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "compaction",
+    source: include_str!("../../shaders/compaction.wgsl"),
+    includes: &[],
+    entry_points: &[
+        EntryPoint::linear("count_blocks", BLOCK, &[Uniform, ReadOnly, Storage]),
+        EntryPoint::linear("scan_blocks", BLOCK, &[Uniform, ReadOnly, Storage, Storage]),
+        EntryPoint::linear("scatter", BLOCK, &[Uniform, ReadOnly, ReadOnly, ReadOnly, ReadOnly, Storage]),
+        EntryPoint::linear("gather", BLOCK, &[Uniform, ReadOnly, ReadOnly, Storage]),
+    ],
+};
 
 /// Largest cap accepted: keeps `j·(n % cap)` below 2³² in the stratum bounds.
 pub const MAX_CAP: u32 = 65_535;

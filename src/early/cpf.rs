@@ -54,12 +54,20 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
 use super::rows::for_each_row;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::gpu::{
+    Binding::{Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of the CPF hierarchies.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "cpf", source: include_str!("../../shaders/cpf.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "cpf",
+    source: include_str!("../../shaders/cpf.wgsl"),
+    includes: &[],
+    entry_points: &[EntryPoint::tiled("cpf_level", &[Uniform, Storage, Storage, Storage, Storage])],
+};
 
 /// Number of CPF hierarchies (m = 0..3: minimum, two saddles, maximum).
 pub const HIERARCHIES: usize = 4;

@@ -17,12 +17,19 @@
 
 use super::cpf::{LevelLayout, level_sizes, reduce_level, reduce_row, shape_levels};
 use crate::Result;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::gpu::{
+    Binding::{Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "edge_pyramid", source: include_str!("../../shaders/edge_pyramid.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "edge_pyramid",
+    source: include_str!("../../shaders/edge_pyramid.wgsl"),
+    includes: &[],
+    entry_points: &[EntryPoint::tiled("edge_level", &[Uniform, Storage, Storage])],
+};
 
 /// The averaged horizontal and vertical edge hierarchies of one image.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -9,13 +9,20 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
 use super::rows::for_each_row;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "frame_sum", source: include_str!("../../shaders/frame_sum.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "frame_sum",
+    source: include_str!("../../shaders/frame_sum.wgsl"),
+    includes: &[],
+    entry_points: &[EntryPoint::tiled("frame_sum", &[Uniform, ReadOnly, ReadOnly, Storage])],
+};
 
 /// Uniform block of `frame_sum.wgsl`; kept in sync with its `Params`.
 #[repr(C)]

@@ -10,13 +10,23 @@ use rayon::prelude::*;
 
 use super::rows::for_each_row;
 
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "gaussian", source: include_str!("../../shaders/gaussian.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "gaussian",
+    source: include_str!("../../shaders/gaussian.wgsl"),
+    includes: &[],
+    entry_points: &[
+        EntryPoint::tiled("blur_rows", &[Uniform, ReadOnly, Storage]),
+        EntryPoint::tiled("blur_cols", &[Uniform, ReadOnly, Storage]),
+    ],
+};
 
 /// Most half-kernel weights the shader's uniform block holds.
 const MAX_TAPS: usize = 60;

@@ -3,15 +3,27 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Texture, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::{FloatImage, GrayImage, luma};
 use crate::{Error, Result};
 
 /// Shader for byte frames.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "ingest", source: include_str!("../../shaders/ingest.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "ingest",
+    source: include_str!("../../shaders/ingest.wgsl"),
+    includes: &[],
+    entry_points: &[EntryPoint::tiled("from_bytes", &[Uniform, Storage, ReadOnly])],
+};
 /// Shader for texture frames.
-pub(crate) const TEXTURE_SHADER: ShaderDef =
-    ShaderDef { name: "ingest_texture", source: include_str!("../../shaders/ingest_texture.wgsl") };
+pub const TEXTURE_SHADER: ShaderDef = ShaderDef {
+    name: "ingest_texture",
+    source: include_str!("../../shaders/ingest_texture.wgsl"),
+    includes: &[],
+    entry_points: &[EntryPoint::tiled("from_texture", &[Uniform, Storage, Texture])],
+};
 
 /// Uniform block of both ingest shaders; kept in sync with their `Params`.
 #[repr(C)]

@@ -25,12 +25,23 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
 use super::rows::for_each_row;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "log", source: include_str!("../../shaders/log.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "log",
+    source: include_str!("../../shaders/log.wgsl"),
+    includes: &[],
+    entry_points: &[
+        EntryPoint::tiled("rows", &[Uniform, ReadOnly, Storage, Storage]),
+        EntryPoint::tiled("cols", &[Uniform, ReadOnly, ReadOnly, Storage]),
+    ],
+};
 
 /// Most half-kernel weights the shader's uniform block holds per kernel
 /// (7 `vec4`s each: the whole block must fit the recorder's 256-byte stride).

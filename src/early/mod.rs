@@ -46,6 +46,22 @@ pub mod sobel;
 pub mod temporal_diff;
 pub mod zero_crossing;
 
+/// Every shader the stages load, in the order a frame runs them; what
+/// `tests/shader_validation.rs` checks against the WGSL with naga.
+pub const SHADERS: &[crate::gpu::ShaderDef] = &[
+    ingest::SHADER,
+    ingest::TEXTURE_SHADER,
+    gaussian::SHADER,
+    temporal_diff::SHADER,
+    frame_sum::SHADER,
+    sobel::SHADER,
+    log::SHADER,
+    zero_crossing::SHADER,
+    cpf::SHADER,
+    edge_pyramid::SHADER,
+    compaction::SHADER,
+];
+
 /// A rectangle of interest in pixel coordinates: columns `x0..x1`, rows
 /// `y0..y1` (half-open). Empty when `x0 >= x1` or `y0 >= y1`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

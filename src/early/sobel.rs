@@ -42,12 +42,20 @@ use rayon::prelude::*;
 
 use super::angle::fast_atan;
 use super::rows::for_each_row;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "sobel", source: include_str!("../../shaders/sobel.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "sobel",
+    source: include_str!("../../shaders/sobel.wgsl"),
+    includes: &[super::angle::INCLUDE],
+    entry_points: &[EntryPoint::tiled("sobel", &[Uniform, ReadOnly, Storage, Storage, Storage, Storage, Storage])],
+};
 
 /// The five planes of the Sobel stage on the CPU, all the same size.
 #[derive(Clone, Debug, PartialEq)]

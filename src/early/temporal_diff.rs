@@ -10,13 +10,20 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
 use super::rows::for_each_row;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "temporal_diff", source: include_str!("../../shaders/temporal_diff.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "temporal_diff",
+    source: include_str!("../../shaders/temporal_diff.wgsl"),
+    includes: &[],
+    entry_points: &[EntryPoint::tiled("temporal_diff", &[Uniform, ReadOnly, ReadOnly, Storage])],
+};
 
 /// Mask value of a moving pixel.
 pub const MOVING: f32 = 1.0;

@@ -37,13 +37,20 @@ use rayon::prelude::*;
 
 use super::angle::fast_atan2;
 use super::rows::for_each_row;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "zero_crossing", source: include_str!("../../shaders/zero_crossing.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "zero_crossing",
+    source: include_str!("../../shaders/zero_crossing.wgsl"),
+    includes: &[super::angle::INCLUDE],
+    entry_points: &[EntryPoint::tiled("edgels", &[Uniform, ReadOnly, Storage, Storage, Storage, Storage])],
+};
 
 /// Smallest effective `min_slope`: smaller values (and NaN) act as this one,
 /// so every kept slope is far above f32 underflow and `strength > 0` exactly

@@ -7,7 +7,7 @@ use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
 use super::GpuContext;
-use super::context::ShaderDef;
+use super::{Binding, ShaderDef};
 use crate::image::Image;
 use crate::{Error, Result};
 
@@ -92,6 +92,24 @@ impl GpuImage {
         Image::from_vec(self.width, self.height, data)
     }
 
+    /// `(width, height)` in pixels.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// [`Error::Size`] unless `other` has this image's size; `what` names
+    /// the pair in the message, as [`Image::check_same_size`] does on the CPU.
+    pub fn check_same_size(&self, other: &GpuImage, what: &str) -> Result<()> {
+        if self.size() != other.size() {
+            return Err(Error::Size(format!(
+                "{what}: {}x{} vs {}x{} GPU images",
+                self.width, self.height, other.width, other.height
+            )));
+        }
+        Ok(())
+    }
+
     /// Width in pixels.
     #[must_use]
     pub fn width(&self) -> usize {
@@ -122,8 +140,8 @@ pub(crate) fn workgroups_2d(width: usize, height: usize) -> [u32; 3] {
 /// their uniform blocks at once and submits a single command buffer.
 ///
 /// Binding convention shared by every shader: `@binding(0)` is the stage's
-/// uniform `Params`, `@binding(1..)` are storage buffers in the order the
-/// stage's `encode` passes them.
+/// uniform `Params`, `@binding(1..)` are the resources in the order the
+/// stage's `encode` passes them, as its [`ShaderDef`] declares them.
 pub(crate) struct Recorder<'a> {
     ctx: &'a GpuContext,
     encoder: wgpu::CommandEncoder,
@@ -175,7 +193,8 @@ impl<'a> Recorder<'a> {
 
     /// Record one dispatch of `entry` in `shader` with uniform `params` and
     /// storage `buffers` bound at 1, 2, …; empty grids are skipped. The bind
-    /// group is made once per arena and reused on later frames.
+    /// group is made once per arena and reused on later frames. Errors when
+    /// the buffers do not match the entry point's declared bindings.
     pub(crate) fn dispatch<P: bytemuck::Pod>(
         &mut self,
         shader: &ShaderDef,
@@ -184,11 +203,12 @@ impl<'a> Recorder<'a> {
         buffers: &[&wgpu::Buffer],
         groups: [u32; 3],
     ) -> Result<()> {
+        check_resources(shader, entry, buffers.len(), true)?;
         if groups.contains(&0) {
             return Ok(());
         }
+        let pipeline = self.ctx.pipeline(shader, entry)?;
         let (offset, size) = self.push_uniform(shader, params)?;
-        let pipeline = self.ctx.pipeline(shader, entry);
         let key: BindKey = (shader.name, entry, offset, buffers.iter().map(|b| (*b).clone()).collect());
         let bind_group = {
             let mut cache = self.arena.bind_groups.lock().unwrap_or_else(|p| p.into_inner());
@@ -206,7 +226,8 @@ impl<'a> Recorder<'a> {
     }
 
     /// Like [`Recorder::dispatch`], with any binding resources (textures too)
-    /// at 1, 2, …; the bind group is made for this dispatch only.
+    /// at 1, 2, …; the bind group is made for this dispatch only. Errors when
+    /// the number of resources does not match the declared bindings.
     pub(crate) fn dispatch_with<P: bytemuck::Pod>(
         &mut self,
         shader: &ShaderDef,
@@ -215,11 +236,12 @@ impl<'a> Recorder<'a> {
         resources: &[wgpu::BindingResource<'_>],
         groups: [u32; 3],
     ) -> Result<()> {
+        check_resources(shader, entry, resources.len(), false)?;
         if groups.contains(&0) {
             return Ok(());
         }
+        let pipeline = self.ctx.pipeline(shader, entry)?;
         let (offset, size) = self.push_uniform(shader, params)?;
-        let pipeline = self.ctx.pipeline(shader, entry);
         let bind_group = self.make_bind_group(shader, &pipeline, offset, size, resources);
         self.record(shader, &pipeline, &bind_group, groups);
         Ok(())
@@ -301,6 +323,24 @@ impl<'a> Recorder<'a> {
         }
         self.ctx.queue.submit([self.encoder.finish()])
     }
+}
+
+/// Error unless `entry` of `shader` is declared with a uniform at binding 0
+/// followed by `count` resources (all of them buffers when `buffers_only`).
+fn check_resources(shader: &ShaderDef, entry: &str, count: usize, buffers_only: bool) -> Result<()> {
+    let declared = shader
+        .entry_point(entry)
+        .ok_or_else(|| Error::Gpu(format!("{}: entry point `{entry}` is not declared", shader.path())))?;
+    let (first, rest) = declared.bindings.split_first().unwrap_or((&Binding::Storage, &[]));
+    if *first != Binding::Uniform || rest.len() != count || (buffers_only && !rest.iter().all(|b| b.is_buffer())) {
+        return Err(Error::Gpu(format!(
+            "{} `{entry}` declares bindings {:?}; the dispatch binds a uniform and {count} {}",
+            shader.path(),
+            declared.bindings,
+            if buffers_only { "buffers" } else { "resources" }
+        )));
+    }
+    Ok(())
 }
 
 /// Run `record` on a fresh recorder and wait for the GPU: the standalone path
