@@ -414,8 +414,8 @@ pub(crate) fn encode(
     params: &CompactionParams,
     scratch: &CompactionGpu,
 ) -> Result<()> {
-    let size = (select.width(), select.height());
-    check_sizes(size, (theta.width(), theta.height()), (magnitude.width(), magnitude.height()))?;
+    let size = select.size();
+    check_sizes(size, theta.size(), magnitude.size())?;
     let win = checked_window(size, params)?;
     if win.area() > scratch.max_pixels {
         return Err(Error::Size(format!(

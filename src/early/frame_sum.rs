@@ -9,12 +9,12 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
 use super::rows::for_each_row;
+use crate::Result;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
     EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
 };
 use crate::image::FloatImage;
-use crate::{Error, Result};
 
 /// The shader of this stage.
 pub const SHADER: ShaderDef = ShaderDef {
@@ -40,7 +40,7 @@ pub(crate) fn sum_row(a: &[f32], b: &[f32], out: &mut [f32]) {
 }
 
 /// CPU twin: write `a + b` into `out` (resized to match). `a` and `b` must
-/// have the same size ([`Error::Size`]).
+/// have the same size ([`crate::Error::Size`]).
 pub fn frame_sum_cpu(a: &FloatImage, b: &FloatImage, out: &mut FloatImage) -> Result<()> {
     a.check_same_size(b, "frame sum")?;
     let (w, h) = a.size();
@@ -63,11 +63,8 @@ pub fn frame_sum(a: &FloatImage, b: &FloatImage) -> Result<FloatImage> {
 /// Record `out = a + b` (all three the same size).
 pub(crate) fn encode(rec: &mut Recorder<'_>, a: &GpuImage, b: &GpuImage, out: &GpuImage) -> Result<()> {
     let (w, h) = (a.width(), a.height());
-    for (img, what) in [(b, "b"), (out, "out")] {
-        if (img.width(), img.height()) != (w, h) {
-            return Err(Error::Size(format!("frame sum a {w}x{h} vs {what} {}x{}", img.width(), img.height())));
-        }
-    }
+    a.check_same_size(b, "frame sum a/b")?;
+    a.check_same_size(out, "frame sum a/out")?;
     let u = FrameSumUniform { width: w as u32, height: h as u32, _pad: [0; 2] };
     rec.dispatch(&SHADER, "frame_sum", &u, &[&a.buffer, &b.buffer, &out.buffer], workgroups_2d(w, h))
 }
@@ -86,6 +83,7 @@ pub fn frame_sum_gpu(ctx: &GpuContext, a: &FloatImage, b: &FloatImage) -> Result
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Error;
 
     #[test]
     fn adds_pixelwise() {

@@ -169,7 +169,8 @@ pub fn gaussian(src: &FloatImage, params: &GaussianParams) -> Result<FloatImage>
     Ok(dst)
 }
 
-/// Record the two passes `src → tmp → dst` (all the same size).
+/// Record the two passes `src → tmp → dst`; [`Error::Size`] unless all
+/// three have the same size.
 pub(crate) fn encode(
     rec: &mut Recorder<'_>,
     src: &GpuImage,
@@ -178,7 +179,9 @@ pub(crate) fn encode(
     params: &GaussianParams,
 ) -> Result<()> {
     let half = half_kernel(params.sigma)?;
-    let (w, h) = (src.width(), src.height());
+    src.check_same_size(tmp, "gaussian src/tmp")?;
+    src.check_same_size(dst, "gaussian src/dst")?;
+    let (w, h) = src.size();
     let u = GaussianUniform::new(w, h, &half);
     let groups = workgroups_2d(w, h);
     rec.dispatch(&SHADER, "blur_rows", &u, &[&src.buffer, &tmp.buffer], groups)?;

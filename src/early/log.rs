@@ -271,10 +271,8 @@ pub(crate) fn encode(
 ) -> Result<()> {
     let k = log_kernels(params.sigma)?;
     let (w, h) = (src.width(), src.height());
-    for (img, what) in [(tmp_g, "tmp_g"), (tmp_d, "tmp_d"), (out, "out")] {
-        if (img.width(), img.height()) != (w, h) {
-            return Err(Error::Size(format!("LoG {what}: {}x{} vs src {w}x{h}", img.width(), img.height())));
-        }
+    for (img, what) in [(tmp_g, "LoG src/tmp_g"), (tmp_d, "LoG src/tmp_d"), (out, "LoG src/out")] {
+        src.check_same_size(img, what)?;
     }
     let u = LogUniform::new(w, h, &k);
     let groups = workgroups_2d(w, h);

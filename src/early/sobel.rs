@@ -42,12 +42,12 @@ use rayon::prelude::*;
 
 use super::angle::fast_atan;
 use super::rows::for_each_row;
+use crate::Result;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
     EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
 };
 use crate::image::FloatImage;
-use crate::{Error, Result};
 
 /// The shader of this stage.
 pub const SHADER: ShaderDef = ShaderDef {
@@ -278,13 +278,14 @@ pub fn sobel(src: &FloatImage) -> SobelOutput {
 /// Record one dispatch writing all five planes of `out` from `src` (same size).
 pub(crate) fn encode(rec: &mut Recorder<'_>, src: &GpuImage, out: &SobelGpu) -> Result<()> {
     let (w, h) = (src.width(), src.height());
-    if out.size() != (w, h) {
-        let (ow, oh) = out.size();
-        return Err(Error::Size(format!("sobel src {w}x{h} vs output planes {ow}x{oh}")));
-    }
-    let planes = [&out.gx, &out.gy, &out.magnitude, &out.direction, &out.theta];
-    if planes.iter().any(|p| (p.width(), p.height()) != (w, h)) {
-        return Err(Error::Size(format!("sobel output planes are not all {w}x{h}")));
+    for (plane, what) in [
+        (&out.gx, "sobel src/gx"),
+        (&out.gy, "sobel src/gy"),
+        (&out.magnitude, "sobel src/magnitude"),
+        (&out.direction, "sobel src/direction"),
+        (&out.theta, "sobel src/theta"),
+    ] {
+        src.check_same_size(plane, what)?;
     }
     let u = SobelUniform { width: w as u32, height: h as u32, _pad: [0; 2] };
     let buffers =

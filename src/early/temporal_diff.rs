@@ -148,15 +148,8 @@ pub(crate) fn encode(
 ) -> Result<()> {
     params.validate()?;
     let (w, h) = (prev.width(), prev.height());
-    for (img, what) in [(cur, "cur"), (out, "out")] {
-        if (img.width(), img.height()) != (w, h) {
-            return Err(Error::Size(format!(
-                "temporal difference prev {w}x{h} vs {what} {}x{}",
-                img.width(),
-                img.height()
-            )));
-        }
-    }
+    prev.check_same_size(cur, "temporal difference prev/cur")?;
+    prev.check_same_size(out, "temporal difference prev/out")?;
     let u = TemporalDiffUniform { width: w as u32, height: h as u32, threshold: params.threshold, _pad: 0 };
     rec.dispatch(&SHADER, "temporal_diff", &u, &[&prev.buffer, &cur.buffer, &out.buffer], workgroups_2d(w, h))
 }

@@ -37,12 +37,12 @@ use rayon::prelude::*;
 
 use super::angle::fast_atan2;
 use super::rows::for_each_row;
+use crate::Result;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
     EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
 };
 use crate::image::FloatImage;
-use crate::{Error, Result};
 
 /// The shader of this stage.
 pub const SHADER: ShaderDef = ShaderDef {
@@ -299,15 +299,13 @@ pub(crate) fn encode(
     params: &ZeroCrossingParams,
 ) -> Result<()> {
     let (w, h) = (log.width(), log.height());
-    for (img, what) in [
-        (&out.strength, "strength"),
-        (&out.direction, "direction"),
-        (&out.offset_x, "offset_x"),
-        (&out.offset_y, "offset_y"),
+    for (plane, what) in [
+        (&out.strength, "zero crossing LoG/strength"),
+        (&out.direction, "zero crossing LoG/direction"),
+        (&out.offset_x, "zero crossing LoG/offset_x"),
+        (&out.offset_y, "zero crossing LoG/offset_y"),
     ] {
-        if (img.width(), img.height()) != (w, h) {
-            return Err(Error::Size(format!("zero crossings {what}: {}x{} vs LoG {w}x{h}", img.width(), img.height())));
-        }
+        log.check_same_size(plane, what)?;
     }
     let u = ZeroCrossingUniform { width: w as u32, height: h as u32, min_slope: params.effective_min_slope(), _pad: 0 };
     rec.dispatch(

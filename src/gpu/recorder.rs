@@ -352,3 +352,73 @@ pub(crate) fn run_once(ctx: &GpuContext, record: impl FnOnce(&mut Recorder<'_>) 
     rec.submit();
     ctx.wait()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::early::{frame_sum, gaussian, log, sobel, temporal_diff, zero_crossing};
+
+    /// A context for the GPU unit tests, or `None` (printing that the test
+    /// skipped) without an adapter, unless `PIPETRACK_REQUIRE_GPU=1`.
+    fn test_context(test: &str) -> Option<GpuContext> {
+        match GpuContext::new() {
+            Ok(ctx) => Some(ctx),
+            Err(e) if std::env::var("PIPETRACK_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+                panic!("PIPETRACK_REQUIRE_GPU=1 but no GPU adapter: {e}")
+            }
+            Err(_) => {
+                eprintln!("SKIPPED {test}: no GPU adapter (set PIPETRACK_REQUIRE_GPU=1 to make this a failure)");
+                None
+            }
+        }
+    }
+
+    /// Every stage's `encode` refuses a `GpuImage` whose size differs from
+    /// its input's with [`Error::Size`] naming the pair, and records nothing;
+    /// with matching sizes the same calls record their dispatches.
+    #[test]
+    fn encode_refuses_mismatched_gpu_images() {
+        let Some(ctx) = test_context("encode_refuses_mismatched_gpu_images") else { return };
+        let img = |w, h| GpuImage::new(&ctx, w, h, "test");
+        let (a, b, c, d) = (img(5, 3), img(5, 3), img(5, 3), img(5, 3));
+        let wrong = img(3, 5);
+        let planes = |w, h| sobel::SobelGpu::new(&ctx, w, h);
+        let mut sob = planes(5, 3);
+        let edgels = |w, h| zero_crossing::EdgelsGpu::new(&ctx, w, h);
+        let mut edg = edgels(5, 3);
+        let arena = FrameArena::new(&ctx);
+
+        type Encode<'t> = Box<dyn Fn(&mut Recorder<'_>, &GpuImage) -> Result<()> + 't>;
+        let cases: Vec<(&str, Encode<'_>)> = vec![
+            ("gaussian src/dst", Box::new(|r, x| gaussian::encode(r, &a, &b, x, &gaussian::GaussianParams::default()))),
+            ("frame sum a/b", Box::new(|r, x| frame_sum::encode(r, &a, x, &c))),
+            (
+                "temporal difference prev/out",
+                Box::new(|r, x| temporal_diff::encode(r, &a, &b, x, &temporal_diff::TemporalDiffParams::default())),
+            ),
+            ("LoG src/tmp_d", Box::new(|r, x| log::encode(r, &a, &b, x, &d, &log::LogParams::default()))),
+        ];
+        for (what, encode) in &cases {
+            let mut rec = Recorder::new(&ctx, &arena);
+            match encode(&mut rec, &wrong) {
+                Err(Error::Size(m)) => assert!(m.starts_with(what) && m.contains("5x3 vs 3x5"), "{what}: {m}"),
+                other => panic!("{what}: expected a size error, got {other:?}"),
+            }
+            assert_eq!(rec.dispatch_count(), 0, "{what}");
+            let mut rec = Recorder::new(&ctx, &arena);
+            encode(&mut rec, &d).unwrap();
+            assert!(rec.dispatch_count() > 0, "{what}");
+        }
+
+        let mut rec = Recorder::new(&ctx, &arena);
+        sob.theta = img(5, 4);
+        assert!(matches!(sobel::encode(&mut rec, &a, &sob), Err(Error::Size(m)) if m.starts_with("sobel src/theta")));
+        edg.offset_y = img(4, 3);
+        let p = zero_crossing::ZeroCrossingParams::default();
+        assert!(matches!(zero_crossing::encode(&mut rec, &a, &edg, &p), Err(Error::Size(m)) if m.contains("offset_y")));
+        assert_eq!(rec.dispatch_count(), 0);
+        sobel::encode(&mut rec, &a, &planes(5, 3)).unwrap();
+        zero_crossing::encode(&mut rec, &a, &edgels(5, 3), &p).unwrap();
+        assert_eq!(rec.dispatch_count(), 2);
+    }
+}
