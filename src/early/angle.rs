@@ -16,7 +16,10 @@ pub const INCLUDE: Include = Include { name: "angle", source: include_str!("../.
 
 /// Coefficients of atan(a) ≈ a·Σ C[k]·a^(2k) on [0, 1] (Hastings' degree-15
 /// odd polynomial, error below 1e-7 rad in exact arithmetic; in f32 the
-/// result is within a few ULPs, checked against f64 below).
+/// result is within a few ULPs, checked against f64 below). Written digit
+/// for digit as in `shaders/angle.wgsl`, so the two can be compared by eye;
+/// both round each literal to the same f32.
+#[allow(clippy::excessive_precision)]
 const C: [f32; 8] = [
     0.999_999_33,
     -0.333_298_56,

@@ -285,9 +285,7 @@ impl CompactionGpu {
         }
         let limits = ctx.device.limits();
         let list_bytes = max_pixels.max(1) as u64 * FEATURE_BYTES;
-        if list_bytes > limits.max_storage_buffer_binding_size as u64
-            || HEADER_BYTES + list_bytes > limits.max_buffer_size
-        {
+        if list_bytes > limits.max_storage_buffer_binding_size || HEADER_BYTES + list_bytes > limits.max_buffer_size {
             return Err(Error::Parameter(format!(
                 "a list of {max_pixels} features exceeds the device's buffer limits"
             )));

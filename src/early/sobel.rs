@@ -167,6 +167,7 @@ pub fn gradient_angles(gx: f32, gy: f32) -> (f32, f32) {
     let a = fast_atan(gy / gx);
     // 000 eq. 2: θ = atan(∇y/∇x) + π/2, folded into [0, π).
     let theta = a + FRAC_PI_2;
+    #[allow(clippy::manual_range_contains)] // the shader's comparison, NaN kept as it keeps it
     let theta = if theta < 0.0 || theta >= PI { 0.0 } else { theta };
     let down = a - PI;
     let down = if down <= -PI { PI } else { down };

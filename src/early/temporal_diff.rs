@@ -100,13 +100,12 @@ pub fn temporal_diff_and_sum_cpu(
         return Ok(());
     }
     let t = params.threshold;
-    let rows = |((p, c), (m, s)): ((&[f32], &[f32]), (&mut [f32], &mut [f32]))| {
-        diff_row(p, c, m, t);
-        super::frame_sum::sum_row(p, c, s);
-    };
     let planes = (prev.data().par_chunks(w).zip(cur.data().par_chunks(w)))
         .zip(mask.data_mut().par_chunks_mut(w).zip(sum.data_mut().par_chunks_mut(w)));
-    for_each_row(w * h, planes, rows);
+    for_each_row(w * h, planes, |((p, c), (m, s))| {
+        diff_row(p, c, m, t);
+        super::frame_sum::sum_row(p, c, s);
+    });
     Ok(())
 }
 
