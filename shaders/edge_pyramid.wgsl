@@ -4,7 +4,8 @@
 // (level 0, the finest, first); `src_offset` / `dst_offset` say where the
 // previous and the current level start. Odd sizes clamp the missing child to
 // the edge child, which equals the mean of the children that exist.
-// Kept in sync with `LevelUniform` in src/early/cpf.rs.
+// Kept in sync with `LevelUniform` in src/early/cpf.rs; the CPU twin is
+// src/early/edge_pyramid.rs.
 
 struct Params {
     src_width: u32,

@@ -1,5 +1,5 @@
-// Ingest: turn a frame into the f32 grey image (0..255 scale) every other
-// stage reads. Three entry points, one per kind of input.
+// Ingest: turn a frame of 8-bit grey bytes into the f32 grey image (0..255
+// scale) every other stage reads. Textures go through ingest_texture.wgsl.
 // Kept in sync with `IngestUniform` in src/early/ingest.rs.
 
 struct Params {

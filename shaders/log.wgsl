@@ -3,7 +3,8 @@
 //   LoG = g''(x)·g(y) + g(x)·g''(y).
 // Two entry points, one per 1-D pass; clamp-to-edge borders. Each entry point
 // declares its own storage bindings (1, 2, 3 in the order `encode` passes
-// them); pipelines use auto layout per entry point, so they do not collide.
+// them); each pipeline's layout is built from its entry point's declared
+// bindings in src/early/log.rs, so the two sets do not collide.
 // Kept in sync with `LogUniform` in src/early/log.rs.
 
 struct Params {

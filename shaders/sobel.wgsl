@@ -2,8 +2,9 @@
 // One entry point writes all five planes: gx, gy, magnitude, gradient
 // direction atan2(gy, gx) in (−π, π], and the edge orientation θ of 000
 // eq. 2 in [0, π). The angle conventions and guards are documented in
-// src/early/sobel.rs and mirrored there step by step.
-// Kept in sync with `SobelUniform` in src/early/sobel.rs.
+// src/early/sobel.rs and mirrored there step by step. PI, HALF_PI and
+// fast_atan come from shaders/angle.wgsl, appended to this file when the
+// module is built. Kept in sync with `SobelUniform` in src/early/sobel.rs.
 
 struct Params {
     width: u32,
@@ -12,9 +13,6 @@ struct Params {
     _pad1: u32,
 }
 
-const PI: f32 = 3.14159265358979;
-const HALF_PI: f32 = 1.57079632679490;
-
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> src: array<f32>;
 @group(0) @binding(2) var<storage, read_write> gx_out: array<f32>;
@@ -22,25 +20,6 @@ const HALF_PI: f32 = 1.57079632679490;
 @group(0) @binding(4) var<storage, read_write> magnitude_out: array<f32>;
 @group(0) @binding(5) var<storage, read_write> direction_out: array<f32>;
 @group(0) @binding(6) var<storage, read_write> theta_out: array<f32>;
-
-// atan(t) by the odd degree-15 polynomial of src/early/angle.rs (`fast_atan`),
-// the same operations in the same order, so both twins round alike.
-fn fast_atan(t: f32) -> f32 {
-    let at = abs(t);
-    let invert = at > 1.0;
-    var a = at;
-    if (invert) {
-        a = 1.0 / at;
-    }
-    let s = a * a;
-    let p = ((((((-0.004054058 * s + 0.021861229) * s - 0.055909886) * s + 0.096420044) * s - 0.13908534) * s
-        + 0.19946536) * s - 0.33329856) * s + 0.99999933;
-    var r = p * a;
-    if (invert) {
-        r = HALF_PI - r;
-    }
-    return select(r, -r, t < 0.0);
-}
 
 @compute @workgroup_size(16, 16)
 fn sobel(@builtin(global_invocation_id) id: vec3<u32>) {

@@ -5,6 +5,8 @@
 // border pixel pairs with itself and finds no crossing there) and writes only
 // its own outputs. Kept in sync with `ZeroCrossingUniform` in
 // src/early/zero_crossing.rs, and with its CPU twin `axis` / `edgel`.
+// fast_atan2 comes from shaders/angle.wgsl, appended to this file when the
+// module is built.
 
 struct Params {
     width: u32,
@@ -13,9 +15,6 @@ struct Params {
     min_slope: f32,
     _pad: u32,
 }
-
-const PI: f32 = 3.14159265358979;
-const HALF_PI: f32 = 1.57079632679490;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> lap: array<f32>;
@@ -42,31 +41,6 @@ fn axis(prev: f32, c: f32, next: f32) -> vec2<f32> {
         return vec2<f32>(c - prev, -(abs(c) / back_slope));
     }
     return vec2<f32>(0.0, 0.0);
-}
-
-// atan2(y, x) in (−π, π] by the odd degree-15 polynomial of
-// src/early/angle.rs (`fast_atan2`), the same operations in the same order,
-// so both twins round alike; atan2(0, 0) = 0 (the builtin's is undefined).
-fn fast_atan2(y: f32, x: f32) -> f32 {
-    let ax = abs(x);
-    let ay = abs(y);
-    let hi = max(ax, ay);
-    let lo = min(ax, ay);
-    var a = 0.0;
-    if (hi > 0.0) {
-        a = lo / hi;
-    }
-    let s = a * a;
-    let p = ((((((-0.004054058 * s + 0.021861229) * s - 0.055909886) * s + 0.096420044) * s - 0.13908534) * s
-        + 0.19946536) * s - 0.33329856) * s + 0.99999933;
-    var r = p * a;
-    if (ay > ax) {
-        r = HALF_PI - r;
-    }
-    if (x < 0.0) {
-        r = PI - r;
-    }
-    return select(r, -r, y < 0.0);
 }
 
 @compute @workgroup_size(16, 16)

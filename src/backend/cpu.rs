@@ -5,14 +5,14 @@ use super::plan::{EdgelPart, FramePlan, Plane, PreviousFrame, SobelPart, SobelPl
 use super::{EarlyVision, FrameFeatures, FrameRequest};
 use crate::Result;
 use crate::early::Feature;
-use crate::early::compaction::compact_cpu;
-use crate::early::cpf;
-use crate::early::gaussian::smooth_cpu;
-use crate::early::ingest::ingest_gray_into;
+use crate::early::compaction::compaction_cpu;
+use crate::early::gaussian::gaussian_cpu;
+use crate::early::ingest::ingest_cpu;
 use crate::early::log::log_cpu;
 use crate::early::sobel::{SobelOutput, sobel_cpu};
 use crate::early::temporal_diff;
-use crate::early::zero_crossing::{Edgels, zero_crossings_cpu};
+use crate::early::zero_crossing::{Edgels, zero_crossing_cpu};
+use crate::early::{cpf, edge_pyramid};
 use crate::image::{FloatImage, GrayImage};
 
 /// Early vision on the CPU (rayon threads across rows for large frames).
@@ -155,10 +155,10 @@ impl EarlyVision for CpuBackend {
         let plan = FramePlan::new(request, w, h, self.previous.as_ref());
         let mut out = FrameFeatures::default();
         let img = &mut self.images;
-        ingest_gray_into(frame, &mut img.luma);
+        ingest_cpu(frame, &mut img.luma);
         for step in plan.steps() {
             match *step {
-                Step::Smooth(p) => smooth_cpu(&img.luma, &p, &mut self.tmp, &mut img.smoothed)?,
+                Step::Smooth(p) => gaussian_cpu(&img.luma, &p, &mut self.tmp, &mut img.smoothed)?,
                 // 000 eq. 1: G*_t − G*_{t+1}, thresholded, and the sum of both
                 // for eq. 2, fused into one pass over the two frames.
                 Step::DiffAndSum(p) => temporal_diff::temporal_diff_and_sum_cpu(
@@ -170,10 +170,16 @@ impl EarlyVision for CpuBackend {
                 )?,
                 Step::Sobel { input, output } => img.sobel_into(input, output),
                 Step::Log(p) => log_cpu(&img.luma, &p, &mut self.tmp, &mut self.tmp2, &mut img.log)?,
-                Step::ZeroCrossings(p) => zero_crossings_cpu(&img.log, &p, &mut img.edgels),
+                Step::ZeroCrossings(p) => zero_crossing_cpu(&img.log, &p, &mut img.edgels),
                 Step::Compact { list, select, theta, magnitude, params } => {
                     let mut features = recycled_list(self.spare.list_mut(list));
-                    compact_cpu(img.source(select), img.source(theta), img.source(magnitude), &params, &mut features)?;
+                    compaction_cpu(
+                        img.source(select),
+                        img.source(theta),
+                        img.source(magnitude),
+                        &params,
+                        &mut features,
+                    )?;
                     *out.list_mut(list) = Some(features);
                 }
                 Step::EmptyList(list) => *out.list_mut(list) = Some(recycled_list(self.spare.list_mut(list))),
@@ -183,7 +189,7 @@ impl EarlyVision for CpuBackend {
                     let (mut cpf_levels, mut edge_levels) = self.spare.pyramids.take().unwrap_or_default();
                     cpf::cpf_cpu(&img.luma, &mut cpf_levels);
                     let g = img.sobel(gradient);
-                    cpf::edge_pyramids_cpu(&g.gx, &g.gy, &mut edge_levels)?;
+                    edge_pyramid::edge_pyramid_cpu(&g.gx, &g.gy, &mut edge_levels)?;
                     if returned {
                         out.pyramids = Some((cpf_levels, edge_levels));
                     } else {

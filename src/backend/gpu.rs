@@ -6,7 +6,8 @@
 use super::plan::{EdgelPart, FramePlan, List, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
 use super::{EarlyVision, FrameFeatures, FrameRequest};
 use crate::early::compaction::{self, CompactionGpu};
-use crate::early::cpf::{self, CpfGpu, EdgePyramidGpu};
+use crate::early::cpf::{self, CpfGpu};
+use crate::early::edge_pyramid::{self, EdgePyramidGpu};
 use crate::early::sobel::{self, SobelGpu};
 use crate::early::zero_crossing::{self, EdgelsGpu};
 use crate::early::{frame_sum, gaussian, ingest, log, temporal_diff};
@@ -266,7 +267,7 @@ impl GpuBackend {
             self.ctx.queue.write_buffer(&s.packed, 0, bytemuck::cast_slice(&packed));
         }
         self.stats.bytes_uploaded = (packed.len() * 4) as u64;
-        self.record_and_submit(slot, plan, |rec, s| ingest::encode_bytes(rec, &s.packed, &s.luma))
+        self.record_and_submit(slot, plan, |rec, s| ingest::encode(rec, &s.packed, &s.luma))
     }
 
     /// Submit a frame that is already a texture on this backend's device (a
@@ -372,7 +373,7 @@ impl GpuBackend {
                     let (c, e) = opt(&s.cpf)?;
                     let g = s.sobel_set(gradient)?;
                     cpf::encode(&mut rec, &s.luma, c)?;
-                    cpf::encode_edges(&mut rec, &g.gx, &g.gy, e)?;
+                    edge_pyramid::encode(&mut rec, &g.gx, &g.gy, e)?;
                 }
             }
         }

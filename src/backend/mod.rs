@@ -18,7 +18,8 @@ pub use plan::FramePlan;
 
 use crate::Result;
 use crate::early::compaction::CompactionParams;
-use crate::early::cpf::{CpfPyramids, EdgePyramids};
+use crate::early::cpf::CpfPyramids;
+use crate::early::edge_pyramid::EdgePyramids;
 use crate::early::gaussian::GaussianParams;
 use crate::early::log::LogParams;
 use crate::early::temporal_diff::TemporalDiffParams;

@@ -64,7 +64,7 @@ impl Inputs {
             (0..CHAIN_FRAMES).map(|k| GrayImage::from_fn(width, height, |x, y| base.get(x + k, y))).collect();
         let luma = frames[0].to_f32();
         let p = GaussianParams::default();
-        let smoothed = [gaussian::smooth(&luma, &p)?, gaussian::smooth(&frames[1].to_f32(), &p)?];
+        let smoothed = [gaussian::gaussian(&luma, &p)?, gaussian::gaussian(&frames[1].to_f32(), &p)?];
         Ok(Self { frames, luma, smoothed })
     }
 }
@@ -79,7 +79,7 @@ pub fn cpu_body<'a>(stage: &str, inp: &'a Inputs) -> Result<Body<'a>> {
     let mut b = FloatImage::new(w, h);
     let mut c = FloatImage::new(w, h);
     Ok(match stage {
-        "gaussian" => Box::new(move || gaussian::smooth_cpu(&inp.luma, &GaussianParams::default(), &mut a, &mut b)),
+        "gaussian" => Box::new(move || gaussian::gaussian_cpu(&inp.luma, &GaussianParams::default(), &mut a, &mut b)),
         "temporal_diff" => Box::new(move || {
             temporal_diff::temporal_diff_cpu(&inp.smoothed[0], &inp.smoothed[1], &TemporalDiffParams::default(), &mut a)
         }),
@@ -93,10 +93,10 @@ pub fn cpu_body<'a>(stage: &str, inp: &'a Inputs) -> Result<Body<'a>> {
         }
         "log" => Box::new(move || log::log_cpu(&inp.luma, &LogParams::default(), &mut a, &mut b, &mut c)),
         "zero_crossing" => {
-            let l = log::laplacian_of_gaussian(&inp.luma, &LogParams::default())?;
+            let l = log::log(&inp.luma, &LogParams::default())?;
             let mut out = Edgels::new(w, h);
             Box::new(move || {
-                zero_crossing::zero_crossings_cpu(&l, &ZeroCrossingParams::default(), &mut out);
+                zero_crossing::zero_crossing_cpu(&l, &ZeroCrossingParams::default(), &mut out);
                 Ok(())
             })
         }
@@ -111,7 +111,7 @@ pub fn cpu_body<'a>(stage: &str, inp: &'a Inputs) -> Result<Body<'a>> {
             let s = sobel::sobel(&inp.luma);
             let p = compaction_params(w, h);
             let mut list = Vec::new();
-            Box::new(move || compaction::compact_cpu(&s.magnitude, &s.direction, &s.magnitude, &p, &mut list))
+            Box::new(move || compaction::compaction_cpu(&s.magnitude, &s.direction, &s.magnitude, &p, &mut list))
         }
         CHAIN => {
             let mut backend = CpuBackend::new();

@@ -1,16 +1,25 @@
-//! A fast arctangent shared by the CPU twins; `shaders/sobel.wgsl` carries
-//! the same polynomial (`fast_atan`) and `shaders/zero_crossing.wgsl` its
-//! `fast_atan2`, operation for operation, so GPU and CPU
-//! orientations agree to a few ULPs while the CPU avoids libm's `atan`, which
-//! would otherwise dominate the Sobel and zero-crossing stages' cost. Both
-//! functions are branch-free in effect (every `if` is a select), so loops
-//! calling them vectorise.
+//! A fast arctangent shared by the CPU twins, and its GPU twin
+//! `shaders/angle.wgsl` ([`INCLUDE`]), which the Sobel and zero-crossing
+//! shaders include: the same polynomial (`fast_atan`, `fast_atan2`),
+//! operation for operation, so GPU and CPU orientations agree to a few ULPs
+//! while the CPU avoids libm's `atan`, which would otherwise dominate the
+//! Sobel and zero-crossing stages' cost. Both functions are branch-free in
+//! effect (every `if` is a select), so loops calling them vectorise.
 
 use std::f32::consts::{FRAC_PI_2, PI};
 
+use crate::gpu::Include;
+
+/// `shaders/angle.wgsl`: `PI`, `HALF_PI`, `fast_atan` and `fast_atan2` for
+/// the shaders that list it in their `includes`.
+pub const INCLUDE: Include = Include { name: "angle", source: include_str!("../../shaders/angle.wgsl") };
+
 /// Coefficients of atan(a) ≈ a·Σ C[k]·a^(2k) on [0, 1] (Hastings' degree-15
 /// odd polynomial, error below 1e-7 rad in exact arithmetic; in f32 the
-/// result is within a few ULPs, checked against f64 below).
+/// result is within a few ULPs, checked against f64 below). Written digit
+/// for digit as in `shaders/angle.wgsl`, so the two can be compared by eye;
+/// both round each literal to the same f32.
+#[allow(clippy::excessive_precision)]
 const C: [f32; 8] = [
     0.999_999_33,
     -0.333_298_56,

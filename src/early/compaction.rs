@@ -30,15 +30,27 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::gaussian::PARALLEL_PIXELS;
+use super::rows::for_each_row;
 use super::{Feature, Window};
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once};
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "compaction", source: include_str!("../../shaders/compaction.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "compaction",
+    source: include_str!("../../shaders/compaction.wgsl"),
+    includes: &[],
+    entry_points: &[
+        EntryPoint::linear("count_blocks", BLOCK, &[Uniform, ReadOnly, Storage]),
+        EntryPoint::linear("scan_blocks", BLOCK, &[Uniform, ReadOnly, Storage, Storage]),
+        EntryPoint::linear("scatter", BLOCK, &[Uniform, ReadOnly, ReadOnly, ReadOnly, ReadOnly, Storage]),
+        EntryPoint::linear("gather", BLOCK, &[Uniform, ReadOnly, ReadOnly, Storage]),
+    ],
+};
 
 /// Largest cap accepted: keeps `j·(n % cap)` below 2³² in the stratum bounds.
 pub const MAX_CAP: u32 = 65_535;
@@ -51,7 +63,7 @@ const MAX_GROUPS_PER_DIM: u32 = 65_535;
 const HEADER_BYTES: u64 = std::mem::size_of::<Header>() as u64;
 /// Bytes of one listed feature.
 const FEATURE_BYTES: u64 = std::mem::size_of::<Feature>() as u64;
-/// Features [`compact_gpu`] prefetches with the header when there is no cap.
+/// Features [`compaction_gpu`] prefetches with the header when there is no cap.
 const STANDALONE_PREFETCH: u32 = 4096;
 /// Window rows per task of the parallel CPU twin.
 const BAND_ROWS: usize = 16;
@@ -168,10 +180,12 @@ fn list_row(
     }
 }
 
-/// CPU twin: the features of `params.window` into `out` (cleared first; no
-/// allocation once `out` has grown). Large windows are listed on several
-/// threads by the GPU's own scheme: count per band of rows, prefix-sum, fill.
-pub fn compact_cpu(
+/// CPU twin: the features of `params.window` into `out` (cleared first; the
+/// list allocates only when it grows, plus two tables of one entry per band
+/// of [`BAND_ROWS`] rows). The window is listed by the GPU's own scheme:
+/// count per band of rows, prefix-sum, fill each band's slice of the list;
+/// large windows run their bands on several threads.
+pub fn compaction_cpu(
     select: &FloatImage,
     theta: &FloatImage,
     magnitude: &FloatImage,
@@ -192,37 +206,30 @@ pub fn compact_cpu(
         &img.data()[y * w + x0..y * w + x1]
     }
 
-    if win.area() >= PARALLEL_PIXELS {
-        let bands: Vec<usize> = (y0..y1).step_by(BAND_ROWS).collect();
-        let rows_of = |b: usize| b..(b + BAND_ROWS).min(y1);
-        let counts: Vec<usize> = bands
-            .par_iter()
-            .map(|&b| rows_of(b).map(|y| span(select, y, x0, x1).iter().filter(|&&s| s > th).count()).sum())
-            .collect();
-        out.resize(counts.iter().sum(), Feature::default());
-        let mut slices = Vec::with_capacity(bands.len());
-        let mut rest = out.as_mut_slice();
-        for &c in &counts {
-            let (head, tail) = rest.split_at_mut(c);
-            slices.push(head);
-            rest = tail;
-        }
-        slices.into_par_iter().zip(bands).for_each(|(dst, b)| {
-            let mut k = 0;
-            for y in rows_of(b) {
-                list_row(span(select, y, x0, x1), span(theta, y, x0, x1), span(magnitude, y, x0, x1), x0, y, th, |f| {
-                    dst[k] = f;
-                    k += 1;
-                });
-            }
-        });
-    } else {
-        for y in y0..y1 {
+    let area = win.area();
+    let bands = (y1 - y0).div_ceil(BAND_ROWS);
+    let rows_of = |band: usize| y0 + band * BAND_ROWS..(y0 + (band + 1) * BAND_ROWS).min(y1);
+    let mut counts = vec![0usize; bands];
+    for_each_row(area, counts.par_iter_mut().enumerate(), |(band, count)| {
+        *count = rows_of(band).map(|y| span(select, y, x0, x1).iter().filter(|&&s| s > th).count()).sum();
+    });
+    out.resize(counts.iter().sum(), Feature::default());
+    let mut slices = Vec::with_capacity(bands);
+    let mut rest = out.as_mut_slice();
+    for &c in &counts {
+        let (head, tail) = rest.split_at_mut(c);
+        slices.push(head);
+        rest = tail;
+    }
+    for_each_row(area, slices.into_par_iter().enumerate(), |(band, dst)| {
+        let mut k = 0;
+        for y in rows_of(band) {
             list_row(span(select, y, x0, x1), span(theta, y, x0, x1), span(magnitude, y, x0, x1), x0, y, th, |f| {
-                out.push(f)
+                dst[k] = f;
+                k += 1;
             });
         }
-    }
+    });
 
     if let Some(cap) = params.cap {
         let n = out.len() as u32; // ≤ window area ≤ u32::MAX, checked above
@@ -238,14 +245,14 @@ pub fn compact_cpu(
 }
 
 /// CPU twin, allocating its output: the feature list.
-pub fn compact(
+pub fn compaction(
     select: &FloatImage,
     theta: &FloatImage,
     magnitude: &FloatImage,
     params: &CompactionParams,
 ) -> Result<Vec<Feature>> {
     let mut out = Vec::new();
-    compact_cpu(select, theta, magnitude, params, &mut out)?;
+    compaction_cpu(select, theta, magnitude, params, &mut out)?;
     Ok(out)
 }
 
@@ -278,9 +285,7 @@ impl CompactionGpu {
         }
         let limits = ctx.device.limits();
         let list_bytes = max_pixels.max(1) as u64 * FEATURE_BYTES;
-        if list_bytes > limits.max_storage_buffer_binding_size as u64
-            || HEADER_BYTES + list_bytes > limits.max_buffer_size
-        {
+        if list_bytes > limits.max_storage_buffer_binding_size || HEADER_BYTES + list_bytes > limits.max_buffer_size {
             return Err(Error::Parameter(format!(
                 "a list of {max_pixels} features exceeds the device's buffer limits"
             )));
@@ -407,8 +412,8 @@ pub(crate) fn encode(
     params: &CompactionParams,
     scratch: &CompactionGpu,
 ) -> Result<()> {
-    let size = (select.width(), select.height());
-    check_sizes(size, (theta.width(), theta.height()), (magnitude.width(), magnitude.height()))?;
+    let size = select.size();
+    check_sizes(size, theta.size(), magnitude.size())?;
     let win = checked_window(size, params)?;
     if win.area() > scratch.max_pixels {
         return Err(Error::Size(format!(
@@ -459,7 +464,7 @@ pub(crate) fn encode(
 }
 
 /// GPU: upload the three images, compact, and read the list back (tests and benches).
-pub fn compact_gpu(
+pub fn compaction_gpu(
     ctx: &GpuContext,
     select: &FloatImage,
     theta: &FloatImage,
@@ -510,22 +515,22 @@ mod tests {
     #[test]
     fn tiny_mask_lists_set_pixels_row_major() {
         let (s, t, m) = tiny();
-        let all = compact(&s, &t, &m, &params(Window::full(4, 3), None)).unwrap();
+        let all = compaction(&s, &t, &m, &params(Window::full(4, 3), None)).unwrap();
         let expected =
             vec![f(1, 0, 1.0, 1.0), f(3, 0, 3.0, 3.0), f(0, 1, 0.1, 10.0), f(2, 2, 2.2, 22.0), f(3, 2, 3.2, 23.0)];
         assert_eq!(all, expected);
 
         // Columns 1..3, rows 0..3: only (1, 0) and (2, 2).
         let win = Window { x0: 1, y0: 0, x1: 3, y1: 3 };
-        assert_eq!(compact(&s, &t, &m, &params(win, None)).unwrap(), vec![f(1, 0, 1.0, 1.0), f(2, 2, 2.2, 22.0)]);
+        assert_eq!(compaction(&s, &t, &m, &params(win, None)).unwrap(), vec![f(1, 0, 1.0, 1.0), f(2, 2, 2.2, 22.0)]);
 
         // A window reaching past the image is clipped: rows 2.., columns 3..
         let outside = Window { x0: 3, y0: 2, x1: 100, y1: 100 };
-        assert_eq!(compact(&s, &t, &m, &params(outside, None)).unwrap(), vec![f(3, 2, 3.2, 23.0)]);
+        assert_eq!(compaction(&s, &t, &m, &params(outside, None)).unwrap(), vec![f(3, 2, 3.2, 23.0)]);
 
         // Empty window.
         let empty = Window { x0: 2, y0: 0, x1: 2, y1: 3 };
-        assert!(compact(&s, &t, &m, &params(empty, None)).unwrap().is_empty());
+        assert!(compaction(&s, &t, &m, &params(empty, None)).unwrap().is_empty());
     }
 
     #[test]
@@ -533,7 +538,7 @@ mod tests {
         let (_, t, m) = tiny();
         // Magnitude as select: 23 > 22 only; 22 itself is not listed.
         let p = CompactionParams { window: Window::full(4, 3), threshold: 22.0, cap: None, seed: 0 };
-        assert_eq!(compact(&m, &t, &m, &p).unwrap(), vec![f(3, 2, 3.2, 23.0)]);
+        assert_eq!(compaction(&m, &t, &m, &p).unwrap(), vec![f(3, 2, 3.2, 23.0)]);
     }
 
     #[test]
@@ -546,7 +551,7 @@ mod tests {
         let xs = FloatImage::from_fn(10, 1, |x, _| x as f32);
         for seed in [0u32, 1, 7, 12345] {
             let p = CompactionParams { window: Window::full(10, 1), threshold: 0.5, cap: Some(3), seed };
-            let got = compact(&ones, &xs, &xs, &p).unwrap();
+            let got = compaction(&ones, &xs, &xs, &p).unwrap();
             let ranks: Vec<u32> = got.iter().map(|f| f.x).collect();
             let expected: Vec<u32> = (0..3u32)
                 .map(|j| {
@@ -571,34 +576,34 @@ mod tests {
     #[test]
     fn cap_at_least_n_returns_all() {
         let (s, t, m) = tiny();
-        let all = compact(&s, &t, &m, &params(Window::full(4, 3), None)).unwrap();
+        let all = compaction(&s, &t, &m, &params(Window::full(4, 3), None)).unwrap();
         for cap in [5, 6, 100] {
-            assert_eq!(compact(&s, &t, &m, &params(Window::full(4, 3), Some(cap))).unwrap(), all);
+            assert_eq!(compaction(&s, &t, &m, &params(Window::full(4, 3), Some(cap))).unwrap(), all);
         }
-        assert_eq!(compact(&s, &t, &m, &params(Window::full(4, 3), Some(0))).unwrap(), vec![]);
-        assert_eq!(compact(&s, &t, &m, &params(Window::full(4, 3), Some(1))).unwrap().len(), 1);
+        assert_eq!(compaction(&s, &t, &m, &params(Window::full(4, 3), Some(0))).unwrap(), vec![]);
+        assert_eq!(compaction(&s, &t, &m, &params(Window::full(4, 3), Some(1))).unwrap().len(), 1);
     }
 
     #[test]
     fn bad_parameters_are_errors() {
         let (s, t, m) = tiny();
         assert!(matches!(
-            compact(&s, &t, &m, &params(Window::full(4, 3), Some(MAX_CAP + 1))),
+            compaction(&s, &t, &m, &params(Window::full(4, 3), Some(MAX_CAP + 1))),
             Err(Error::Parameter(_))
         ));
         let nan = CompactionParams { threshold: f32::NAN, ..params(Window::full(4, 3), None) };
-        assert!(matches!(compact(&s, &t, &m, &nan), Err(Error::Parameter(_))));
+        assert!(matches!(compaction(&s, &t, &m, &nan), Err(Error::Parameter(_))));
         let small = FloatImage::new(3, 3);
-        assert!(matches!(compact(&s, &small, &m, &params(Window::full(4, 3), None)), Err(Error::Size(_))));
+        assert!(matches!(compaction(&s, &small, &m, &params(Window::full(4, 3), None)), Err(Error::Size(_))));
     }
 
     #[test]
     fn parallel_path_matches_serial_rows() {
-        // A window big enough for the banded parallel path (≥ PARALLEL_PIXELS).
+        // A window big enough to list its bands on several threads (≥ PARALLEL_PIXELS).
         let (w, h) = (300, 250);
         let sel = FloatImage::from_fn(w, h, |x, y| ((x * 7 + y * 13) % 5 == 0) as u32 as f32);
         let th = FloatImage::from_fn(w, h, |x, y| (x + y) as f32);
-        let got = compact(&sel, &th, &th, &params(Window::full(w, h), None)).unwrap();
+        let got = compaction(&sel, &th, &th, &params(Window::full(w, h), None)).unwrap();
         let mut expected = Vec::new();
         for y in 0..h {
             for x in 0..w {

@@ -8,14 +8,21 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::gaussian::PARALLEL_PIXELS;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use super::rows::for_each_row;
+use crate::Result;
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
-use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "frame_sum", source: include_str!("../../shaders/frame_sum.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "frame_sum",
+    source: include_str!("../../shaders/frame_sum.wgsl"),
+    includes: &[],
+    entry_points: &[EntryPoint::tiled("frame_sum", &[Uniform, ReadOnly, ReadOnly, Storage])],
+};
 
 /// Uniform block of `frame_sum.wgsl`; kept in sync with its `Params`.
 #[repr(C)]
@@ -33,7 +40,7 @@ pub(crate) fn sum_row(a: &[f32], b: &[f32], out: &mut [f32]) {
 }
 
 /// CPU twin: write `a + b` into `out` (resized to match). `a` and `b` must
-/// have the same size ([`Error::Size`]).
+/// have the same size ([`crate::Error::Size`]).
 pub fn frame_sum_cpu(a: &FloatImage, b: &FloatImage, out: &mut FloatImage) -> Result<()> {
     a.check_same_size(b, "frame sum")?;
     let (w, h) = a.size();
@@ -41,15 +48,8 @@ pub fn frame_sum_cpu(a: &FloatImage, b: &FloatImage, out: &mut FloatImage) -> Re
     if w == 0 || h == 0 {
         return Ok(());
     }
-    if w * h >= PARALLEL_PIXELS {
-        a.data()
-            .par_chunks(w)
-            .zip(b.data().par_chunks(w))
-            .zip(out.data_mut().par_chunks_mut(w))
-            .for_each(|((x, y), o)| sum_row(x, y, o));
-    } else {
-        sum_row(a.data(), b.data(), out.data_mut());
-    }
+    let rows = a.data().par_chunks(w).zip(b.data().par_chunks(w)).zip(out.data_mut().par_chunks_mut(w));
+    for_each_row(w * h, rows, |((x, y), o)| sum_row(x, y, o));
     Ok(())
 }
 
@@ -63,11 +63,8 @@ pub fn frame_sum(a: &FloatImage, b: &FloatImage) -> Result<FloatImage> {
 /// Record `out = a + b` (all three the same size).
 pub(crate) fn encode(rec: &mut Recorder<'_>, a: &GpuImage, b: &GpuImage, out: &GpuImage) -> Result<()> {
     let (w, h) = (a.width(), a.height());
-    for (img, what) in [(b, "b"), (out, "out")] {
-        if (img.width(), img.height()) != (w, h) {
-            return Err(Error::Size(format!("frame sum a {w}x{h} vs {what} {}x{}", img.width(), img.height())));
-        }
-    }
+    a.check_same_size(b, "frame sum a/b")?;
+    a.check_same_size(out, "frame sum a/out")?;
     let u = FrameSumUniform { width: w as u32, height: h as u32, _pad: [0; 2] };
     rec.dispatch(&SHADER, "frame_sum", &u, &[&a.buffer, &b.buffer, &out.buffer], workgroups_2d(w, h))
 }
@@ -86,6 +83,7 @@ pub fn frame_sum_gpu(ctx: &GpuContext, a: &FloatImage, b: &FloatImage) -> Result
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Error;
 
     #[test]
     fn adds_pixelwise() {

@@ -8,21 +8,31 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use super::rows::for_each_row;
+
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "gaussian", source: include_str!("../../shaders/gaussian.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "gaussian",
+    source: include_str!("../../shaders/gaussian.wgsl"),
+    includes: &[],
+    entry_points: &[
+        EntryPoint::tiled("blur_rows", &[Uniform, ReadOnly, Storage]),
+        EntryPoint::tiled("blur_cols", &[Uniform, ReadOnly, Storage]),
+    ],
+};
 
 /// Most half-kernel weights the shader's uniform block holds.
 const MAX_TAPS: usize = 60;
 /// Largest σ accepted (radius `ceil(3σ)` must stay below [`MAX_TAPS`], so
 /// the uniform block fits the recorder's 256-byte slot).
 pub const MAX_SIGMA: f32 = 19.5;
-/// Images with at least this many pixels are smoothed on several threads.
-pub(crate) const PARALLEL_PIXELS: usize = 1 << 16;
 
 /// Parameters of Gaussian smoothing.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -132,7 +142,12 @@ fn blur_col_row_body(src: &[f32], width: usize, height: usize, y: usize, dst: &m
 
 /// CPU twin: smooth `src` into `dst` (resized to match), using `tmp` as the
 /// intermediate of the row pass. No allocation once the buffers have grown.
-pub fn smooth_cpu(src: &FloatImage, params: &GaussianParams, tmp: &mut FloatImage, dst: &mut FloatImage) -> Result<()> {
+pub fn gaussian_cpu(
+    src: &FloatImage,
+    params: &GaussianParams,
+    tmp: &mut FloatImage,
+    dst: &mut FloatImage,
+) -> Result<()> {
     let half = half_kernel(params.sigma)?;
     let (w, h) = src.size();
     tmp.resize(w, h);
@@ -140,30 +155,22 @@ pub fn smooth_cpu(src: &FloatImage, params: &GaussianParams, tmp: &mut FloatImag
     if w == 0 || h == 0 {
         return Ok(());
     }
-    let parallel = w * h >= PARALLEL_PIXELS;
-    if parallel {
-        src.data().par_chunks(w).zip(tmp.data_mut().par_chunks_mut(w)).for_each(|(s, d)| blur_row(s, d, &half));
-    } else {
-        src.data().chunks(w).zip(tmp.data_mut().chunks_mut(w)).for_each(|(s, d)| blur_row(s, d, &half));
-    }
+    for_each_row(w * h, src.data().par_chunks(w).zip(tmp.data_mut().par_chunks_mut(w)), |(s, d)| blur_row(s, d, &half));
     let t = tmp.data();
-    if parallel {
-        dst.data_mut().par_chunks_mut(w).enumerate().for_each(|(y, d)| blur_col_row(t, w, h, y, d, &half));
-    } else {
-        dst.data_mut().chunks_mut(w).enumerate().for_each(|(y, d)| blur_col_row(t, w, h, y, d, &half));
-    }
+    for_each_row(w * h, dst.data_mut().par_chunks_mut(w).enumerate(), |(y, d)| blur_col_row(t, w, h, y, d, &half));
     Ok(())
 }
 
 /// CPU twin, allocating its outputs: the smoothed image.
-pub fn smooth(src: &FloatImage, params: &GaussianParams) -> Result<FloatImage> {
+pub fn gaussian(src: &FloatImage, params: &GaussianParams) -> Result<FloatImage> {
     let mut tmp = FloatImage::new(0, 0);
     let mut dst = FloatImage::new(0, 0);
-    smooth_cpu(src, params, &mut tmp, &mut dst)?;
+    gaussian_cpu(src, params, &mut tmp, &mut dst)?;
     Ok(dst)
 }
 
-/// Record the two passes `src → tmp → dst` (all the same size).
+/// Record the two passes `src → tmp → dst`; [`Error::Size`] unless all
+/// three have the same size.
 pub(crate) fn encode(
     rec: &mut Recorder<'_>,
     src: &GpuImage,
@@ -172,7 +179,9 @@ pub(crate) fn encode(
     params: &GaussianParams,
 ) -> Result<()> {
     let half = half_kernel(params.sigma)?;
-    let (w, h) = (src.width(), src.height());
+    src.check_same_size(tmp, "gaussian src/tmp")?;
+    src.check_same_size(dst, "gaussian src/dst")?;
+    let (w, h) = src.size();
     let u = GaussianUniform::new(w, h, &half);
     let groups = workgroups_2d(w, h);
     rec.dispatch(&SHADER, "blur_rows", &u, &[&src.buffer, &tmp.buffer], groups)?;
@@ -180,7 +189,7 @@ pub(crate) fn encode(
 }
 
 /// GPU: smooth a CPU image and read the result back (tests and benches).
-pub fn smooth_gpu(ctx: &GpuContext, src: &FloatImage, params: &GaussianParams) -> Result<FloatImage> {
+pub fn gaussian_gpu(ctx: &GpuContext, src: &FloatImage, params: &GaussianParams) -> Result<FloatImage> {
     let (w, h) = src.size();
     let input = GpuImage::from_image(ctx, src, "gaussian.src");
     let tmp = GpuImage::new(ctx, w, h, "gaussian.tmp");
@@ -206,11 +215,11 @@ mod tests {
     #[test]
     fn constant_image_stays_constant_and_impulse_spreads_as_kernel() {
         let flat = FloatImage::from_fn(9, 7, |_, _| 100.0);
-        let s = smooth(&flat, &GaussianParams { sigma: 1.0 }).unwrap();
+        let s = gaussian(&flat, &GaussianParams { sigma: 1.0 }).unwrap();
         assert!(s.data().iter().all(|&v| (v - 100.0).abs() < 1e-3));
 
         let imp = FloatImage::from_fn(15, 15, |x, y| if (x, y) == (7, 7) { 1.0 } else { 0.0 });
-        let s = smooth(&imp, &GaussianParams { sigma: 1.0 }).unwrap();
+        let s = gaussian(&imp, &GaussianParams { sigma: 1.0 }).unwrap();
         let h = half_kernel(1.0).unwrap();
         // Separable: value at (7+i, 7+j) = w_i · w_j.
         assert!((s.get(7, 7) - h[0] * h[0]).abs() < 1e-7);
@@ -221,7 +230,7 @@ mod tests {
     #[test]
     fn clamp_border_on_a_one_pixel_image() {
         let one = FloatImage::from_fn(1, 1, |_, _| 42.0);
-        let s = smooth(&one, &GaussianParams { sigma: 2.0 }).unwrap();
+        let s = gaussian(&one, &GaussianParams { sigma: 2.0 }).unwrap();
         assert!((s.get(0, 0) - 42.0).abs() < 1e-4);
     }
 }

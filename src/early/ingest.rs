@@ -20,15 +20,27 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Texture, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::{FloatImage, GrayImage};
 use crate::{Error, Result};
 
 /// Shader for byte frames.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "ingest", source: include_str!("../../shaders/ingest.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "ingest",
+    source: include_str!("../../shaders/ingest.wgsl"),
+    includes: &[],
+    entry_points: &[EntryPoint::tiled("from_bytes", &[Uniform, Storage, ReadOnly])],
+};
 /// Shader for texture frames.
-pub(crate) const TEXTURE_SHADER: ShaderDef =
-    ShaderDef { name: "ingest_texture", source: include_str!("../../shaders/ingest_texture.wgsl") };
+pub const TEXTURE_SHADER: ShaderDef = ShaderDef {
+    name: "ingest_texture",
+    source: include_str!("../../shaders/ingest_texture.wgsl"),
+    includes: &[],
+    entry_points: &[EntryPoint::tiled("from_texture", &[Uniform, Storage, Texture])],
+};
 
 /// The texture formats [`ingest_texture_gpu`] and
 /// [`crate::backend::GpuBackend::submit_texture`] read.
@@ -104,12 +116,12 @@ const LUMA_SCALE: u32 = 1000;
 
 /// CPU twin of `from_bytes`: grey bytes to f32.
 #[must_use]
-pub fn ingest_gray(frame: &GrayImage) -> FloatImage {
+pub fn ingest(frame: &GrayImage) -> FloatImage {
     frame.to_f32()
 }
 
 /// CPU twin of `from_bytes` into a caller-allocated image.
-pub fn ingest_gray_into(frame: &GrayImage, dst: &mut FloatImage) {
+pub fn ingest_cpu(frame: &GrayImage, dst: &mut FloatImage) {
     dst.resize(frame.width(), frame.height());
     for (d, &s) in dst.data_mut().iter_mut().zip(frame.data()) {
         *d = f32::from(s);
@@ -143,7 +155,7 @@ pub fn ingest_texture_cpu(
     height: usize,
     format: wgpu::TextureFormat,
 ) -> Result<FloatImage> {
-    Ok(ingest_gray(&gray_from_texels(texels, width, height, format)?))
+    Ok(ingest(&gray_from_texels(texels, width, height, format)?))
 }
 
 /// Bytes of `frame` packed four to a u32 word (zero-padded), as `from_bytes` reads them.
@@ -160,7 +172,7 @@ pub(crate) fn pack_bytes(bytes: &[u8]) -> Vec<u32> {
 }
 
 /// Record `from_bytes`: `packed` (a storage buffer of packed bytes) into `dst`.
-pub(crate) fn encode_bytes(rec: &mut Recorder<'_>, packed: &wgpu::Buffer, dst: &GpuImage) -> Result<()> {
+pub(crate) fn encode(rec: &mut Recorder<'_>, packed: &wgpu::Buffer, dst: &GpuImage) -> Result<()> {
     let (w, h) = (dst.width(), dst.height());
     let u = IngestUniform { width: w as u32, height: h as u32, kind: 0, _pad: 0 };
     rec.dispatch(&SHADER, "from_bytes", &u, &[&dst.buffer, packed], workgroups_2d(w, h))
@@ -210,7 +222,7 @@ pub(crate) fn encode_texture(rec: &mut Recorder<'_>, texture: &wgpu::Texture, ds
 }
 
 /// GPU: ingest grey bytes and read the f32 image back (tests and benches).
-pub fn ingest_gray_gpu(ctx: &GpuContext, frame: &GrayImage) -> Result<FloatImage> {
+pub fn ingest_gpu(ctx: &GpuContext, frame: &GrayImage) -> Result<FloatImage> {
     use wgpu::util::DeviceExt;
     let packed = pack_bytes(frame.data());
     let words = if packed.is_empty() { vec![0u32] } else { packed };
@@ -220,7 +232,7 @@ pub fn ingest_gray_gpu(ctx: &GpuContext, frame: &GrayImage) -> Result<FloatImage
         usage: wgpu::BufferUsages::STORAGE,
     });
     let dst = GpuImage::new(ctx, frame.width(), frame.height(), "ingest.dst");
-    run_once(ctx, |rec| encode_bytes(rec, &buf, &dst))?;
+    run_once(ctx, |rec| encode(rec, &buf, &dst))?;
     dst.download(ctx)
 }
 

@@ -24,13 +24,24 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::gaussian::PARALLEL_PIXELS;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use super::rows::for_each_row;
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "log", source: include_str!("../../shaders/log.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "log",
+    source: include_str!("../../shaders/log.wgsl"),
+    includes: &[],
+    entry_points: &[
+        EntryPoint::tiled("rows", &[Uniform, ReadOnly, Storage, Storage]),
+        EntryPoint::tiled("cols", &[Uniform, ReadOnly, ReadOnly, Storage]),
+    ],
+};
 
 /// Most half-kernel weights the shader's uniform block holds per kernel
 /// (7 `vec4`s each: the whole block must fit the recorder's 256-byte stride).
@@ -232,31 +243,16 @@ pub fn log_cpu(
     if w == 0 || h == 0 {
         return Ok(());
     }
-    let parallel = w * h >= PARALLEL_PIXELS;
-    if parallel {
-        src.data()
-            .par_chunks(w)
-            .zip(tmp_g.data_mut().par_chunks_mut(w))
-            .zip(tmp_d.data_mut().par_chunks_mut(w))
-            .for_each(|((s, a), b)| log_row(s, a, b, &k));
-    } else {
-        src.data()
-            .chunks(w)
-            .zip(tmp_g.data_mut().chunks_mut(w))
-            .zip(tmp_d.data_mut().chunks_mut(w))
-            .for_each(|((s, a), b)| log_row(s, a, b, &k));
-    }
+    let row_pass =
+        src.data().par_chunks(w).zip(tmp_g.data_mut().par_chunks_mut(w)).zip(tmp_d.data_mut().par_chunks_mut(w));
+    for_each_row(w * h, row_pass, |((s, a), b)| log_row(s, a, b, &k));
     let (tg, td) = (tmp_g.data(), tmp_d.data());
-    if parallel {
-        out.data_mut().par_chunks_mut(w).enumerate().for_each(|(y, o)| log_col_row(tg, td, w, h, y, o, &k));
-    } else {
-        out.data_mut().chunks_mut(w).enumerate().for_each(|(y, o)| log_col_row(tg, td, w, h, y, o, &k));
-    }
+    for_each_row(w * h, out.data_mut().par_chunks_mut(w).enumerate(), |(y, o)| log_col_row(tg, td, w, h, y, o, &k));
     Ok(())
 }
 
 /// CPU twin, allocating its outputs: the LoG image.
-pub fn laplacian_of_gaussian(src: &FloatImage, params: &LogParams) -> Result<FloatImage> {
+pub fn log(src: &FloatImage, params: &LogParams) -> Result<FloatImage> {
     let mut tmp_g = FloatImage::new(0, 0);
     let mut tmp_d = FloatImage::new(0, 0);
     let mut out = FloatImage::new(0, 0);
@@ -275,10 +271,8 @@ pub(crate) fn encode(
 ) -> Result<()> {
     let k = log_kernels(params.sigma)?;
     let (w, h) = (src.width(), src.height());
-    for (img, what) in [(tmp_g, "tmp_g"), (tmp_d, "tmp_d"), (out, "out")] {
-        if (img.width(), img.height()) != (w, h) {
-            return Err(Error::Size(format!("LoG {what}: {}x{} vs src {w}x{h}", img.width(), img.height())));
-        }
+    for (img, what) in [(tmp_g, "LoG src/tmp_g"), (tmp_d, "LoG src/tmp_d"), (out, "LoG src/out")] {
+        src.check_same_size(img, what)?;
     }
     let u = LogUniform::new(w, h, &k);
     let groups = workgroups_2d(w, h);
@@ -340,21 +334,21 @@ mod tests {
     fn log_of_quadratics_is_their_laplacian() {
         let p = LogParams::default();
         let quad = FloatImage::from_fn(20, 14, |x, y| (x * x) as f32 + 3.0 * (y * y) as f32);
-        let l = laplacian_of_gaussian(&quad, &p).unwrap();
+        let l = log(&quad, &p).unwrap();
         for y in 4..10 {
             for x in 4..16 {
                 assert!((l.get(x, y) - 8.0).abs() < 2e-3, "({x},{y}): {}", l.get(x, y));
             }
         }
         let plane = FloatImage::from_fn(20, 14, |x, y| 100.0 + 3.0 * x as f32 - 2.0 * y as f32);
-        let l = laplacian_of_gaussian(&plane, &p).unwrap();
+        let l = log(&plane, &p).unwrap();
         for y in 4..10 {
             for x in 4..16 {
                 assert!(l.get(x, y).abs() < 1e-3, "({x},{y}): {}", l.get(x, y));
             }
         }
         let flat = FloatImage::from_fn(9, 7, |_, _| 255.0);
-        let l = laplacian_of_gaussian(&flat, &p).unwrap();
+        let l = log(&flat, &p).unwrap();
         assert!(l.data().iter().all(|v| v.abs() < 1e-3));
     }
 
@@ -363,7 +357,7 @@ mod tests {
     fn impulse_response_is_the_two_d_kernel() {
         let k = log_kernels(1.2).unwrap();
         let imp = FloatImage::from_fn(15, 15, |x, y| if (x, y) == (7, 7) { 1.0 } else { 0.0 });
-        let l = laplacian_of_gaussian(&imp, &LogParams::default()).unwrap();
+        let l = log(&imp, &LogParams::default()).unwrap();
         let kernel = |i: usize, j: usize| k.second[i] * k.gauss[j] + k.gauss[i] * k.second[j];
         assert!((l.get(7, 7) - kernel(0, 0)).abs() < 1e-7);
         assert!((l.get(9, 6) - kernel(2, 1)).abs() < 1e-7);
@@ -382,7 +376,7 @@ mod tests {
         let tap = |h: &[f32], i: isize| h[i.unsigned_abs()] as f64;
         for (w, h) in [(37usize, 29usize), (300, 5), (3, 2), (1, 1)] {
             let src = natural(w, h, 5).to_f32();
-            let l = laplacian_of_gaussian(&src, &p).unwrap();
+            let l = log(&src, &p).unwrap();
             let mut worst = 0.0f64;
             for y in 0..h as isize {
                 for x in 0..w as isize {
@@ -406,10 +400,11 @@ mod tests {
     #[test]
     fn parallel_and_serial_paths_agree() {
         let big = natural(300, 240, 9).to_f32();
+        use crate::early::rows::PARALLEL_PIXELS;
         const { assert!(300 * 240 >= PARALLEL_PIXELS && 300 * 200 < PARALLEL_PIXELS) };
-        let l = laplacian_of_gaussian(&big, &LogParams::default()).unwrap();
+        let l = log(&big, &LogParams::default()).unwrap();
         let crop = FloatImage::from_fn(300, 200, |x, y| big.get(x, y + 20));
-        let lc = laplacian_of_gaussian(&crop, &LogParams::default()).unwrap();
+        let lc = log(&crop, &LogParams::default()).unwrap();
         for y in 30..210 {
             for x in 0..300 {
                 assert_eq!(l.get(x, y), lc.get(x, y - 20), "({x},{y})");

@@ -1,8 +1,10 @@
 //! Early vision: every stage exists twice, as a WGSL shader in `shaders/`
 //! and as a CPU twin here, with the same parameters, the same clamp-to-edge
-//! border policy and the same output layout. Each module holds one stage:
-//! its parameters, its CPU twin, its GPU `encode`, and a standalone
-//! `*_gpu` function for tests and benches.
+//! border policy and the same output layout. Each module holds one stage
+//! `<stage>` (named like its shader): its parameters, its CPU twin
+//! `<stage>_cpu` writing into caller-allocated outputs, the allocating
+//! convenience `<stage>` over it, its GPU recording `encode`, and the
+//! standalone `<stage>_gpu` (upload, run, read back) for tests and benches.
 
 /// `fn $name(args)` that runs `$body(args)` compiled for AVX2 where the CPU
 /// has it (std caches the detection) and for the baseline target otherwise.
@@ -34,13 +36,31 @@ macro_rules! simd_dispatch {
 pub mod angle;
 pub mod compaction;
 pub mod cpf;
+pub mod edge_pyramid;
 pub mod frame_sum;
 pub mod gaussian;
 pub mod ingest;
 pub mod log;
+pub(crate) mod rows;
 pub mod sobel;
 pub mod temporal_diff;
 pub mod zero_crossing;
+
+/// Every shader the stages load, in the order a frame runs them; what
+/// `tests/shader_validation.rs` checks against the WGSL with naga.
+pub const SHADERS: &[crate::gpu::ShaderDef] = &[
+    ingest::SHADER,
+    ingest::TEXTURE_SHADER,
+    gaussian::SHADER,
+    temporal_diff::SHADER,
+    frame_sum::SHADER,
+    sobel::SHADER,
+    log::SHADER,
+    zero_crossing::SHADER,
+    cpf::SHADER,
+    edge_pyramid::SHADER,
+    compaction::SHADER,
+];
 
 /// A rectangle of interest in pixel coordinates: columns `x0..x1`, rows
 /// `y0..y1` (half-open). Empty when `x0 >= x1` or `y0 >= y1`.

@@ -41,13 +41,21 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
 use super::angle::fast_atan;
-use super::gaussian::PARALLEL_PIXELS;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use super::rows::for_each_row;
+use crate::Result;
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
-use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef = ShaderDef { name: "sobel", source: include_str!("../../shaders/sobel.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "sobel",
+    source: include_str!("../../shaders/sobel.wgsl"),
+    includes: &[super::angle::INCLUDE],
+    entry_points: &[EntryPoint::tiled("sobel", &[Uniform, ReadOnly, Storage, Storage, Storage, Storage, Storage])],
+};
 
 /// The five planes of the Sobel stage on the CPU, all the same size.
 #[derive(Clone, Debug, PartialEq)]
@@ -159,6 +167,7 @@ pub fn gradient_angles(gx: f32, gy: f32) -> (f32, f32) {
     let a = fast_atan(gy / gx);
     // 000 eq. 2: θ = atan(∇y/∇x) + π/2, folded into [0, π).
     let theta = a + FRAC_PI_2;
+    #[allow(clippy::manual_range_contains)] // the shader's comparison, NaN kept as it keeps it
     let theta = if theta < 0.0 || theta >= PI { 0.0 } else { theta };
     let down = a - PI;
     let down = if down <= -PI { PI } else { down };
@@ -247,31 +256,16 @@ pub fn sobel_cpu(src: &FloatImage, out: &mut SobelOutput) {
     }
     let s = src.data();
     let SobelOutput { gx, gy, magnitude, direction, theta } = out;
-    if w * h >= PARALLEL_PIXELS {
-        (
-            gx.data_mut().par_chunks_mut(w),
-            gy.data_mut().par_chunks_mut(w),
-            magnitude.data_mut().par_chunks_mut(w),
-            direction.data_mut().par_chunks_mut(w),
-            theta.data_mut().par_chunks_mut(w),
-        )
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(y, (gx, gy, magnitude, direction, theta))| {
-                sobel_row(s, w, h, y, Rows { gx, gy, magnitude, direction, theta });
-            });
-    } else {
-        gx.data_mut()
-            .chunks_mut(w)
-            .zip(gy.data_mut().chunks_mut(w))
-            .zip(magnitude.data_mut().chunks_mut(w))
-            .zip(direction.data_mut().chunks_mut(w))
-            .zip(theta.data_mut().chunks_mut(w))
-            .enumerate()
-            .for_each(|(y, ((((gx, gy), magnitude), direction), theta))| {
-                sobel_row(s, w, h, y, Rows { gx, gy, magnitude, direction, theta });
-            });
-    }
+    let planes = (
+        gx.data_mut().par_chunks_mut(w),
+        gy.data_mut().par_chunks_mut(w),
+        magnitude.data_mut().par_chunks_mut(w),
+        direction.data_mut().par_chunks_mut(w),
+        theta.data_mut().par_chunks_mut(w),
+    );
+    for_each_row(w * h, planes.into_par_iter().enumerate(), |(y, (gx, gy, magnitude, direction, theta))| {
+        sobel_row(s, w, h, y, Rows { gx, gy, magnitude, direction, theta });
+    });
 }
 
 /// CPU twin, allocating its outputs: the five Sobel planes of `src`.
@@ -285,13 +279,14 @@ pub fn sobel(src: &FloatImage) -> SobelOutput {
 /// Record one dispatch writing all five planes of `out` from `src` (same size).
 pub(crate) fn encode(rec: &mut Recorder<'_>, src: &GpuImage, out: &SobelGpu) -> Result<()> {
     let (w, h) = (src.width(), src.height());
-    if out.size() != (w, h) {
-        let (ow, oh) = out.size();
-        return Err(Error::Size(format!("sobel src {w}x{h} vs output planes {ow}x{oh}")));
-    }
-    let planes = [&out.gx, &out.gy, &out.magnitude, &out.direction, &out.theta];
-    if planes.iter().any(|p| (p.width(), p.height()) != (w, h)) {
-        return Err(Error::Size(format!("sobel output planes are not all {w}x{h}")));
+    for (plane, what) in [
+        (&out.gx, "sobel src/gx"),
+        (&out.gy, "sobel src/gy"),
+        (&out.magnitude, "sobel src/magnitude"),
+        (&out.direction, "sobel src/direction"),
+        (&out.theta, "sobel src/theta"),
+    ] {
+        src.check_same_size(plane, what)?;
     }
     let u = SobelUniform { width: w as u32, height: h as u32, _pad: [0; 2] };
     let buffers =

@@ -9,14 +9,21 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::gaussian::PARALLEL_PIXELS;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use super::rows::for_each_row;
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
 use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "temporal_diff", source: include_str!("../../shaders/temporal_diff.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "temporal_diff",
+    source: include_str!("../../shaders/temporal_diff.wgsl"),
+    includes: &[],
+    entry_points: &[EntryPoint::tiled("temporal_diff", &[Uniform, ReadOnly, ReadOnly, Storage])],
+};
 
 /// Mask value of a moving pixel.
 pub const MOVING: f32 = 1.0;
@@ -93,19 +100,12 @@ pub fn temporal_diff_and_sum_cpu(
         return Ok(());
     }
     let t = params.threshold;
-    let rows = |((p, c), (m, s)): ((&[f32], &[f32]), (&mut [f32], &mut [f32]))| {
+    let planes = (prev.data().par_chunks(w).zip(cur.data().par_chunks(w)))
+        .zip(mask.data_mut().par_chunks_mut(w).zip(sum.data_mut().par_chunks_mut(w)));
+    for_each_row(w * h, planes, |((p, c), (m, s))| {
         diff_row(p, c, m, t);
         super::frame_sum::sum_row(p, c, s);
-    };
-    if w * h >= PARALLEL_PIXELS {
-        (prev.data().par_chunks(w).zip(cur.data().par_chunks(w)))
-            .zip(mask.data_mut().par_chunks_mut(w).zip(sum.data_mut().par_chunks_mut(w)))
-            .for_each(rows);
-    } else {
-        (prev.data().chunks(w).zip(cur.data().chunks(w)))
-            .zip(mask.data_mut().chunks_mut(w).zip(sum.data_mut().chunks_mut(w)))
-            .for_each(rows);
-    }
+    });
     Ok(())
 }
 
@@ -125,19 +125,8 @@ pub fn temporal_diff_cpu(
         return Ok(());
     }
     let t = params.threshold;
-    if w * h >= PARALLEL_PIXELS {
-        prev.data()
-            .par_chunks(w)
-            .zip(cur.data().par_chunks(w))
-            .zip(out.data_mut().par_chunks_mut(w))
-            .for_each(|((p, c), o)| diff_row(p, c, o, t));
-    } else {
-        prev.data()
-            .chunks(w)
-            .zip(cur.data().chunks(w))
-            .zip(out.data_mut().chunks_mut(w))
-            .for_each(|((p, c), o)| diff_row(p, c, o, t));
-    }
+    let rows = prev.data().par_chunks(w).zip(cur.data().par_chunks(w)).zip(out.data_mut().par_chunks_mut(w));
+    for_each_row(w * h, rows, |((p, c), o)| diff_row(p, c, o, t));
     Ok(())
 }
 
@@ -158,15 +147,8 @@ pub(crate) fn encode(
 ) -> Result<()> {
     params.validate()?;
     let (w, h) = (prev.width(), prev.height());
-    for (img, what) in [(cur, "cur"), (out, "out")] {
-        if (img.width(), img.height()) != (w, h) {
-            return Err(Error::Size(format!(
-                "temporal difference prev {w}x{h} vs {what} {}x{}",
-                img.width(),
-                img.height()
-            )));
-        }
-    }
+    prev.check_same_size(cur, "temporal difference prev/cur")?;
+    prev.check_same_size(out, "temporal difference prev/out")?;
     let u = TemporalDiffUniform { width: w as u32, height: h as u32, threshold: params.threshold, _pad: 0 };
     rec.dispatch(&SHADER, "temporal_diff", &u, &[&prev.buffer, &cur.buffer, &out.buffer], workgroups_2d(w, h))
 }

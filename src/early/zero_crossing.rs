@@ -36,14 +36,21 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
 use super::angle::fast_atan2;
-use super::gaussian::PARALLEL_PIXELS;
-use crate::gpu::{GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d};
+use super::rows::for_each_row;
+use crate::Result;
+use crate::gpu::{
+    Binding::{ReadOnly, Storage, Uniform},
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+};
 use crate::image::FloatImage;
-use crate::{Error, Result};
 
 /// The shader of this stage.
-pub(crate) const SHADER: ShaderDef =
-    ShaderDef { name: "zero_crossing", source: include_str!("../../shaders/zero_crossing.wgsl") };
+pub const SHADER: ShaderDef = ShaderDef {
+    name: "zero_crossing",
+    source: include_str!("../../shaders/zero_crossing.wgsl"),
+    includes: &[super::angle::INCLUDE],
+    entry_points: &[EntryPoint::tiled("edgels", &[Uniform, ReadOnly, Storage, Storage, Storage, Storage])],
+};
 
 /// Smallest effective `min_slope`: smaller values (and NaN) act as this one,
 /// so every kept slope is far above f32 underflow and `strength > 0` exactly
@@ -216,7 +223,7 @@ fn edgel_row_body(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: Ro
 
 /// CPU twin: the edgels of the LoG image `log` into `out` (resized to match).
 /// No allocation once `out` has grown.
-pub fn zero_crossings_cpu(log: &FloatImage, params: &ZeroCrossingParams, out: &mut Edgels) {
+pub fn zero_crossing_cpu(log: &FloatImage, params: &ZeroCrossingParams, out: &mut Edgels) {
     let (w, h) = log.size();
     out.resize(w, h);
     if w == 0 || h == 0 {
@@ -229,36 +236,22 @@ pub fn zero_crossings_cpu(log: &FloatImage, params: &ZeroCrossingParams, out: &m
         edgel_row(row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)), min_slope, out)
     };
     let Edgels { strength, direction, offset_x, offset_y } = out;
-    if w * h >= PARALLEL_PIXELS {
-        strength
-            .data_mut()
-            .par_chunks_mut(w)
-            .zip(direction.data_mut().par_chunks_mut(w))
-            .zip(offset_x.data_mut().par_chunks_mut(w))
-            .zip(offset_y.data_mut().par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(y, (((s, d), ox), oy))| {
-                one_row(y, RowOut { strength: s, direction: d, offset_x: ox, offset_y: oy })
-            });
-    } else {
-        strength
-            .data_mut()
-            .chunks_mut(w)
-            .zip(direction.data_mut().chunks_mut(w))
-            .zip(offset_x.data_mut().chunks_mut(w))
-            .zip(offset_y.data_mut().chunks_mut(w))
-            .enumerate()
-            .for_each(|(y, (((s, d), ox), oy))| {
-                one_row(y, RowOut { strength: s, direction: d, offset_x: ox, offset_y: oy })
-            });
-    }
+    let planes = (
+        strength.data_mut().par_chunks_mut(w),
+        direction.data_mut().par_chunks_mut(w),
+        offset_x.data_mut().par_chunks_mut(w),
+        offset_y.data_mut().par_chunks_mut(w),
+    );
+    for_each_row(w * h, planes.into_par_iter().enumerate(), |(y, (s, d, ox, oy))| {
+        one_row(y, RowOut { strength: s, direction: d, offset_x: ox, offset_y: oy })
+    });
 }
 
 /// CPU twin, allocating its outputs: the edgels of the LoG image `log`.
 #[must_use]
-pub fn zero_crossings(log: &FloatImage, params: &ZeroCrossingParams) -> Edgels {
+pub fn zero_crossing(log: &FloatImage, params: &ZeroCrossingParams) -> Edgels {
     let mut out = Edgels::new(0, 0);
-    zero_crossings_cpu(log, params, &mut out);
+    zero_crossing_cpu(log, params, &mut out);
     out
 }
 
@@ -306,15 +299,13 @@ pub(crate) fn encode(
     params: &ZeroCrossingParams,
 ) -> Result<()> {
     let (w, h) = (log.width(), log.height());
-    for (img, what) in [
-        (&out.strength, "strength"),
-        (&out.direction, "direction"),
-        (&out.offset_x, "offset_x"),
-        (&out.offset_y, "offset_y"),
+    for (plane, what) in [
+        (&out.strength, "zero crossing LoG/strength"),
+        (&out.direction, "zero crossing LoG/direction"),
+        (&out.offset_x, "zero crossing LoG/offset_x"),
+        (&out.offset_y, "zero crossing LoG/offset_y"),
     ] {
-        if (img.width(), img.height()) != (w, h) {
-            return Err(Error::Size(format!("zero crossings {what}: {}x{} vs LoG {w}x{h}", img.width(), img.height())));
-        }
+        log.check_same_size(plane, what)?;
     }
     let u = ZeroCrossingUniform { width: w as u32, height: h as u32, min_slope: params.effective_min_slope(), _pad: 0 };
     rec.dispatch(
@@ -327,7 +318,7 @@ pub(crate) fn encode(
 }
 
 /// GPU: the edgels of a CPU LoG image, read back (tests and benches).
-pub fn zero_crossings_gpu(ctx: &GpuContext, log: &FloatImage, params: &ZeroCrossingParams) -> Result<Edgels> {
+pub fn zero_crossing_gpu(ctx: &GpuContext, log: &FloatImage, params: &ZeroCrossingParams) -> Result<Edgels> {
     let (w, h) = log.size();
     let input = GpuImage::from_image(ctx, log, "zero_crossing.log");
     let out = EdgelsGpu::new(ctx, w, h);
@@ -338,7 +329,7 @@ pub fn zero_crossings_gpu(ctx: &GpuContext, log: &FloatImage, params: &ZeroCross
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::early::log::{LogParams, laplacian_of_gaussian};
+    use crate::early::log::{LogParams, log};
     use std::f32::consts::PI;
 
     /// The dispatched row (AVX2 where the CPU has it) equals the baseline
@@ -346,9 +337,9 @@ mod tests {
     #[test]
     fn dispatched_rows_equal_baseline_rows_bitwise() {
         let (w, h) = (41, 11);
-        let l = laplacian_of_gaussian(&crate::testimage::natural(w, h, 5).to_f32(), &LogParams::default()).unwrap();
+        let l = log(&crate::testimage::natural(w, h, 5).to_f32(), &LogParams::default()).unwrap();
         let p = ZeroCrossingParams::default();
-        let fast = zero_crossings(&l, &p);
+        let fast = zero_crossing(&l, &p);
         assert!(fast.count() > 0);
         let mut base = Edgels::new(w, h);
         let row = |y: usize| &l.data()[y * w..(y + 1) * w];
@@ -381,10 +372,10 @@ mod tests {
     #[test]
     fn vertical_step_edge_crosses_between_columns_four_and_five() {
         let step = FloatImage::from_fn(10, 6, |x, _| if x <= 4 { 0.0 } else { 100.0 });
-        let l = laplacian_of_gaussian(&step, &LogParams::default()).unwrap();
+        let l = log(&step, &LogParams::default()).unwrap();
         assert!(l.get(4, 2) > 0.0 && l.get(5, 2) < 0.0);
         assert!((l.get(4, 2) + l.get(5, 2)).abs() < 1e-3);
-        let e = zero_crossings(&l, &ZeroCrossingParams::default());
+        let e = zero_crossing(&l, &ZeroCrossingParams::default());
         for y in 0..6 {
             let cols: Vec<usize> = (0..10).filter(|&x| e.is_edgel(x, y)).collect();
             assert_eq!(cols.len(), 1, "row {y}: edgels at {cols:?}");
@@ -407,19 +398,19 @@ mod tests {
     #[test]
     fn literal_three_by_one() {
         let l = FloatImage::from_vec(3, 1, vec![-1.0, 3.0, 3.0]).unwrap();
-        let e = zero_crossings(&l, &ZeroCrossingParams { min_slope: 1.0 });
+        let e = zero_crossing(&l, &ZeroCrossingParams { min_slope: 1.0 });
         assert_eq!(e.strength.data(), &[4.0, 0.0, 0.0]);
         assert_eq!(e.offset_x.data(), &[0.25, 0.0, 0.0]);
         assert_eq!(e.direction.data(), &[0.0, 0.0, 0.0]);
         assert_eq!(e.offset_y.data(), &[0.0, 0.0, 0.0]);
         // Mirrored, [3, 3, −1]: t = 3/4 → pixel 2, offset −0.25, gx = −4, direction π.
         let l = FloatImage::from_vec(3, 1, vec![3.0, 3.0, -1.0]).unwrap();
-        let e = zero_crossings(&l, &ZeroCrossingParams { min_slope: 1.0 });
+        let e = zero_crossing(&l, &ZeroCrossingParams { min_slope: 1.0 });
         assert_eq!(e.strength.data(), &[0.0, 0.0, 4.0]);
         assert_eq!(e.offset_x.data(), &[0.0, 0.0, -0.25]);
         assert!((e.direction.get(2, 0) - PI).abs() < 1e-6);
         // A slope below min_slope is no crossing: [−1, 3] with min_slope 5.
-        let e = zero_crossings(
+        let e = zero_crossing(
             &FloatImage::from_vec(2, 1, vec![-1.0, 3.0]).unwrap(),
             &ZeroCrossingParams { min_slope: 5.0 },
         );
@@ -430,10 +421,10 @@ mod tests {
     /// pixel 0, offset 0; [0, 2] is not.
     #[test]
     fn zero_is_positive() {
-        let e = zero_crossings(&FloatImage::from_vec(2, 1, vec![0.0, -2.0]).unwrap(), &ZeroCrossingParams::default());
+        let e = zero_crossing(&FloatImage::from_vec(2, 1, vec![0.0, -2.0]).unwrap(), &ZeroCrossingParams::default());
         assert_eq!(e.strength.data(), &[2.0, 0.0]);
         assert_eq!(e.offset_x.data(), &[0.0, 0.0]);
-        let e = zero_crossings(&FloatImage::from_vec(2, 1, vec![0.0, 2.0]).unwrap(), &ZeroCrossingParams::default());
+        let e = zero_crossing(&FloatImage::from_vec(2, 1, vec![0.0, 2.0]).unwrap(), &ZeroCrossingParams::default());
         assert_eq!(e.count(), 0);
     }
 
@@ -450,7 +441,7 @@ mod tests {
             2.0, 1.0, -3.0,
             -1.0, -1.0, -3.0,
         ]).unwrap();
-        let e = zero_crossings(&l, &ZeroCrossingParams::default());
+        let e = zero_crossing(&l, &ZeroCrossingParams::default());
         assert!((e.strength.get(1, 1) - 20f32.sqrt()).abs() < 1e-6);
         assert!((e.direction.get(1, 1) - (-2f32).atan2(-4.0)).abs() < 1e-6);
         assert_eq!(e.offset_x.get(1, 1), 0.25);
@@ -463,18 +454,18 @@ mod tests {
     #[test]
     fn steeper_crossing_wins() {
         let e =
-            zero_crossings(&FloatImage::from_vec(3, 1, vec![4.0, -1.0, 9.0]).unwrap(), &ZeroCrossingParams::default());
+            zero_crossing(&FloatImage::from_vec(3, 1, vec![4.0, -1.0, 9.0]).unwrap(), &ZeroCrossingParams::default());
         assert_eq!(e.strength.data(), &[0.0, 10.0, 0.0]);
         assert!((e.offset_x.get(1, 0) - 0.1).abs() < 1e-7);
     }
 
     #[test]
     fn one_pixel_and_empty_images_have_no_edgels() {
-        let e = zero_crossings(&FloatImage::from_vec(1, 1, vec![-5.0]).unwrap(), &ZeroCrossingParams::default());
+        let e = zero_crossing(&FloatImage::from_vec(1, 1, vec![-5.0]).unwrap(), &ZeroCrossingParams::default());
         assert_eq!(e.size(), (1, 1));
         assert_eq!(e.count(), 0);
         assert_eq!(e.direction.get(0, 0), 0.0);
-        let e = zero_crossings(&FloatImage::new(0, 0), &ZeroCrossingParams::default());
+        let e = zero_crossing(&FloatImage::new(0, 0), &ZeroCrossingParams::default());
         assert_eq!(e.size(), (0, 0));
     }
 
@@ -484,9 +475,9 @@ mod tests {
     #[test]
     fn flat_noise_is_no_edgel() {
         let l = FloatImage::from_fn(8, 8, |x, y| if (x + y) % 2 == 0 { 1e-5 } else { -1e-5 });
-        assert_eq!(zero_crossings(&l, &ZeroCrossingParams::default()).count(), 0);
+        assert_eq!(zero_crossing(&l, &ZeroCrossingParams::default()).count(), 0);
         let l = FloatImage::from_fn(8, 8, |x, y| if (x + y) % 2 == 0 { 1e-7 } else { -1e-7 });
-        assert_eq!(zero_crossings(&l, &ZeroCrossingParams { min_slope: f32::NAN }).count(), 0);
-        assert_eq!(zero_crossings(&l, &ZeroCrossingParams { min_slope: 0.0 }).count(), 0);
+        assert_eq!(zero_crossing(&l, &ZeroCrossingParams { min_slope: f32::NAN }).count(), 0);
+        assert_eq!(zero_crossing(&l, &ZeroCrossingParams { min_slope: 0.0 }).count(), 0);
     }
 }

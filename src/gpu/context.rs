@@ -3,17 +3,8 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
+use super::ShaderDef;
 use crate::{Error, Result};
-
-/// One WGSL shader file of a stage: its name (the file stem, also the
-/// pipeline label `pipetrack.<name>`) and its source.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct ShaderDef {
-    /// File stem in `shaders/`, e.g. `"sobel"`.
-    pub name: &'static str,
-    /// The WGSL source (`include_str!`).
-    pub source: &'static str,
-}
 
 /// Storage buffers one pipetrack shader may bind at most.
 const NEEDED_STORAGE_BUFFERS: u32 = 8;
@@ -148,11 +139,16 @@ impl GpuContext {
         &self.queue
     }
 
-    /// The compute pipeline for `entry` in `shader`, compiled on first use and cached.
-    pub(crate) fn pipeline(&self, shader: &ShaderDef, entry: &'static str) -> wgpu::ComputePipeline {
+    /// The compute pipeline for `entry` in `shader`, compiled on first use and
+    /// cached. Its bind-group layout is built from the entry point's declared
+    /// [`super::Binding`]s; an entry point `shader` does not declare is an error.
+    pub(crate) fn pipeline(&self, shader: &ShaderDef, entry: &'static str) -> Result<wgpu::ComputePipeline> {
+        let declared = shader
+            .entry_point(entry)
+            .ok_or_else(|| Error::Gpu(format!("{}: entry point `{entry}` is not declared", shader.path())))?;
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|p| p.into_inner());
         if let Some(p) = pipelines.get(&(shader.name, entry)) {
-            return p.clone();
+            return Ok(p.clone());
         }
         let module = {
             let mut modules = self.modules.lock().unwrap_or_else(|p| p.into_inner());
@@ -161,25 +157,37 @@ impl GpuContext {
                 .or_insert_with(|| {
                     self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
                         label: Some(shader.name),
-                        source: wgpu::ShaderSource::Wgsl(shader.source.into()),
+                        source: wgpu::ShaderSource::Wgsl(shader.composed_source()),
                     })
                 })
                 .clone()
         };
         let label = format!("pipetrack.{}.{}", shader.name, entry);
+        let entries: Vec<wgpu::BindGroupLayoutEntry> =
+            declared.bindings.iter().enumerate().map(|(i, b)| b.layout_entry(i as u32)).collect();
+        let bind_group_layout = self
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(&label), entries: &entries });
+        let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(&label),
+            bind_group_layouts: &[Some(&bind_group_layout)],
+            immediate_size: 0,
+        });
         let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(&label),
-            layout: None,
+            layout: Some(&layout),
             module: &module,
             entry_point: Some(entry),
             compilation_options: wgpu::PipelineCompilationOptions::default(),
             cache: None,
         });
         pipelines.insert((shader.name, entry), pipeline.clone());
-        pipeline
+        Ok(pipeline)
     }
 
-    /// Compile the given `(shader, entry)` pipelines now rather than on first use.
+    /// Compile the given `(shader, entry)` pipelines now rather than on first
+    /// use. An entry point the shader does not declare is skipped here; the
+    /// dispatch that names it reports the error.
     pub(crate) fn warm_up(&self, list: &[(ShaderDef, &'static str)]) {
         for (s, e) in list {
             let _ = self.pipeline(s, e);

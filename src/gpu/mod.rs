@@ -3,15 +3,17 @@
 //! submission, and readback.
 //!
 //! Every stage module in [`crate::early`] owns a [`ShaderDef`] pointing at its
-//! `shaders/<stage>.wgsl` file and records its passes through a [`Recorder`].
+//! `shaders/<stage>.wgsl` file and declaring the bindings and workgroup size
+//! of each entry point, and records its passes through a [`Recorder`].
 
 mod context;
 mod recorder;
+mod shader;
 
-pub(crate) use context::ShaderDef;
 pub use context::{GpuContext, required_features, required_limits};
 pub use recorder::GpuImage;
 pub(crate) use recorder::{FrameArena, Recorder, run_once, workgroups_2d};
+pub use shader::{Binding, EntryPoint, Include, ShaderDef};
 
 /// Workgroup edge of the 2-D image shaders (16×16 invocations).
 pub const TILE: u32 = 16;

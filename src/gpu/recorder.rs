@@ -7,7 +7,7 @@ use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
 use super::GpuContext;
-use super::context::ShaderDef;
+use super::{Binding, ShaderDef};
 use crate::image::Image;
 use crate::{Error, Result};
 
@@ -92,6 +92,24 @@ impl GpuImage {
         Image::from_vec(self.width, self.height, data)
     }
 
+    /// `(width, height)` in pixels.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// [`Error::Size`] unless `other` has this image's size; `what` names
+    /// the pair in the message, as [`Image::check_same_size`] does on the CPU.
+    pub fn check_same_size(&self, other: &GpuImage, what: &str) -> Result<()> {
+        if self.size() != other.size() {
+            return Err(Error::Size(format!(
+                "{what}: {}x{} vs {}x{} GPU images",
+                self.width, self.height, other.width, other.height
+            )));
+        }
+        Ok(())
+    }
+
     /// Width in pixels.
     #[must_use]
     pub fn width(&self) -> usize {
@@ -122,8 +140,8 @@ pub(crate) fn workgroups_2d(width: usize, height: usize) -> [u32; 3] {
 /// their uniform blocks at once and submits a single command buffer.
 ///
 /// Binding convention shared by every shader: `@binding(0)` is the stage's
-/// uniform `Params`, `@binding(1..)` are storage buffers in the order the
-/// stage's `encode` passes them.
+/// uniform `Params`, `@binding(1..)` are the resources in the order the
+/// stage's `encode` passes them, as its [`ShaderDef`] declares them.
 pub(crate) struct Recorder<'a> {
     ctx: &'a GpuContext,
     encoder: wgpu::CommandEncoder,
@@ -175,7 +193,8 @@ impl<'a> Recorder<'a> {
 
     /// Record one dispatch of `entry` in `shader` with uniform `params` and
     /// storage `buffers` bound at 1, 2, …; empty grids are skipped. The bind
-    /// group is made once per arena and reused on later frames.
+    /// group is made once per arena and reused on later frames. Errors when
+    /// the buffers do not match the entry point's declared bindings.
     pub(crate) fn dispatch<P: bytemuck::Pod>(
         &mut self,
         shader: &ShaderDef,
@@ -184,11 +203,12 @@ impl<'a> Recorder<'a> {
         buffers: &[&wgpu::Buffer],
         groups: [u32; 3],
     ) -> Result<()> {
+        check_resources(shader, entry, buffers.len(), true)?;
         if groups.contains(&0) {
             return Ok(());
         }
+        let pipeline = self.ctx.pipeline(shader, entry)?;
         let (offset, size) = self.push_uniform(shader, params)?;
-        let pipeline = self.ctx.pipeline(shader, entry);
         let key: BindKey = (shader.name, entry, offset, buffers.iter().map(|b| (*b).clone()).collect());
         let bind_group = {
             let mut cache = self.arena.bind_groups.lock().unwrap_or_else(|p| p.into_inner());
@@ -206,7 +226,8 @@ impl<'a> Recorder<'a> {
     }
 
     /// Like [`Recorder::dispatch`], with any binding resources (textures too)
-    /// at 1, 2, …; the bind group is made for this dispatch only.
+    /// at 1, 2, …; the bind group is made for this dispatch only. Errors when
+    /// the number of resources does not match the declared bindings.
     pub(crate) fn dispatch_with<P: bytemuck::Pod>(
         &mut self,
         shader: &ShaderDef,
@@ -215,11 +236,12 @@ impl<'a> Recorder<'a> {
         resources: &[wgpu::BindingResource<'_>],
         groups: [u32; 3],
     ) -> Result<()> {
+        check_resources(shader, entry, resources.len(), false)?;
         if groups.contains(&0) {
             return Ok(());
         }
+        let pipeline = self.ctx.pipeline(shader, entry)?;
         let (offset, size) = self.push_uniform(shader, params)?;
-        let pipeline = self.ctx.pipeline(shader, entry);
         let bind_group = self.make_bind_group(shader, &pipeline, offset, size, resources);
         self.record(shader, &pipeline, &bind_group, groups);
         Ok(())
@@ -304,6 +326,24 @@ impl<'a> Recorder<'a> {
     }
 }
 
+/// Error unless `entry` of `shader` is declared with a uniform at binding 0
+/// followed by `count` resources (all of them buffers when `buffers_only`).
+fn check_resources(shader: &ShaderDef, entry: &str, count: usize, buffers_only: bool) -> Result<()> {
+    let declared = shader
+        .entry_point(entry)
+        .ok_or_else(|| Error::Gpu(format!("{}: entry point `{entry}` is not declared", shader.path())))?;
+    let (first, rest) = declared.bindings.split_first().unwrap_or((&Binding::Storage, &[]));
+    if *first != Binding::Uniform || rest.len() != count || (buffers_only && !rest.iter().all(|b| b.is_buffer())) {
+        return Err(Error::Gpu(format!(
+            "{} `{entry}` declares bindings {:?}; the dispatch binds a uniform and {count} {}",
+            shader.path(),
+            declared.bindings,
+            if buffers_only { "buffers" } else { "resources" }
+        )));
+    }
+    Ok(())
+}
+
 /// Run `record` on a fresh recorder and wait for its submission: the standalone path
 /// used by per-stage functions in tests and benches.
 pub(crate) fn run_once(ctx: &GpuContext, record: impl FnOnce(&mut Recorder<'_>) -> Result<()>) -> Result<()> {
@@ -311,4 +351,74 @@ pub(crate) fn run_once(ctx: &GpuContext, record: impl FnOnce(&mut Recorder<'_>) 
     let mut rec = Recorder::new(ctx, &arena);
     record(&mut rec)?;
     ctx.wait_for(rec.submit())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::early::{frame_sum, gaussian, log, sobel, temporal_diff, zero_crossing};
+
+    /// A context for the GPU unit tests, or `None` (printing that the test
+    /// skipped) without an adapter, unless `PIPETRACK_REQUIRE_GPU=1`.
+    fn test_context(test: &str) -> Option<GpuContext> {
+        match GpuContext::new() {
+            Ok(ctx) => Some(ctx),
+            Err(e) if std::env::var("PIPETRACK_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+                panic!("PIPETRACK_REQUIRE_GPU=1 but no GPU adapter: {e}")
+            }
+            Err(_) => {
+                eprintln!("SKIPPED {test}: no GPU adapter (set PIPETRACK_REQUIRE_GPU=1 to make this a failure)");
+                None
+            }
+        }
+    }
+
+    /// Every stage's `encode` refuses a `GpuImage` whose size differs from
+    /// its input's with [`Error::Size`] naming the pair, and records nothing;
+    /// with matching sizes the same calls record their dispatches.
+    #[test]
+    fn encode_refuses_mismatched_gpu_images() {
+        let Some(ctx) = test_context("encode_refuses_mismatched_gpu_images") else { return };
+        let img = |w, h| GpuImage::new(&ctx, w, h, "test");
+        let (a, b, c, d) = (img(5, 3), img(5, 3), img(5, 3), img(5, 3));
+        let wrong = img(3, 5);
+        let planes = |w, h| sobel::SobelGpu::new(&ctx, w, h);
+        let mut sob = planes(5, 3);
+        let edgels = |w, h| zero_crossing::EdgelsGpu::new(&ctx, w, h);
+        let mut edg = edgels(5, 3);
+        let arena = FrameArena::new(&ctx);
+
+        type Encode<'t> = Box<dyn Fn(&mut Recorder<'_>, &GpuImage) -> Result<()> + 't>;
+        let cases: Vec<(&str, Encode<'_>)> = vec![
+            ("gaussian src/dst", Box::new(|r, x| gaussian::encode(r, &a, &b, x, &gaussian::GaussianParams::default()))),
+            ("frame sum a/b", Box::new(|r, x| frame_sum::encode(r, &a, x, &c))),
+            (
+                "temporal difference prev/out",
+                Box::new(|r, x| temporal_diff::encode(r, &a, &b, x, &temporal_diff::TemporalDiffParams::default())),
+            ),
+            ("LoG src/tmp_d", Box::new(|r, x| log::encode(r, &a, &b, x, &d, &log::LogParams::default()))),
+        ];
+        for (what, encode) in &cases {
+            let mut rec = Recorder::new(&ctx, &arena);
+            match encode(&mut rec, &wrong) {
+                Err(Error::Size(m)) => assert!(m.starts_with(what) && m.contains("5x3 vs 3x5"), "{what}: {m}"),
+                other => panic!("{what}: expected a size error, got {other:?}"),
+            }
+            assert_eq!(rec.dispatch_count(), 0, "{what}");
+            let mut rec = Recorder::new(&ctx, &arena);
+            encode(&mut rec, &d).unwrap();
+            assert!(rec.dispatch_count() > 0, "{what}");
+        }
+
+        let mut rec = Recorder::new(&ctx, &arena);
+        sob.theta = img(5, 4);
+        assert!(matches!(sobel::encode(&mut rec, &a, &sob), Err(Error::Size(m)) if m.starts_with("sobel src/theta")));
+        edg.offset_y = img(4, 3);
+        let p = zero_crossing::ZeroCrossingParams::default();
+        assert!(matches!(zero_crossing::encode(&mut rec, &a, &edg, &p), Err(Error::Size(m)) if m.contains("offset_y")));
+        assert_eq!(rec.dispatch_count(), 0);
+        sobel::encode(&mut rec, &a, &planes(5, 3)).unwrap();
+        zero_crossing::encode(&mut rec, &a, &edgels(5, 3), &p).unwrap();
+        assert_eq!(rec.dispatch_count(), 2);
+    }
 }

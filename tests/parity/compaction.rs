@@ -97,10 +97,10 @@ fn parity_compaction_all_sizes_windows_and_caps() {
         for (sname, select, threshold) in selects {
             for (wname, window) in windows(w, h) {
                 let uncapped = CompactionParams { window, threshold, cap: None, seed: 3 };
-                let all = compaction::compact(select, &inp.theta, &inp.magnitude, &uncapped).unwrap();
+                let all = compaction::compaction(select, &inp.theta, &inp.magnitude, &uncapped).unwrap();
                 let n = all.len() as u32;
                 let name = format!("compaction/{w}x{h}/{sname}/{wname}");
-                let gpu = compaction::compact_gpu(ctx, select, &inp.theta, &inp.magnitude, &uncapped).unwrap();
+                let gpu = compaction::compaction_gpu(ctx, select, &inp.theta, &inp.magnitude, &uncapped).unwrap();
                 assert_lists_equal(&format!("{name}/uncapped"), &all, &gpu);
                 if wname == "empty" {
                     assert!(all.is_empty(), "{name}: empty window listed {n}");
@@ -108,8 +108,8 @@ fn parity_compaction_all_sizes_windows_and_caps() {
 
                 for cap in [1500, (n + 10).min(MAX_CAP), 1] {
                     let p = CompactionParams { cap: Some(cap), ..uncapped };
-                    let cpu = compaction::compact(select, &inp.theta, &inp.magnitude, &p).unwrap();
-                    let gpu = compaction::compact_gpu(ctx, select, &inp.theta, &inp.magnitude, &p).unwrap();
+                    let cpu = compaction::compaction(select, &inp.theta, &inp.magnitude, &p).unwrap();
+                    let gpu = compaction::compaction_gpu(ctx, select, &inp.theta, &inp.magnitude, &p).unwrap();
                     let cname = format!("{name}/cap{cap}");
                     assert_lists_equal(&cname, &cpu, &gpu);
                     assert_eq!(cpu.len() as u32, n.min(cap), "{cname}: length");
@@ -129,12 +129,12 @@ fn parity_compaction_cap_1500_is_exercised_and_seeds_differ() {
     let (w, h) = (640, 480);
     let inp = inputs(w, h);
     let base = CompactionParams { window: Window::full(w, h), threshold: MAGNITUDE_THRESHOLD, cap: None, seed: 1 };
-    let all = compaction::compact(&inp.magnitude, &inp.theta, &inp.magnitude, &base).unwrap();
+    let all = compaction::compaction(&inp.magnitude, &inp.theta, &inp.magnitude, &base).unwrap();
     assert!(all.len() > 1500, "test image too plain: {} pixels above threshold", all.len());
     let capped = |seed: u32| {
         let p = CompactionParams { cap: Some(1500), seed, ..base };
-        let cpu = compaction::compact(&inp.magnitude, &inp.theta, &inp.magnitude, &p).unwrap();
-        let gpu = compaction::compact_gpu(ctx, &inp.magnitude, &inp.theta, &inp.magnitude, &p).unwrap();
+        let cpu = compaction::compaction(&inp.magnitude, &inp.theta, &inp.magnitude, &p).unwrap();
+        let gpu = compaction::compaction_gpu(ctx, &inp.magnitude, &inp.theta, &inp.magnitude, &p).unwrap();
         assert_lists_equal(&format!("compaction/seed{seed}"), &cpu, &gpu);
         assert_eq!(cpu.len(), 1500);
         assert!(is_ordered_subset(&cpu, &all), "seed {seed}: not an ordered subset");

@@ -1,6 +1,7 @@
 //! GPU/CPU parity of `shaders/cpf.wgsl` (the `cpf` stage, four critical-point
 //! filter hierarchies) and `shaders/edge_pyramid.wgsl` (the `edge_pyramid`
-//! stage, averaged edge hierarchies) against their twins in src/early/cpf.rs.
+//! stage, averaged edge hierarchies) against their twins in
+//! src/early/cpf.rs and src/early/edge_pyramid.rs.
 //!
 //! Tolerances: CPF levels must be **equal** (min/max are exact in f32, both
 //! twins pick the same children). Edge pyramid levels: `atol 1e-4, rtol 1e-5`
@@ -9,7 +10,7 @@
 use crate::common;
 
 use pipetrack::FloatImage;
-use pipetrack::early::cpf;
+use pipetrack::early::{cpf, edge_pyramid};
 use pipetrack::testimage::natural;
 
 const EDGE_PYRAMID_ATOL: f32 = 1e-4;
@@ -64,8 +65,8 @@ fn parity_edge_pyramid_all_levels() {
     for (w, h) in sizes() {
         let gx = signed(w, h, 3);
         let gy = signed(w, h, 4);
-        let cpu = cpf::edge_pyramids(&gx, &gy).unwrap();
-        let gpu = cpf::edge_pyramids_gpu(ctx, &gx, &gy).unwrap();
+        let cpu = edge_pyramid::edge_pyramid(&gx, &gy).unwrap();
+        let gpu = edge_pyramid::edge_pyramid_gpu(ctx, &gx, &gy).unwrap();
         let levels = cpf::level_sizes(w, h).len();
         assert_eq!(
             (cpu.horizontal.len(), cpu.vertical.len()),
@@ -98,6 +99,6 @@ fn parity_edge_pyramid_rejects_mismatched_inputs() {
     let Some((ctx, _g)) = common::gpu("parity_edge_pyramid_rejects_mismatched_inputs") else { return };
     let a = FloatImage::new(4, 4);
     let b = FloatImage::new(4, 3);
-    assert!(cpf::edge_pyramids_gpu(ctx, &a, &b).is_err());
-    assert!(cpf::edge_pyramids(&a, &b).is_err());
+    assert!(edge_pyramid::edge_pyramid_gpu(ctx, &a, &b).is_err());
+    assert!(edge_pyramid::edge_pyramid(&a, &b).is_err());
 }

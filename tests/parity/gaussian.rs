@@ -14,8 +14,8 @@ fn parity_gaussian_all_sizes_and_sigmas() {
         let src = natural(w, h, 11).to_f32();
         for sigma in [0.8f32, 1.0, 1.2, 2.5] {
             let p = gaussian::GaussianParams { sigma };
-            let cpu = gaussian::smooth(&src, &p).unwrap();
-            let gpu = gaussian::smooth_gpu(ctx, &src, &p).unwrap();
+            let cpu = gaussian::gaussian(&src, &p).unwrap();
+            let gpu = gaussian::gaussian_gpu(ctx, &src, &p).unwrap();
             common::assert_close(&format!("gaussian/{w}x{h}/sigma{sigma}"), &cpu, &gpu, GAUSSIAN_ATOL, 1e-6);
         }
     }

@@ -43,8 +43,8 @@ fn parity_ingest_bytes_exact() {
     let Some((ctx, _g)) = common::gpu("parity_ingest_bytes_exact") else { return };
     for &(w, h) in common::PARITY_SIZES {
         let frame = natural(w, h, 7);
-        let cpu = ingest::ingest_gray(&frame);
-        let gpu = ingest::ingest_gray_gpu(ctx, &frame).unwrap();
+        let cpu = ingest::ingest(&frame);
+        let gpu = ingest::ingest_gpu(ctx, &frame).unwrap();
         common::assert_equal(&format!("ingest/{w}x{h}"), &cpu, &gpu);
     }
 }
@@ -94,7 +94,7 @@ fn parity_ingest_texture_every_format_exact() {
             let gray = ingest::gray_from_texels(&bytes, w, h, format).unwrap();
             common::assert_equal(
                 &format!("ingest_texture/{format:?}/{w}x{h}/bytes"),
-                &ingest::ingest_gray_gpu(ctx, &gray).unwrap(),
+                &ingest::ingest_gpu(ctx, &gray).unwrap(),
                 &gpu,
             );
         }

@@ -85,7 +85,7 @@ fn parity_sobel_smoothed_natural_all_sizes() {
     let Some((ctx, _g)) = common::gpu("parity_sobel_smoothed_natural_all_sizes") else { return };
     let g = GaussianParams::default();
     for &(w, h) in common::PARITY_SIZES {
-        let src = gaussian::smooth(&natural(w, h, 41).to_f32(), &g).unwrap();
+        let src = gaussian::gaussian(&natural(w, h, 41).to_f32(), &g).unwrap();
         let cpu = sobel::sobel(&src);
         let gpu = sobel::sobel_gpu(ctx, &src).unwrap();
         assert_sobel_parity(&format!("sobel/{w}x{h}"), &cpu, &gpu);
@@ -98,8 +98,8 @@ fn parity_sobel_on_frame_sum_all_sizes() {
     let Some((ctx, _g)) = common::gpu("parity_sobel_on_frame_sum_all_sizes") else { return };
     let g = GaussianParams::default();
     for &(w, h) in common::PARITY_SIZES {
-        let a = gaussian::smooth(&natural(w, h, 42).to_f32(), &g).unwrap();
-        let b = gaussian::smooth(&natural(w, h, 43).to_f32(), &g).unwrap();
+        let a = gaussian::gaussian(&natural(w, h, 42).to_f32(), &g).unwrap();
+        let b = gaussian::gaussian(&natural(w, h, 43).to_f32(), &g).unwrap();
         let src = frame_sum::frame_sum(&a, &b).unwrap();
         let cpu = sobel::sobel(&src);
         let gpu = sobel::sobel_gpu(ctx, &src).unwrap();

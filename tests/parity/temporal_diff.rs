@@ -22,7 +22,7 @@ fn moving_pair(w: usize, h: usize, seed: u64, dx: usize, dy: usize) -> (FloatIma
     let prev = FloatImage::from_fn(w, h, |x, y| scene.get(x, y));
     let cur = FloatImage::from_fn(w, h, |x, y| scene.get(x + dx, y + dy));
     let g = GaussianParams::default();
-    (gaussian::smooth(&prev, &g).unwrap(), gaussian::smooth(&cur, &g).unwrap())
+    (gaussian::gaussian(&prev, &g).unwrap(), gaussian::gaussian(&cur, &g).unwrap())
 }
 
 /// Assert the masks are equal except near the threshold; returns how many

@@ -21,8 +21,8 @@ use crate::common;
 use std::f32::consts::TAU;
 
 use pipetrack::FloatImage;
-use pipetrack::early::log::{LogParams, laplacian_of_gaussian, log_gpu};
-use pipetrack::early::zero_crossing::{Edgels, ZeroCrossingParams, zero_crossings, zero_crossings_gpu};
+use pipetrack::early::log::{LogParams, log, log_gpu};
+use pipetrack::early::zero_crossing::{Edgels, ZeroCrossingParams, zero_crossing, zero_crossing_gpu};
 use pipetrack::image::Image;
 use pipetrack::testimage::natural;
 
@@ -74,11 +74,11 @@ fn assert_same_edgels(name: &str, cpu: &Edgels, gpu: &Edgels) {
 fn parity_zero_crossing_same_log_all_sizes() {
     let Some((ctx, _g)) = common::gpu("parity_zero_crossing_same_log_all_sizes") else { return };
     for &(w, h) in common::PARITY_SIZES {
-        let log = laplacian_of_gaussian(&natural(w, h, 17).to_f32(), &LogParams::default()).unwrap();
+        let log = log(&natural(w, h, 17).to_f32(), &LogParams::default()).unwrap();
         for min_slope in [1.0f32, 0.25, 8.0] {
             let p = ZeroCrossingParams { min_slope };
-            let cpu = zero_crossings(&log, &p);
-            let gpu = zero_crossings_gpu(ctx, &log, &p).unwrap();
+            let cpu = zero_crossing(&log, &p);
+            let gpu = zero_crossing_gpu(ctx, &log, &p).unwrap();
             if (w, h) == (640, 480) {
                 eprintln!("zero_crossing/{w}x{h}/min_slope{min_slope}: {} edgels", cpu.count());
                 assert!(cpu.count() > 100, "too few edgels to test anything");
@@ -98,8 +98,8 @@ fn parity_zero_crossing_ties_and_zeros() {
     let log = FloatImage::from_fn(w, h, |x, y| (((x * 5 + y * 3 + x * y * 7 + x * x) % 7) as f32) - 3.0);
     for min_slope in [1.0f32, 2.0, 3.0] {
         let p = ZeroCrossingParams { min_slope };
-        let cpu = zero_crossings(&log, &p);
-        let gpu = zero_crossings_gpu(ctx, &log, &p).unwrap();
+        let cpu = zero_crossing(&log, &p);
+        let gpu = zero_crossing_gpu(ctx, &log, &p).unwrap();
         assert!(cpu.count() > 100);
         assert_same_edgels(&format!("zero_crossing/ties/min_slope{min_slope}"), &cpu, &gpu);
     }
@@ -135,10 +135,10 @@ fn parity_zero_crossing_chain_gpu_log_vs_cpu_log() {
     let zp = ZeroCrossingParams::default();
     for &(w, h) in common::PARITY_SIZES {
         let src = natural(w, h, 19).to_f32();
-        let cpu_log = laplacian_of_gaussian(&src, &lp).unwrap();
+        let cpu_log = log(&src, &lp).unwrap();
         let gpu_log = log_gpu(ctx, &src, &lp).unwrap();
-        let cpu = zero_crossings(&cpu_log, &zp);
-        let gpu = zero_crossings_gpu(ctx, &gpu_log, &zp).unwrap();
+        let cpu = zero_crossing(&cpu_log, &zp);
+        let gpu = zero_crossing_gpu(ctx, &gpu_log, &zp).unwrap();
         let g = |e: &Edgels, i: usize| {
             let (s, d) = (e.strength.data()[i], e.direction.data()[i]);
             (s * d.cos(), s * d.sin())

@@ -5,7 +5,7 @@
 mod common;
 
 mod blue_e2e;
-mod embed;
 mod blue_logic;
+mod embed;
 mod motion_edge_e2e;
 mod motion_edge_logic;
