@@ -129,9 +129,17 @@ impl GrayImage {
     }
 }
 
-/// Luma of an 8-bit RGB pixel with the BT.601 weights, in the 0..255 scale.
-/// The `ingest_texture` shader uses the same weights in the same order.
+/// BT.601 luma of 8-bit R, G, B rounded to the nearest integer, halves up,
+/// in exact integer arithmetic: `(299 r + 587 g + 114 b + 500) / 1000`. Colour
+/// frames read from files and colour textures (the `ingest_texture` shader)
+/// both become grey through it, so the two paths agree to the bit.
 #[must_use]
-pub fn luma(r: u8, g: u8, b: u8) -> f32 {
-    0.299 * r as f32 + 0.587 * g as f32 + 0.114 * b as f32
+pub const fn luma(r: u8, g: u8, b: u8) -> u8 {
+    let sum = LUMA_WEIGHTS[0] * r as u32 + LUMA_WEIGHTS[1] * g as u32 + LUMA_WEIGHTS[2] * b as u32;
+    ((sum + LUMA_SCALE / 2) / LUMA_SCALE) as u8
 }
+
+/// BT.601 weights of R, G, B in thousandths (they sum to [`LUMA_SCALE`]).
+const LUMA_WEIGHTS: [u32; 3] = [299, 587, 114];
+/// Denominator of [`LUMA_WEIGHTS`].
+const LUMA_SCALE: u32 = 1000;

@@ -10,7 +10,7 @@
 //!
 //! - `R8Unorm`: the byte itself.
 //! - `Rgba8Unorm`, `Bgra8Unorm`: BT.601 luma of the R, G, B bytes
-//!   ([`luma_u8`]), alpha ignored.
+//!   ([`luma`]), alpha ignored.
 //! - `Rgba8UnormSrgb`, `Bgra8UnormSrgb`: the same luma of the *stored*
 //!   (sRGB-encoded) bytes. The GPU samples these formats linearised, so the
 //!   shader re-encodes each channel to sRGB before the luma weights. The grey
@@ -24,7 +24,7 @@ use crate::gpu::{
     Binding::{ReadOnly, Storage, Texture, Uniform},
     EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
 };
-use crate::image::{FloatImage, GrayImage};
+use crate::image::{FloatImage, GrayImage, luma};
 use crate::{Error, Result};
 
 /// Shader for byte frames.
@@ -98,22 +98,6 @@ pub fn texel_bytes(format: wgpu::TextureFormat) -> Result<usize> {
     })
 }
 
-/// BT.601 luma of 8-bit R, G, B rounded to the nearest integer, halves up,
-/// in exact integer arithmetic: `(299 r + 587 g + 114 b + 500) / 1000`. The
-/// texture ingest shader computes the same. (It equals
-/// `crate::image::luma(r, g, b).round()` except where the exact value is a
-/// half, where f32 rounding of that sum may land on either side.)
-#[must_use]
-pub const fn luma_u8(r: u8, g: u8, b: u8) -> u8 {
-    let sum = LUMA_WEIGHTS[0] * r as u32 + LUMA_WEIGHTS[1] * g as u32 + LUMA_WEIGHTS[2] * b as u32;
-    ((sum + LUMA_SCALE / 2) / LUMA_SCALE) as u8
-}
-
-/// BT.601 weights of R, G, B in thousandths (they sum to [`LUMA_SCALE`]).
-const LUMA_WEIGHTS: [u32; 3] = [299, 587, 114];
-/// Denominator of [`LUMA_WEIGHTS`].
-const LUMA_SCALE: u32 = 1000;
-
 /// CPU twin of `from_bytes`: grey bytes to f32.
 #[must_use]
 pub fn ingest(frame: &GrayImage) -> FloatImage {
@@ -141,7 +125,7 @@ pub fn gray_from_texels(texels: &[u8], width: usize, height: usize, format: wgpu
     let data = match kind {
         TexelKind::Gray => texels.to_vec(),
         TexelKind::Colour | TexelKind::SrgbColour => {
-            texels.chunks_exact(size).map(|p| luma_u8(p[r], p[g], p[b])).collect()
+            texels.chunks_exact(size).map(|p| luma(p[r], p[g], p[b])).collect()
         }
     };
     GrayImage::from_vec(width, height, data)
@@ -268,9 +252,9 @@ mod tests {
     #[test]
     fn luma_rounds_halves_up_and_keeps_grey() {
         // 299·4 + 587·40 + 114·16 = 26500: exactly 26.5.
-        assert_eq!(luma_u8(4, 40, 16), 27);
+        assert_eq!(luma(4, 40, 16), 27);
         for v in [0, 1, 127, 254, 255] {
-            assert_eq!(luma_u8(v, v, v), v);
+            assert_eq!(luma(v, v, v), v);
         }
     }
 
@@ -279,7 +263,7 @@ mod tests {
         use wgpu::TextureFormat as F;
         let rgba = [10, 200, 30, 255, 255, 0, 0, 7];
         let bgra = [30, 200, 10, 255, 0, 0, 255, 7];
-        let expected = [luma_u8(10, 200, 30), luma_u8(255, 0, 0)];
+        let expected = [luma(10, 200, 30), luma(255, 0, 0)];
         for (format, texels) in
             [(F::Rgba8Unorm, rgba), (F::Bgra8Unorm, bgra), (F::Rgba8UnormSrgb, rgba), (F::Bgra8UnormSrgb, bgra)]
         {

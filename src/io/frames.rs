@@ -134,7 +134,7 @@ pub fn decode_gray(path: &Path) -> Result<GrayImage> {
 pub fn dynamic_to_gray(img: ::image::DynamicImage) -> Result<GrayImage> {
     use ::image::DynamicImage as D;
     let (w, h) = (img.width() as usize, img.height() as usize);
-    let rgb_luma = |p: &[u8]| luma(p[0], p[1], p[2]).round() as u8;
+    let rgb_luma = |p: &[u8]| luma(p[0], p[1], p[2]);
     let data = match img {
         D::ImageLuma8(buf) => buf.into_raw(),
         D::ImageLumaA8(buf) => buf.as_raw().chunks_exact(2).map(|p| p[0]).collect(),
