@@ -5,18 +5,12 @@
 //! uses the same u32 integer arithmetic in both twins, so the lists must be
 //! equal element for element (θ and magnitude bit for bit).
 use crate::common;
+use crate::per_size;
 
 use pipetrack::early::compaction::{self, CompactionParams, MAX_CAP};
 use pipetrack::early::{Feature, Window};
 use pipetrack::image::FloatImage;
 use pipetrack::testimage::natural;
-
-/// Sizes of this stage: the shared ones plus HD.
-fn sizes() -> Vec<(usize, usize)> {
-    let mut s = common::PARITY_SIZES.to_vec();
-    s.push((1280, 720));
-    s
-}
 
 /// The select images and thresholds of a `w`×`h` test: a 0/1 mask from
 /// thresholding `natural`, and a gradient magnitude (|dx| + |dy| of forward
@@ -88,40 +82,38 @@ fn is_ordered_subset(sub: &[Feature], all: &[Feature]) -> bool {
     sub.iter().all(|s| it.any(|a| a == s))
 }
 
-#[test]
-fn parity_compaction_all_sizes_windows_and_caps() {
-    let Some((ctx, _g)) = common::gpu("parity_compaction_all_sizes_windows_and_caps") else { return };
-    for (w, h) in sizes() {
-        let inp = inputs(w, h);
-        let selects = [("mask", &inp.mask, 0.5f32), ("magnitude", &inp.magnitude, MAGNITUDE_THRESHOLD)];
-        for (sname, select, threshold) in selects {
-            for (wname, window) in windows(w, h) {
-                let uncapped = CompactionParams { window, threshold, cap: None, seed: 3 };
-                let all = compaction::compaction(select, &inp.theta, &inp.magnitude, &uncapped).unwrap();
-                let n = all.len() as u32;
-                let name = format!("compaction/{w}x{h}/{sname}/{wname}");
-                let gpu = compaction::compaction_gpu(ctx, select, &inp.theta, &inp.magnitude, &uncapped).unwrap();
-                assert_lists_equal(&format!("{name}/uncapped"), &all, &gpu);
-                if wname == "empty" {
-                    assert!(all.is_empty(), "{name}: empty window listed {n}");
-                }
+fn parity_compaction_windows_and_caps(w: usize, h: usize) {
+    let Some((ctx, _g)) = common::gpu(&format!("parity_compaction_windows_and_caps/{w}x{h}")) else { return };
+    let inp = inputs(w, h);
+    let selects = [("mask", &inp.mask, 0.5f32), ("magnitude", &inp.magnitude, MAGNITUDE_THRESHOLD)];
+    for (sname, select, threshold) in selects {
+        for (wname, window) in windows(w, h) {
+            let uncapped = CompactionParams { window, threshold, cap: None, seed: 3 };
+            let all = compaction::compaction(select, &inp.theta, &inp.magnitude, &uncapped).unwrap();
+            let n = all.len() as u32;
+            let name = format!("compaction/{w}x{h}/{sname}/{wname}");
+            let gpu = compaction::compaction_gpu(ctx, select, &inp.theta, &inp.magnitude, &uncapped).unwrap();
+            assert_lists_equal(&format!("{name}/uncapped"), &all, &gpu);
+            if wname == "empty" {
+                assert!(all.is_empty(), "{name}: empty window listed {n}");
+            }
 
-                for cap in [1500, (n + 10).min(MAX_CAP), 1] {
-                    let p = CompactionParams { cap: Some(cap), ..uncapped };
-                    let cpu = compaction::compaction(select, &inp.theta, &inp.magnitude, &p).unwrap();
-                    let gpu = compaction::compaction_gpu(ctx, select, &inp.theta, &inp.magnitude, &p).unwrap();
-                    let cname = format!("{name}/cap{cap}");
-                    assert_lists_equal(&cname, &cpu, &gpu);
-                    assert_eq!(cpu.len() as u32, n.min(cap), "{cname}: length");
-                    assert!(is_ordered_subset(&cpu, &all), "{cname}: not an ordered subset of the uncapped list");
-                    if cap >= n {
-                        assert_eq!(cpu, all, "{cname}: cap ≥ n must return all");
-                    }
+            for cap in [1500, (n + 10).min(MAX_CAP), 1] {
+                let p = CompactionParams { cap: Some(cap), ..uncapped };
+                let cpu = compaction::compaction(select, &inp.theta, &inp.magnitude, &p).unwrap();
+                let gpu = compaction::compaction_gpu(ctx, select, &inp.theta, &inp.magnitude, &p).unwrap();
+                let cname = format!("{name}/cap{cap}");
+                assert_lists_equal(&cname, &cpu, &gpu);
+                assert_eq!(cpu.len() as u32, n.min(cap), "{cname}: length");
+                assert!(is_ordered_subset(&cpu, &all), "{cname}: not an ordered subset of the uncapped list");
+                if cap >= n {
+                    assert_eq!(cpu, all, "{cname}: cap ≥ n must return all");
                 }
             }
         }
     }
 }
+per_size!(parity_compaction_windows_and_caps; w1280_h720 = (1280, 720));
 
 #[test]
 fn parity_compaction_cap_1500_is_exercised_and_seeds_differ() {

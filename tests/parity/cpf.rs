@@ -8,6 +8,7 @@
 //! (sums of four values times ¼ in the same order on both sides; the
 //! tolerance only absorbs a possible reassociation by the GPU compiler).
 use crate::common;
+use crate::per_size;
 
 use pipetrack::FloatImage;
 use pipetrack::early::{cpf, edge_pyramid};
@@ -16,13 +17,6 @@ use pipetrack::testimage::natural;
 const EDGE_PYRAMID_ATOL: f32 = 1e-4;
 const EDGE_PYRAMID_RTOL: f32 = 1e-5;
 
-/// Parity sizes plus the paper's 256×256 and single-row / single-column inputs.
-fn sizes() -> Vec<(usize, usize)> {
-    let mut s = common::PARITY_SIZES.to_vec();
-    s.extend([(256, 256), (1, 7), (7, 1)]);
-    s
-}
-
 /// A signed image standing in for a Sobel edge image (values −255..255).
 fn signed(w: usize, h: usize, seed: u64) -> FloatImage {
     let a = natural(w, h, seed).to_f32();
@@ -30,23 +24,21 @@ fn signed(w: usize, h: usize, seed: u64) -> FloatImage {
     FloatImage::from_vec(w, h, a.data().iter().zip(b.data()).map(|(x, y)| x - y).collect()).expect("same size")
 }
 
-#[test]
-fn parity_cpf_all_levels_exact() {
-    let Some((ctx, _g)) = common::gpu("parity_cpf_all_levels_exact") else { return };
-    for (w, h) in sizes() {
-        let src = natural(w, h, 21).to_f32();
-        let cpu = cpf::cpf(&src);
-        let gpu = cpf::cpf_gpu(ctx, &src).unwrap();
-        let levels = cpf::level_sizes(w, h).len();
-        for m in 0..cpf::HIERARCHIES {
-            assert_eq!(cpu.hierarchies[m].len(), levels, "cpf/{w}x{h}: CPU level count");
-            assert_eq!(gpu.hierarchies[m].len(), levels, "cpf/{w}x{h}: GPU level count");
-            for (k, (c, g)) in cpu.hierarchies[m].iter().zip(&gpu.hierarchies[m]).enumerate() {
-                common::assert_equal(&format!("cpf/{w}x{h}/m{m}/level{k}"), c, g);
-            }
+fn parity_cpf_all_levels_exact(w: usize, h: usize) {
+    let Some((ctx, _g)) = common::gpu(&format!("parity_cpf_all_levels_exact/{w}x{h}")) else { return };
+    let src = natural(w, h, 21).to_f32();
+    let cpu = cpf::cpf(&src);
+    let gpu = cpf::cpf_gpu(ctx, &src).unwrap();
+    let levels = cpf::level_sizes(w, h).len();
+    for m in 0..cpf::HIERARCHIES {
+        assert_eq!(cpu.hierarchies[m].len(), levels, "cpf/{w}x{h}: CPU level count");
+        assert_eq!(gpu.hierarchies[m].len(), levels, "cpf/{w}x{h}: GPU level count");
+        for (k, (c, g)) in cpu.hierarchies[m].iter().zip(&gpu.hierarchies[m]).enumerate() {
+            common::assert_equal(&format!("cpf/{w}x{h}/m{m}/level{k}"), c, g);
         }
     }
 }
+per_size!(parity_cpf_all_levels_exact; w256_h256 = (256, 256); w1_h7 = (1, 7); w7_h1 = (7, 1));
 
 /// Saddle hierarchies depend on which child pairs the inner min/max takes;
 /// an image with a strong row/column asymmetry makes a swapped pairing fail.
@@ -59,40 +51,28 @@ fn parity_cpf_saddles_on_stripes() {
     assert_eq!(cpu, gpu);
 }
 
-#[test]
-fn parity_edge_pyramid_all_levels() {
-    let Some((ctx, _g)) = common::gpu("parity_edge_pyramid_all_levels") else { return };
-    for (w, h) in sizes() {
-        let gx = signed(w, h, 3);
-        let gy = signed(w, h, 4);
-        let cpu = edge_pyramid::edge_pyramid(&gx, &gy).unwrap();
-        let gpu = edge_pyramid::edge_pyramid_gpu(ctx, &gx, &gy).unwrap();
-        let levels = cpf::level_sizes(w, h).len();
-        assert_eq!(
-            (cpu.horizontal.len(), cpu.vertical.len()),
-            (levels, levels),
-            "edge_pyramid/{w}x{h}: CPU level count"
-        );
-        assert_eq!(
-            (gpu.horizontal.len(), gpu.vertical.len()),
-            (levels, levels),
-            "edge_pyramid/{w}x{h}: GPU level count"
-        );
-        for k in 0..levels {
-            for (dir, c, g) in
-                [("h", &cpu.horizontal[k], &gpu.horizontal[k]), ("v", &cpu.vertical[k], &gpu.vertical[k])]
-            {
-                common::assert_close(
-                    &format!("edge_pyramid/{w}x{h}/{dir}/level{k}"),
-                    c,
-                    g,
-                    EDGE_PYRAMID_ATOL,
-                    EDGE_PYRAMID_RTOL,
-                );
-            }
+fn parity_edge_pyramid_all_levels(w: usize, h: usize) {
+    let Some((ctx, _g)) = common::gpu(&format!("parity_edge_pyramid_all_levels/{w}x{h}")) else { return };
+    let gx = signed(w, h, 3);
+    let gy = signed(w, h, 4);
+    let cpu = edge_pyramid::edge_pyramid(&gx, &gy).unwrap();
+    let gpu = edge_pyramid::edge_pyramid_gpu(ctx, &gx, &gy).unwrap();
+    let levels = cpf::level_sizes(w, h).len();
+    assert_eq!((cpu.horizontal.len(), cpu.vertical.len()), (levels, levels), "edge_pyramid/{w}x{h}: CPU level count");
+    assert_eq!((gpu.horizontal.len(), gpu.vertical.len()), (levels, levels), "edge_pyramid/{w}x{h}: GPU level count");
+    for k in 0..levels {
+        for (dir, c, g) in [("h", &cpu.horizontal[k], &gpu.horizontal[k]), ("v", &cpu.vertical[k], &gpu.vertical[k])] {
+            common::assert_close(
+                &format!("edge_pyramid/{w}x{h}/{dir}/level{k}"),
+                c,
+                g,
+                EDGE_PYRAMID_ATOL,
+                EDGE_PYRAMID_RTOL,
+            );
         }
     }
 }
+per_size!(parity_edge_pyramid_all_levels; w256_h256 = (256, 256); w1_h7 = (1, 7); w7_h1 = (7, 1));
 
 #[test]
 fn parity_edge_pyramid_rejects_mismatched_inputs() {

@@ -9,6 +9,7 @@
 //! - where the CPU gradient is exactly zero, the GPU must write the guarded
 //!   values exactly: direction 0, theta π/2.
 use crate::common;
+use crate::per_size;
 
 use std::f32::consts::{FRAC_PI_2, PI};
 
@@ -80,49 +81,43 @@ fn assert_sobel_parity(name: &str, cpu: &SobelOutput, gpu: &SobelOutput) {
     }
 }
 
-#[test]
-fn parity_sobel_smoothed_natural_all_sizes() {
-    let Some((ctx, _g)) = common::gpu("parity_sobel_smoothed_natural_all_sizes") else { return };
+fn parity_sobel_smoothed_natural(w: usize, h: usize) {
+    let Some((ctx, _g)) = common::gpu(&format!("parity_sobel_smoothed_natural/{w}x{h}")) else { return };
     let g = GaussianParams::default();
-    for &(w, h) in common::PARITY_SIZES {
-        let src = gaussian::gaussian(&natural(w, h, 41).to_f32(), &g).unwrap();
-        let cpu = sobel::sobel(&src);
-        let gpu = sobel::sobel_gpu(ctx, &src).unwrap();
-        assert_sobel_parity(&format!("sobel/{w}x{h}"), &cpu, &gpu);
-    }
+    let src = gaussian::gaussian(&natural(w, h, 41).to_f32(), &g).unwrap();
+    let cpu = sobel::sobel(&src);
+    let gpu = sobel::sobel_gpu(ctx, &src).unwrap();
+    assert_sobel_parity(&format!("sobel/{w}x{h}"), &cpu, &gpu);
 }
+per_size!(parity_sobel_smoothed_natural);
 
-#[test]
-fn parity_sobel_on_frame_sum_all_sizes() {
+fn parity_sobel_on_frame_sum(w: usize, h: usize) {
     // The input 000 actually differentiates: the sum of two smoothed frames.
-    let Some((ctx, _g)) = common::gpu("parity_sobel_on_frame_sum_all_sizes") else { return };
+    let Some((ctx, _g)) = common::gpu(&format!("parity_sobel_on_frame_sum/{w}x{h}")) else { return };
     let g = GaussianParams::default();
-    for &(w, h) in common::PARITY_SIZES {
-        let a = gaussian::gaussian(&natural(w, h, 42).to_f32(), &g).unwrap();
-        let b = gaussian::gaussian(&natural(w, h, 43).to_f32(), &g).unwrap();
-        let src = frame_sum::frame_sum(&a, &b).unwrap();
-        let cpu = sobel::sobel(&src);
-        let gpu = sobel::sobel_gpu(ctx, &src).unwrap();
-        assert_sobel_parity(&format!("sobel_sum/{w}x{h}"), &cpu, &gpu);
-    }
+    let a = gaussian::gaussian(&natural(w, h, 42).to_f32(), &g).unwrap();
+    let b = gaussian::gaussian(&natural(w, h, 43).to_f32(), &g).unwrap();
+    let src = frame_sum::frame_sum(&a, &b).unwrap();
+    let cpu = sobel::sobel(&src);
+    let gpu = sobel::sobel_gpu(ctx, &src).unwrap();
+    assert_sobel_parity(&format!("sobel_sum/{w}x{h}"), &cpu, &gpu);
 }
+per_size!(parity_sobel_on_frame_sum);
 
-#[test]
-fn parity_sobel_flat_regions_and_axis_edges() {
+fn parity_sobel_flat_regions_and_axis_edges(w: usize, h: usize) {
     // Natural image quantised to 4 levels: large flat areas (zero-gradient
     // guard), and many pixels with gx = 0 or gy = 0 exactly (axis cases).
-    let Some((ctx, _g)) = common::gpu("parity_sobel_flat_regions_and_axis_edges") else { return };
-    for &(w, h) in common::PARITY_SIZES {
-        let raw = natural(w, h, 44).to_f32();
-        let src = FloatImage::from_fn(w, h, |x, y| (raw.get(x, y) / 64.0).floor() * 64.0);
-        let cpu = sobel::sobel(&src);
-        let gpu = sobel::sobel_gpu(ctx, &src).unwrap();
-        let name = format!("sobel_flat/{w}x{h}");
-        assert_sobel_parity(&name, &cpu, &gpu);
-        if w * h > 1000 {
-            let zero = cpu.magnitude.data().iter().filter(|&&m| m == 0.0).count();
-            let axis = cpu.gx.data().iter().zip(cpu.gy.data()).filter(|&(&x, &y)| (x == 0.0) != (y == 0.0)).count();
-            assert!(zero > 0 && axis > 0, "{name}: test image lacks guard cases ({zero} flat, {axis} axis)");
-        }
+    let Some((ctx, _g)) = common::gpu(&format!("parity_sobel_flat_regions_and_axis_edges/{w}x{h}")) else { return };
+    let raw = natural(w, h, 44).to_f32();
+    let src = FloatImage::from_fn(w, h, |x, y| (raw.get(x, y) / 64.0).floor() * 64.0);
+    let cpu = sobel::sobel(&src);
+    let gpu = sobel::sobel_gpu(ctx, &src).unwrap();
+    let name = format!("sobel_flat/{w}x{h}");
+    assert_sobel_parity(&name, &cpu, &gpu);
+    if w * h > 1000 {
+        let zero = cpu.magnitude.data().iter().filter(|&&m| m == 0.0).count();
+        let axis = cpu.gx.data().iter().zip(cpu.gy.data()).filter(|&(&x, &y)| (x == 0.0) != (y == 0.0)).count();
+        assert!(zero > 0 && axis > 0, "{name}: test image lacks guard cases ({zero} flat, {axis} axis)");
     }
 }
+per_size!(parity_sobel_flat_regions_and_axis_edges);

@@ -6,6 +6,7 @@
 //! allowed. (The difference is one correctly rounded f32 subtraction on both
 //! sides, so in practice there are none.)
 use crate::common;
+use crate::per_size;
 
 use pipetrack::FloatImage;
 use pipetrack::early::gaussian::{self, GaussianParams};
@@ -57,38 +58,39 @@ fn assert_masks_match(
     (near, near_differing)
 }
 
-#[test]
-fn parity_temporal_diff_all_sizes_and_thresholds() {
-    let Some((ctx, _g)) = common::gpu("parity_temporal_diff_all_sizes_and_thresholds") else { return };
-    for &(w, h) in common::PARITY_SIZES {
-        let (prev, cur) = moving_pair(w, h, 21, 3, 2);
-        for threshold in [TemporalDiffParams::default().threshold, 2.0, 0.5, 0.0] {
-            let p = TemporalDiffParams { threshold };
-            let cpu = temporal_diff::temporal_diff(&prev, &cur, &p).unwrap();
-            let gpu = temporal_diff::temporal_diff_gpu(ctx, &prev, &cur, &p).unwrap();
-            let name = format!("temporal_diff/{w}x{h}/t{threshold}");
-            let (near, near_differing) = assert_masks_match(&name, &prev, &cur, threshold, &cpu, &gpu);
-            let moving = cpu.data().iter().filter(|&&v| v == MOVING).count();
-            eprintln!("{name}: {moving} moving, {near} near the threshold, {near_differing} of them differ");
-            if w * h > 1000 {
-                // The test must be able to fail: both classes present.
-                assert!(moving > 0 && moving < w * h, "{name}: degenerate mask ({moving} moving)");
-            }
+fn parity_temporal_diff_thresholds(w: usize, h: usize) {
+    let Some((ctx, _g)) = common::gpu(&format!("parity_temporal_diff_thresholds/{w}x{h}")) else {
+        return;
+    };
+    let (prev, cur) = moving_pair(w, h, 21, 3, 2);
+    for threshold in [TemporalDiffParams::default().threshold, 2.0, 0.5, 0.0] {
+        let p = TemporalDiffParams { threshold };
+        let cpu = temporal_diff::temporal_diff(&prev, &cur, &p).unwrap();
+        let gpu = temporal_diff::temporal_diff_gpu(ctx, &prev, &cur, &p).unwrap();
+        let name = format!("temporal_diff/{w}x{h}/t{threshold}");
+        let (near, near_differing) = assert_masks_match(&name, &prev, &cur, threshold, &cpu, &gpu);
+        let moving = cpu.data().iter().filter(|&&v| v == MOVING).count();
+        eprintln!("{name}: {moving} moving, {near} near the threshold, {near_differing} of them differ");
+        if w * h > 1000 {
+            // The test must be able to fail: both classes present.
+            assert!(moving > 0 && moving < w * h, "{name}: degenerate mask ({moving} moving)");
         }
     }
 }
+per_size!(parity_temporal_diff_thresholds);
 
-#[test]
-fn parity_temporal_diff_integer_differences_on_the_threshold() {
+fn parity_temporal_diff_integer_differences_on_the_threshold(w: usize, h: usize) {
     // Unsmoothed 8-bit frames: many differences are exactly the threshold
     // (not moving, strict >) or one grey level above it (moving).
-    let Some((ctx, _g)) = common::gpu("parity_temporal_diff_integer_differences_on_the_threshold") else { return };
-    for &(w, h) in common::PARITY_SIZES {
-        let prev = natural(w, h, 5).to_f32();
-        let cur = FloatImage::from_fn(w, h, |x, y| prev.get(x, y) + ((x + 3 * y) % 5) as f32 + 6.0);
-        let p = TemporalDiffParams { threshold: 8.0 };
-        let cpu = temporal_diff::temporal_diff(&prev, &cur, &p).unwrap();
-        let gpu = temporal_diff::temporal_diff_gpu(ctx, &prev, &cur, &p).unwrap();
-        common::assert_equal(&format!("temporal_diff_integer/{w}x{h}"), &cpu, &gpu);
-    }
+    let Some((ctx, _g)) = common::gpu(&format!("parity_temporal_diff_integer_differences_on_the_threshold/{w}x{h}"))
+    else {
+        return;
+    };
+    let prev = natural(w, h, 5).to_f32();
+    let cur = FloatImage::from_fn(w, h, |x, y| prev.get(x, y) + ((x + 3 * y) % 5) as f32 + 6.0);
+    let p = TemporalDiffParams { threshold: 8.0 };
+    let cpu = temporal_diff::temporal_diff(&prev, &cur, &p).unwrap();
+    let gpu = temporal_diff::temporal_diff_gpu(ctx, &prev, &cur, &p).unwrap();
+    common::assert_equal(&format!("temporal_diff_integer/{w}x{h}"), &cpu, &gpu);
 }
+per_size!(parity_temporal_diff_integer_differences_on_the_threshold);

@@ -17,6 +17,7 @@
 //!   edgels. Elsewhere gx, gy within 5e-3 (two LoG errors) and offsets within
 //!   1e-2 (slopes are ≥ 1, so t moves by at most ~4e-3).
 use crate::common;
+use crate::per_size;
 
 use std::f32::consts::TAU;
 
@@ -70,23 +71,21 @@ fn assert_same_edgels(name: &str, cpu: &Edgels, gpu: &Edgels) {
     }
 }
 
-#[test]
-fn parity_zero_crossing_same_log_all_sizes() {
-    let Some((ctx, _g)) = common::gpu("parity_zero_crossing_same_log_all_sizes") else { return };
-    for &(w, h) in common::PARITY_SIZES {
-        let log = log(&natural(w, h, 17).to_f32(), &LogParams::default()).unwrap();
-        for min_slope in [1.0f32, 0.25, 8.0] {
-            let p = ZeroCrossingParams { min_slope };
-            let cpu = zero_crossing(&log, &p);
-            let gpu = zero_crossing_gpu(ctx, &log, &p).unwrap();
-            if (w, h) == (640, 480) {
-                eprintln!("zero_crossing/{w}x{h}/min_slope{min_slope}: {} edgels", cpu.count());
-                assert!(cpu.count() > 100, "too few edgels to test anything");
-            }
-            assert_same_edgels(&format!("zero_crossing/{w}x{h}/min_slope{min_slope}"), &cpu, &gpu);
+fn parity_zero_crossing_same_log(w: usize, h: usize) {
+    let Some((ctx, _g)) = common::gpu(&format!("parity_zero_crossing_same_log/{w}x{h}")) else { return };
+    let log = log(&natural(w, h, 17).to_f32(), &LogParams::default()).unwrap();
+    for min_slope in [1.0f32, 0.25, 8.0] {
+        let p = ZeroCrossingParams { min_slope };
+        let cpu = zero_crossing(&log, &p);
+        let gpu = zero_crossing_gpu(ctx, &log, &p).unwrap();
+        if (w, h) == (640, 480) {
+            eprintln!("zero_crossing/{w}x{h}/min_slope{min_slope}: {} edgels", cpu.count());
+            assert!(cpu.count() > 100, "too few edgels to test anything");
         }
+        assert_same_edgels(&format!("zero_crossing/{w}x{h}/min_slope{min_slope}"), &cpu, &gpu);
     }
 }
+per_size!(parity_zero_crossing_same_log);
 
 /// Small integers −3..=3 as a LoG: exact zeros (positive), exact half-way
 /// ties |a| = |b|, slopes exactly at min_slope and equal competing slopes
@@ -128,66 +127,66 @@ fn pixel_ambiguous(l: &FloatImage, x: usize, y: usize, min_slope: f32) -> bool {
     })
 }
 
-#[test]
-fn parity_zero_crossing_chain_gpu_log_vs_cpu_log() {
-    let Some((ctx, _g)) = common::gpu("parity_zero_crossing_chain_gpu_log_vs_cpu_log") else { return };
+fn parity_zero_crossing_chain_gpu_log_vs_cpu_log(w: usize, h: usize) {
+    let Some((ctx, _g)) = common::gpu(&format!("parity_zero_crossing_chain_gpu_log_vs_cpu_log/{w}x{h}")) else {
+        return;
+    };
     let lp = LogParams::default();
     let zp = ZeroCrossingParams::default();
-    for &(w, h) in common::PARITY_SIZES {
-        let src = natural(w, h, 19).to_f32();
-        let cpu_log = log(&src, &lp).unwrap();
-        let gpu_log = log_gpu(ctx, &src, &lp).unwrap();
-        let cpu = zero_crossing(&cpu_log, &zp);
-        let gpu = zero_crossing_gpu(ctx, &gpu_log, &zp).unwrap();
-        let g = |e: &Edgels, i: usize| {
-            let (s, d) = (e.strength.data()[i], e.direction.data()[i]);
-            (s * d.cos(), s * d.sin())
-        };
-        let (mut mismatches, mut unexplained) = (0usize, Vec::new());
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                let ((cgx, cgy), (ggx, ggy)) = (g(&cpu, i), g(&gpu, i));
-                let same = (cpu.strength.data()[i] > 0.0) == (gpu.strength.data()[i] > 0.0)
-                    && (cgx - ggx).abs() <= CHAIN_G_ATOL
-                    && (cgy - ggy).abs() <= CHAIN_G_ATOL
-                    && (cpu.offset_x.data()[i] - gpu.offset_x.data()[i]).abs() <= CHAIN_OFFSET_ATOL
-                    && (cpu.offset_y.data()[i] - gpu.offset_y.data()[i]).abs() <= CHAIN_OFFSET_ATOL;
-                if same {
-                    continue;
-                }
-                mismatches += 1;
-                if !(pixel_ambiguous(&cpu_log, x, y, zp.min_slope) || pixel_ambiguous(&gpu_log, x, y, zp.min_slope)) {
-                    unexplained.push(format!(
-                        "  ({x}, {y}): cpu s {} dir {} off ({}, {}) | gpu s {} dir {} off ({}, {}) | L cpu {} gpu {}",
-                        cpu.strength.data()[i],
-                        cpu.direction.data()[i],
-                        cpu.offset_x.data()[i],
-                        cpu.offset_y.data()[i],
-                        gpu.strength.data()[i],
-                        gpu.direction.data()[i],
-                        gpu.offset_x.data()[i],
-                        gpu.offset_y.data()[i],
-                        cpu_log.data()[i],
-                        gpu_log.data()[i]
-                    ));
-                }
+    let src = natural(w, h, 19).to_f32();
+    let cpu_log = log(&src, &lp).unwrap();
+    let gpu_log = log_gpu(ctx, &src, &lp).unwrap();
+    let cpu = zero_crossing(&cpu_log, &zp);
+    let gpu = zero_crossing_gpu(ctx, &gpu_log, &zp).unwrap();
+    let g = |e: &Edgels, i: usize| {
+        let (s, d) = (e.strength.data()[i], e.direction.data()[i]);
+        (s * d.cos(), s * d.sin())
+    };
+    let (mut mismatches, mut unexplained) = (0usize, Vec::new());
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let ((cgx, cgy), (ggx, ggy)) = (g(&cpu, i), g(&gpu, i));
+            let same = (cpu.strength.data()[i] > 0.0) == (gpu.strength.data()[i] > 0.0)
+                && (cgx - ggx).abs() <= CHAIN_G_ATOL
+                && (cgy - ggy).abs() <= CHAIN_G_ATOL
+                && (cpu.offset_x.data()[i] - gpu.offset_x.data()[i]).abs() <= CHAIN_OFFSET_ATOL
+                && (cpu.offset_y.data()[i] - gpu.offset_y.data()[i]).abs() <= CHAIN_OFFSET_ATOL;
+            if same {
+                continue;
+            }
+            mismatches += 1;
+            if !(pixel_ambiguous(&cpu_log, x, y, zp.min_slope) || pixel_ambiguous(&gpu_log, x, y, zp.min_slope)) {
+                unexplained.push(format!(
+                    "  ({x}, {y}): cpu s {} dir {} off ({}, {}) | gpu s {} dir {} off ({}, {}) | L cpu {} gpu {}",
+                    cpu.strength.data()[i],
+                    cpu.direction.data()[i],
+                    cpu.offset_x.data()[i],
+                    cpu.offset_y.data()[i],
+                    gpu.strength.data()[i],
+                    gpu.direction.data()[i],
+                    gpu.offset_x.data()[i],
+                    gpu.offset_y.data()[i],
+                    cpu_log.data()[i],
+                    gpu_log.data()[i]
+                ));
             }
         }
-        let edgels = cpu.count();
-        eprintln!(
-            "zero_crossing chain {w}x{h}: {edgels} edgels, {mismatches} mismatching pixels, all near a decision boundary: {}",
-            unexplained.is_empty()
-        );
-        assert!(
-            unexplained.is_empty(),
-            "{w}x{h}: {} mismatches not near a decision boundary:\n{}",
-            unexplained.len(),
-            unexplained.iter().take(10).cloned().collect::<Vec<_>>().join("\n")
-        );
-        assert!(
-            mismatches as f64 <= 0.005 * edgels as f64,
-            "{w}x{h}: {mismatches} mismatching pixels of {edgels} edgels (≥ 0.5 %)"
-        );
     }
+    let edgels = cpu.count();
+    eprintln!(
+        "zero_crossing chain {w}x{h}: {edgels} edgels, {mismatches} mismatching pixels, all near a decision boundary: {}",
+        unexplained.is_empty()
+    );
+    assert!(
+        unexplained.is_empty(),
+        "{w}x{h}: {} mismatches not near a decision boundary:\n{}",
+        unexplained.len(),
+        unexplained.iter().take(10).cloned().collect::<Vec<_>>().join("\n")
+    );
+    assert!(
+        mismatches as f64 <= 0.005 * edgels as f64,
+        "{w}x{h}: {mismatches} mismatching pixels of {edgels} edgels (≥ 0.5 %)"
+    );
 }
+per_size!(parity_zero_crossing_chain_gpu_log_vs_cpu_log);
