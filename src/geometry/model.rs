@@ -227,6 +227,14 @@ impl ModelGeometry {
             .collect()
     }
 
+    /// Whether each edge is visible with the joints at `params` and the model
+    /// at the camera-from-object `pose`: [`ModelGeometry::camera_vertices`],
+    /// [`ModelGeometry::facing_faces`], [`ModelGeometry::visible_edges`].
+    pub fn visible_edges_at(&self, pose: &Pose, params: &[f64]) -> Result<Vec<bool>> {
+        let camera_vertices = self.camera_vertices(pose, params)?;
+        Ok(self.visible_edges(&self.facing_faces(&camera_vertices)))
+    }
+
     /// Whether each edge is visible given which faces face the camera
     /// (`facing`, one per face): it borders a facing face, or no face at all.
     #[must_use]
@@ -301,6 +309,7 @@ mod tests {
         for (k, &[i, j]) in geometry.edges().iter().enumerate() {
             assert_eq!(visible[k], i != 0 && j != 0, "edge {i}-{j}");
         }
+        assert_eq!(geometry.visible_edges_at(&pose, &[]).expect("pose"), visible);
     }
 
     #[test]

@@ -7,11 +7,11 @@ use glam::{DMat3, DQuat, DVec3};
 use crate::io::formats;
 
 /// The rotation matrix of the axis-angle vector `r` (Rodrigues' formula
-/// R = cos θ·I + sin θ·[k]× + (1 − cos θ)·k·kᵀ with θ = |r|, k = r/θ).
-/// The identity for r = 0. Accurate near θ = 0: k is a unit vector for any
-/// θ > 0 and 1 − cos θ only weighs the second-order term, so R = I + [r]×
-/// to within O(θ²) with no cancellation in the first-order part; and at
-/// any θ, including near and beyond π.
+/// R = cos θ·I + sin θ·\[k\]× + (1 − cos θ)·k·kᵀ with θ = |r|, k = r/θ);
+/// the identity for r = 0 (and for a non-finite r). Valid at every angle,
+/// π and beyond included. Accurate near θ = 0: k is a unit vector for any
+/// θ > 0 and 1 − cos θ only weighs the second-order term, so R = I + \[r\]×
+/// to within O(θ²) with no cancellation in the first-order part.
 #[must_use]
 pub fn rotation_from_axis_angle(r: DVec3) -> DMat3 {
     let angle = r.length();

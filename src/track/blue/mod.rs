@@ -128,7 +128,7 @@
 //! lost, the motion models' prediction variances on the diagonal).
 //!
 //! # Layout
-//! [`params`]: the parameters and their ranges; [`steps`]: steps 1–8 above,
+//! [`params`]: the parameters and their ranges; `steps.rs`: steps 1–8 above,
 //! one function each, in order; this file: the tracker's state between
 //! frames (motion models, phase, lost run) and the per-frame state machine
 //! [`BlueTracker::update`]. Camera, pose and visibility come from
