@@ -42,6 +42,7 @@ pub(super) struct PredictedLine {
 }
 
 impl PredictedLine {
+    #[must_use]
     fn between(p: [f64; 2], q: [f64; 2]) -> Option<Self> {
         let line = Line::through(p, q)?;
         let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
@@ -56,6 +57,7 @@ impl PredictedLine {
         })
     }
 
+    #[must_use]
     fn along(&self, p: [f64; 2]) -> f64 {
         (p[0] - self.start[0]) * self.direction[0] + (p[1] - self.start[1]) * self.direction[1]
     }
@@ -81,6 +83,7 @@ pub(super) struct Pass {
 impl Pass {
     /// A pass that measured nothing, for `edges` model edges and `vertices`
     /// model vertices, failing for `reason`.
+    #[must_use]
     pub(super) fn failed(location: &TargetLocation, edges: usize, vertices: usize, reason: String) -> Self {
         Pass {
             location: *location,
@@ -122,12 +125,14 @@ pub(super) struct CornerMeasurements {
 
 /// The line along which an edge pixel runs: perpendicular to its gradient
 /// direction θ (§2.3), as an orientation modulo π.
+#[must_use]
 fn edge_orientation(feature: &Feature) -> f64 {
     wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2)
 }
 
 /// Whether an edge pixel is one of the binary edge image's (§2.3): at least
 /// the threshold, with a defined direction.
+#[must_use]
 fn is_edge(params: &BlueParams, feature: &Feature) -> bool {
     feature.magnitude >= params.edge_threshold && feature.theta.is_finite()
 }
@@ -139,6 +144,7 @@ impl BlueTracker {
     /// Step 1, prediction (eq. 15 at any time; 6a for the next frame, 6b for
     /// the servo cycle): the motion models' (c_x, c_y, c_z) at (frame) time
     /// `time`.
+    #[must_use]
     pub(super) fn location_at(&self, time: f64) -> TargetLocation {
         let value = |k: usize| {
             let f = &self.filters[k];
@@ -149,6 +155,7 @@ impl BlueTracker {
 
     /// Step 1: the visible model lines (SPEC §4) projected at `location`,
     /// one per model edge (`None` for a hidden or degenerate one).
+    #[must_use]
     pub(super) fn predicted_lines(&self, location: &TargetLocation) -> Vec<Option<PredictedLine>> {
         let vertices = self.vertices_at(location);
         let visible = self.visible_edges(location);
@@ -165,6 +172,7 @@ impl BlueTracker {
     /// [`BlueTracker::align_shift`] and the narrow
     /// [`BlueParams::refine_distance`]; otherwise (or when no pixel votes)
     /// the prediction itself and the association distance `distance`.
+    #[must_use]
     pub(super) fn first_association(
         &self,
         edges: &[Feature],
@@ -189,6 +197,7 @@ impl BlueTracker {
     /// 1-px shift grid. The peak of the 3×3-summed votes is where many lines
     /// of different orientations agree; a background edge supports only
     /// shifts along one direction. `None` when no pixel votes.
+    #[must_use]
     pub(super) fn align_shift(&self, edges: &[Feature], model: &TargetLocation, radius: f64) -> Option<[f64; 2]> {
         let p = &self.params;
         let lines: Vec<PredictedLine> = self.predicted_lines(model).into_iter().flatten().collect();
@@ -267,6 +276,7 @@ impl BlueTracker {
 /// whose segment lies within `distance` (perpendicular distance, foot
 /// inside the segment less [`BlueParams::end_margin`] at each end); the
 /// nearest such line wins; pixels matching none are dropped.
+#[must_use]
 pub(super) fn associate_edge_pixels(
     params: &BlueParams,
     edges: &[Feature],
@@ -321,6 +331,7 @@ pub(super) fn associate_edge_pixels(
 /// variance floored at [`BlueParams::min_point_std`]². A fit turned by the
 /// angle tolerance or more from its prediction is refused (clutter, not the
 /// edge).
+#[must_use]
 pub(super) fn fit_model_lines(
     params: &BlueParams,
     sums: &[LineSums],
@@ -353,6 +364,7 @@ pub(super) fn fit_model_lines(
 /// covariance ([`intersect_lines`]). A corner farther from the vertex
 /// projected at the model location (`vertices`) than `distance`/sin(angle)
 /// + 2 px is dropped; the deviation is measured from `predicted_vertices`.
+#[must_use]
 pub(super) fn intersect_corners(
     params: &BlueParams,
     vertex_edges: &[Vec<usize>],
@@ -483,6 +495,7 @@ impl BlueTracker {
     /// fails with fewer than [`BlueParams::min_corners`] corners, without a
     /// valid estimate, or when the RMS of eq. 11's e exceeds
     /// [`BlueParams::max_inconsistency`] (then still `estimated`).
+    #[must_use]
     pub(super) fn measure(
         &self,
         edges: &[Feature],
@@ -547,6 +560,7 @@ impl BlueTracker {
     /// only the consistency check (the wide strips' clutter is what the
     /// narrow ones drop). Stops at the first pass without an estimate; the
     /// last pass with one decides.
+    #[must_use]
     pub(super) fn reassociate(&self, edges: &[Feature], mut pass: Pass, predicted: &TargetLocation) -> Pass {
         for _ in 0..self.params.refine_passes {
             if !pass.estimated {
