@@ -36,6 +36,7 @@ pub mod cli;
 pub mod early;
 pub mod error;
 pub mod estimate;
+pub mod geometry;
 pub mod gpu;
 pub mod image;
 pub mod io;

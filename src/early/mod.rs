@@ -83,6 +83,43 @@ impl Window {
         Self { x0: 0, y0: 0, x1: width as u32, y1: height as u32 }
     }
 
+    /// The window around `points` (pixel coordinates, SPEC §4): the pixels
+    /// whose centres lie within `margin` of the points' bounding box, widened
+    /// outwards to whole pixels — columns ⌊x_min − margin⌋ up to and
+    /// including ⌈x_max + margin⌉, rows likewise — clipped to a
+    /// `width`×`height` image. With `margin` = ½ it holds every pixel a
+    /// polygon with these vertices touches plus one pixel on each side.
+    /// Points with a NaN coordinate are skipped (a vertex behind the camera
+    /// has no image); an infinite coordinate reaches the image border.
+    /// `None` when no point is left.
+    #[must_use]
+    pub fn around<'a>(
+        points: impl IntoIterator<Item = &'a [f64; 2]>,
+        margin: f64,
+        width: usize,
+        height: usize,
+    ) -> Option<Self> {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        let mut any = false;
+        for p in points.into_iter().filter(|p| !(p[0].is_nan() || p[1].is_nan())) {
+            any = true;
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        if !any {
+            return None;
+        }
+        let to = |v: f64, max: usize| v.clamp(0.0, max as f64) as u32;
+        Some(Self {
+            x0: to((lo[0] - margin).floor(), width),
+            y0: to((lo[1] - margin).floor(), height),
+            x1: to((hi[0] + margin).ceil() + 1.0, width),
+            y1: to((hi[1] + margin).ceil() + 1.0, height),
+        })
+    }
+
     /// This window clipped to a `width`×`height` image.
     #[must_use]
     pub fn clipped(&self, width: usize, height: usize) -> Self {
@@ -128,4 +165,21 @@ pub struct Feature {
     pub theta: f32,
     /// Magnitude (gradient or crossing strength).
     pub magnitude: f32,
+}
+
+#[cfg(test)]
+mod window_tests {
+    use super::Window;
+
+    #[test]
+    fn around_grows_the_bounding_box_by_the_margin_and_clips() {
+        let points = [[10.2, 20.7], [30.5, 5.0], [f64::NAN, 1000.0]];
+        // Columns ⌊10.2 − 2⌋ = 8 ..= ⌈30.5 + 2⌉ = 33; rows ⌊5 − 2⌋ = 3 ..= ⌈22.7⌉ = 23.
+        assert_eq!(Window::around(&points, 2.0, 640, 480), Some(Window { x0: 8, y0: 3, x1: 34, y1: 24 }));
+        assert_eq!(Window::around(&points, 2.0, 32, 10), Some(Window { x0: 8, y0: 3, x1: 32, y1: 10 }));
+        assert_eq!(Window::around(&[[-4.0, 1.5]], 0.5, 640, 480), Some(Window { x0: 0, y0: 1, x1: 0, y1: 3 }));
+        assert_eq!(Window::around(&[[f64::INFINITY, 1.0], [3.0, 1.0]], 0.0, 64, 48).map(|w| w.x1), Some(64));
+        assert_eq!(Window::around(&[[f64::NAN, 1.0]], 1.0, 64, 48), None);
+        assert_eq!(Window::around(&[], 1.0, 64, 48), None);
+    }
 }

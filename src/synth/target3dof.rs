@@ -111,7 +111,7 @@
 //! grey levels (default 2) is added per frame from the seed's own stream, and
 //! values are rounded to 8 bits.
 
-use glam::{DMat3, DQuat, DVec3};
+use glam::{DMat3, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -121,6 +121,7 @@ use super::{
     check_range, frame_rng, parse_option, render_background,
 };
 use crate::early::Window;
+use crate::geometry::{self, ModelGeometry};
 use crate::image::{FloatImage, GrayImage};
 use crate::io::formats::{Camera, InitState, Model, Pose, TruthFrame};
 use crate::{Error, Result};
@@ -365,8 +366,7 @@ pub fn rotation_matrix() -> DMat3 {
 /// The fixed orientation as an axis-angle (Rodrigues) vector, radians.
 #[must_use]
 pub fn rotation() -> [f64; 3] {
-    let (axis, angle) = DQuat::from_mat3(&rotation_matrix()).to_axis_angle();
-    (axis * angle).to_array()
+    geometry::axis_angle_from_rotation(&rotation_matrix()).to_array()
 }
 
 /// `camera.json` of the scene: 640×480, fx = fy = 500, principal point at the centre.
@@ -501,34 +501,15 @@ pub fn face_greys() -> Vec<f32> {
 
 /// Camera coordinates of the model's vertices under `pose` (X = R·X_obj + t).
 fn to_camera(vertices: &[[f64; 3]], pose: &Pose) -> Vec<DVec3> {
-    let r = DVec3::from_array(pose.rotation);
-    let angle = r.length();
-    let rot = if angle > 0.0 { DMat3::from_axis_angle(r / angle, angle) } else { DMat3::IDENTITY };
-    let t = DVec3::from_array(pose.translation);
-    vertices.iter().map(|v| rot * DVec3::from_array(*v) + t).collect()
-}
-
-/// Pinhole projection u = fx·X/Z + cx, v = fy·Y/Z + cy.
-fn project(cam: &Camera, p: DVec3) -> [f64; 2] {
-    [cam.fx * p.x / p.z + cam.cx, cam.fy * p.y / p.z + cam.cy]
+    let pose = geometry::Pose::from(pose);
+    vertices.iter().map(|v| pose.apply(DVec3::from_array(*v))).collect()
 }
 
 /// Image positions of every vertex of `model` under `pose` seen by `cam`
 /// (also hidden ones), in model-vertex order.
 #[must_use]
 pub fn project_model(model: &Model, pose: &Pose, cam: &Camera) -> Vec<[f64; 2]> {
-    to_camera(&model.vertices, pose).into_iter().map(|p| project(cam, p)).collect()
-}
-
-/// Whether the face `face` (outward right-hand normal) faces the camera.
-fn faces_camera(cam_vertices: &[DVec3], face: &[usize]) -> bool {
-    // Newell's normal of the loop.
-    let mut normal = DVec3::ZERO;
-    for k in 0..face.len() {
-        let (p, q) = (cam_vertices[face[k]], cam_vertices[face[(k + 1) % face.len()]]);
-        normal += DVec3::new((p.y - q.y) * (p.z + q.z), (p.z - q.z) * (p.x + q.x), (p.x - q.x) * (p.y + q.y));
-    }
-    normal.dot(cam_vertices[face[0]]) < 0.0
+    to_camera(&model.vertices, pose).into_iter().map(|p| cam.project(p)).collect()
 }
 
 /// The projected front-facing faces of one part: (outline, grey) per face.
@@ -545,6 +526,8 @@ pub struct Target3dofScene {
     pub camera: Camera,
     /// `model.json`.
     pub model: Model,
+    /// The model's faces and their visibility.
+    geometry: ModelGeometry,
     /// Grey of every model face.
     greys: Vec<f32>,
     /// Face index ranges of the parts, painter's order.
@@ -562,11 +545,13 @@ impl Target3dofScene {
             parts.push(start..start + p.faces.len());
             start += p.faces.len();
         }
+        let model = model();
         Ok(Self {
             options: options.clone(),
             path: Target3dofPath::new(options.speed)?,
             camera: camera(),
-            model: model(),
+            geometry: ModelGeometry::new(&model)?,
+            model,
             greys: face_greys(),
             parts,
         })
@@ -589,26 +574,23 @@ impl Target3dofScene {
     /// reach half a pixel further).
     #[must_use]
     pub fn visible(&self, frame: usize) -> bool {
-        let (w, h) = (self.camera.width as f64 - 0.5, self.camera.height as f64 - 0.5);
         let cam = to_camera(&self.model.vertices, &self.pose(frame));
-        cam.iter().all(|p| {
-            let [u, v] = project(&self.camera, *p);
-            p.z > 0.0 && (-0.5..=w).contains(&u) && (-0.5..=h).contains(&v)
-        })
+        cam.iter().all(|p| p.z > 0.0 && self.camera.in_image(self.camera.project(*p)))
     }
 
     /// The front-facing faces of every part at frame `frame`, painter's order:
     /// one list of (projected outline, grey) per part.
     fn visible_faces(&self, frame: usize) -> Vec<PartOutlines> {
         let cam = to_camera(&self.model.vertices, &self.pose(frame));
+        let facing = self.geometry.facing_faces(&cam);
         self.parts
             .iter()
             .map(|range| {
                 range
                     .clone()
-                    .filter(|&f| faces_camera(&cam, &self.model.faces[f]))
+                    .filter(|&f| facing[f])
                     .map(|f| {
-                        let outline = self.model.faces[f].iter().map(|&i| project(&self.camera, cam[i])).collect();
+                        let outline = self.model.faces[f].iter().map(|&i| self.camera.project(cam[i])).collect();
                         (outline, self.greys[f])
                     })
                     .collect()
@@ -625,25 +607,11 @@ impl Target3dofScene {
             return Ok(None);
         }
         let mut parts = self.visible_faces(frame);
-        // The target's exact-coverage silhouette, in a canvas over its bounding box only.
-        let mut lo = [f64::INFINITY; 2];
-        let mut hi = [f64::NEG_INFINITY; 2];
-        for p in parts.iter().flatten().flat_map(|(points, _)| points.iter()) {
-            for k in 0..2 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-        let clip = |v: f64, max: usize| v.clamp(0.0, max as f64) as u32;
-        let window = Window {
-            x0: clip((lo[0] + 0.5).floor() - 1.0, WIDTH),
-            y0: clip((lo[1] + 0.5).floor() - 1.0, HEIGHT),
-            x1: clip((hi[0] + 0.5).ceil() + 1.0, WIDTH),
-            y1: clip((hi[1] + 0.5).ceil() + 1.0, HEIGHT),
-        };
-        if window.is_empty() || !lo[0].is_finite() {
+        // The target's exact-coverage silhouette, in a canvas over the pixels it touches only.
+        let outlines = parts.iter().flatten().flat_map(|(points, _)| points.iter());
+        let Some(window) = Window::around(outlines, TOUCHED_MARGIN_PX, WIDTH, HEIGHT).filter(|w| !w.is_empty()) else {
             return Ok(None);
-        }
+        };
         let origin = [f64::from(window.x0), f64::from(window.y0)];
         for (points, _) in parts.iter_mut().flatten() {
             for p in points.iter_mut() {
@@ -659,6 +627,11 @@ impl Target3dofScene {
         Ok(strip_hiding(&columns, origin[0] - 0.5, cell, fraction))
     }
 }
+
+/// Margin of [`Window::around`] for the pixels polygons touch: ½ px reaches
+/// every pixel a polygon's bounding box overlaps, and one more pixel comes
+/// with the window's outward rounding.
+const TOUCHED_MARGIN_PX: f64 = 0.5;
 
 /// Super-sampling of the silhouette [`Target3dofScene::occluder`] measures:
 /// its area is resolved to quarter-pixel columns.
@@ -796,7 +769,7 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
                 });
                 // Only the pixels the target and the bar touch differ from the background.
                 let moving = parts.iter().flatten().flat_map(|(p, _)| p.iter()).chain(bar_outline.iter().flatten());
-                let window = canvas.window_around(moving);
+                let window = Window::around(moving, TOUCHED_MARGIN_PX, WIDTH, HEIGHT).unwrap_or_default();
                 smooth.data_mut().copy_from_slice(background_small.data());
                 canvas.copy_window_from(&background, window)?;
                 draw_target(canvas, &parts, None);

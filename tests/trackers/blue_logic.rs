@@ -23,13 +23,14 @@
 //! Diagnosis: `BLUE_DEBUG=1` prints every frame, `BLUE_SEED=n` replaces the
 //! end-to-end seeds, `BLUE_PARAMS='lambda = 0.7'` (TOML) the parameters.
 
+use glam::DVec3;
 use pipetrack::early::Feature;
 use pipetrack::estimate::line_fit::{LineSums, fit_x_on_y, fit_y_on_x};
 use pipetrack::estimate::{
     AlphaBetaGamma, BlueProblem, CornerCovariance, LineLocation, PolynomialSrif, intersect_lines, invert_spd,
 };
+use pipetrack::geometry::Pose as RigidPose;
 use pipetrack::io::formats::{Camera, InitState, Model, Pose, Status};
-use pipetrack::track::blue::rotation_from_axis_angle;
 use pipetrack::track::{BlueParams, BlueTracker, Observations, Tracker};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
@@ -364,12 +365,8 @@ fn project(p: [f64; 3]) -> [f64; 2] {
 
 /// Camera-frame vertices of the box at translation `t`.
 fn camera_vertices(model: &Model, t: [f64; 3]) -> Vec<[f64; 3]> {
-    let r = rotation_from_axis_angle(ROTATION);
-    model
-        .vertices
-        .iter()
-        .map(|p| std::array::from_fn(|i| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2] + t[i]))
-        .collect()
+    let pose = RigidPose::from(&Pose { rotation: ROTATION, translation: t });
+    model.vertices.iter().map(|p| pose.apply(DVec3::from_array(*p)).to_array()).collect()
 }
 
 /// Convex hull (Andrew's monotone chain), counter-clockwise in (x, y).
@@ -507,7 +504,6 @@ fn run_box(speed: f64, occlusion: bool, seed: u64) -> Run {
         });
         let in_bar = |x: f64, y: f64| bar.is_some_and(|(a, b)| x >= a && x <= b && y >= by0 - 20.0 && y <= by1 + 20.0);
         // Visible edges: a face faces the camera when n·X < 0.
-        let r = rotation_from_axis_angle(ROTATION);
         let mut visible = vec![false; model.edges.len()];
         for face in &model.faces {
             let (a, b, c) = (cam[face[0]], cam[face[1]], cam[face[2]]);
@@ -525,7 +521,6 @@ fn run_box(speed: f64, occlusion: bool, seed: u64) -> Run {
                 }
             }
         }
-        let _ = r;
         let mut pixels: Vec<(u32, u32, f64)> = Vec::new();
         let mut target = Vec::new();
         for (k, &[i, j]) in model.edges.iter().enumerate() {

@@ -1,0 +1,113 @@
+//! The pinhole camera of SPEC §4 (`camera.json`): x right, y down, z
+//! forward; pixel (0, 0) is the centre of the top-left pixel;
+//! u = f_x·X/Z + c_x, v = f_y·Y/Z + c_y for a camera-frame point (X, Y, Z).
+//!
+//! The intrinsics are the serde type [`crate::io::formats::Camera`] itself
+//! (re-exported here as [`Camera`]); this module adds its geometry.
+
+use glam::DVec3;
+
+pub use crate::io::formats::Camera;
+
+impl Camera {
+    /// The pixel (u, v) = (f_x·X/Z + c_x, f_y·Y/Z + c_y) of the camera-frame
+    /// point `p`. Defined for any Z ≠ 0 (a point behind the camera, Z < 0,
+    /// also gets a pixel, mirrored through the centre of projection: callers
+    /// that must tell check `p.z > 0` or use [`Camera::project_in_front`]).
+    #[must_use]
+    pub fn project(&self, p: DVec3) -> [f64; 2] {
+        [self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy]
+    }
+
+    /// [`Camera::project`] for a point in front of the camera (Z > 0);
+    /// `None` otherwise (also for a NaN Z).
+    #[must_use]
+    pub fn project_in_front(&self, p: DVec3) -> Option<[f64; 2]> {
+        (p.z > 0.0).then(|| self.project(p))
+    }
+
+    /// The camera-frame point at depth Z = `depth` whose image is `pixel`:
+    /// X = (u − c_x)·Z/f_x, Y = (v − c_y)·Z/f_y (the inverse of
+    /// [`Camera::project`] at a known depth).
+    #[must_use]
+    pub fn back_project(&self, pixel: [f64; 2], depth: f64) -> DVec3 {
+        DVec3::new((pixel[0] - self.cx) * depth / self.fx, (pixel[1] - self.cy) * depth / self.fy, depth)
+    }
+
+    /// The 2×3 Jacobian ∂(u, v)/∂(X, Y, Z) of [`Camera::project`] at the
+    /// camera-frame point `p`, row-major:
+    /// `[[f_x/Z, 0, −f_x·X/Z²], [0, f_y/Z, −f_y·Y/Z²]]`.
+    #[must_use]
+    pub fn projection_jacobian(&self, p: DVec3) -> [[f64; 3]; 2] {
+        let inv_z = 1.0 / p.z;
+        [[self.fx * inv_z, 0.0, -self.fx * p.x * inv_z * inv_z], [0.0, self.fy * inv_z, -self.fy * p.y * inv_z * inv_z]]
+    }
+
+    /// Whether `pixel` lies on the image: pixel centres span 0..W−1 and
+    /// 0..H−1, and pixels reach half a pixel beyond their centres, so
+    /// −½ ≤ u ≤ W − ½ and −½ ≤ v ≤ H − ½ (false for NaN).
+    #[must_use]
+    pub fn in_image(&self, pixel: [f64; 2]) -> bool {
+        let (w, h) = (f64::from(self.width) - 0.5, f64::from(self.height) - 0.5);
+        (-0.5..=w).contains(&pixel[0]) && (-0.5..=h).contains(&pixel[1])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera() -> Camera {
+        Camera { width: 640, height: 480, fx: 500.0, fy: 480.0, cx: 319.5, cy: 239.5 }
+    }
+
+    #[test]
+    fn point_on_the_optical_axis_projects_to_the_principal_point() {
+        let c = camera();
+        for z in [0.1, 1.0, 7.5] {
+            assert_eq!(c.project(DVec3::new(0.0, 0.0, z)), [319.5, 239.5]);
+        }
+        // One metre right and half a metre down at 2 m: 250 px right, 120 px down.
+        assert_eq!(c.project(DVec3::new(1.0, 0.5, 2.0)), [569.5, 359.5]);
+        assert_eq!(c.project_in_front(DVec3::new(0.0, 0.0, -1.0)), None);
+        assert_eq!(c.project_in_front(DVec3::new(0.0, 0.0, 1.0)), Some([319.5, 239.5]));
+    }
+
+    #[test]
+    fn back_project_inverts_project() {
+        let c = camera();
+        for p in [DVec3::new(0.3, -0.2, 1.7), DVec3::new(-2.0, 1.0, 0.4), DVec3::new(0.0, 0.0, 3.0)] {
+            let q = c.back_project(c.project(p), p.z);
+            assert!((q - p).length() < 1e-12, "{p} -> {q}");
+        }
+        let pixel = [12.25, 400.5];
+        let back = c.project(c.back_project(pixel, 2.5));
+        assert!((back[0] - pixel[0]).abs() < 1e-12 && (back[1] - pixel[1]).abs() < 1e-12, "{back:?}");
+    }
+
+    #[test]
+    fn projection_jacobian_matches_finite_differences() {
+        let c = camera();
+        let p = DVec3::new(0.31, -0.17, 1.3);
+        let j = c.projection_jacobian(p);
+        let h = 1e-6;
+        for a in 0..3 {
+            let mut dp = DVec3::ZERO;
+            dp[a] = h;
+            let (plus, minus) = (c.project(p + dp), c.project(p - dp));
+            for r in 0..2 {
+                let numeric = (plus[r] - minus[r]) / (2.0 * h);
+                assert!((numeric - j[r][a]).abs() < 1e-5, "d{r}/d{a}: {numeric} vs {}", j[r][a]);
+            }
+        }
+        assert_eq!(j[0][1], 0.0);
+        assert_eq!(j[1][0], 0.0);
+    }
+
+    #[test]
+    fn in_image_reaches_half_a_pixel_beyond_the_centres() {
+        let c = camera();
+        assert!(c.in_image([-0.5, -0.5]) && c.in_image([639.5, 479.5]));
+        assert!(!c.in_image([-0.51, 0.0]) && !c.in_image([0.0, 479.51]) && !c.in_image([f64::NAN, 0.0]));
+    }
+}

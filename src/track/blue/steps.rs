@@ -1,0 +1,633 @@
+//! The steps of paper 002 §2 (Fig. 1) in the paper's order, each a function
+//! named for what it does; [`BlueTracker::update`] (in [`super`]) runs them
+//! per frame and keeps the state between frames.
+//!
+//! 1. Prediction (6a, eq. 15) and coarse alignment (extension):
+//!    [`BlueTracker::location_at`], [`BlueTracker::predicted_lines`],
+//!    [`BlueTracker::align_shift`], [`BlueTracker::first_association`].
+//! 2. Data association (§2.4): [`associate_edge_pixels`].
+//! 3. Feature measurement (§2.5–2.6, eq. 1–4): [`fit_model_lines`].
+//! 4. Corners (§2.7, eq. 5–6): [`intersect_corners`].
+//! 5. BLUE (§2.8, eq. 7–9) and 6. its confidence (§2.9, eq. 10–12):
+//!    [`BlueTracker::solve_blue`], [`BlueTracker::estimate_location`];
+//!    steps 2–6 together: [`BlueTracker::measure`].
+//! 7. Re-association (extension): [`BlueTracker::reassociate`].
+//! 8. Motion models (§2.10, eq. 13–15): [`start_filters`],
+//!    [`BlueTracker::feed_motion_models`], [`BlueTracker::advance_motion_models`].
+
+// `!(x > 0.0)` rejects NaN on purpose.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+use super::{BlueParams, BlueTracker, TargetLocation};
+use crate::Result;
+use crate::early::Feature;
+use crate::estimate::line_fit::{Line, LineSums, fit_x_on_y, fit_y_on_x, orientation_difference, wrap_orientation};
+use crate::estimate::{BlueProblem, BlueSolution, Corner, LineLocation, PolynomialSrif, intersect_lines};
+
+/// Prior standard deviation of the init location at the start, px.
+const INIT_PRIOR_PX: f64 = 2.0;
+/// Slack of the corner gate beyond d/sin(angle), px.
+const CORNER_GATE_SLACK_PX: f64 = 2.0;
+
+/// A projected visible model line (step 1).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PredictedLine {
+    line: Line,
+    start: [f64; 2],
+    direction: [f64; 2],
+    length: f64,
+    orientation: f64,
+    /// Horizontal representation (y on x) when true (eq. 1 from the prediction).
+    horizontal: bool,
+}
+
+impl PredictedLine {
+    #[must_use]
+    fn between(p: [f64; 2], q: [f64; 2]) -> Option<Self> {
+        let line = Line::through(p, q)?;
+        let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+        let length = dx.hypot(dy);
+        Some(Self {
+            line,
+            start: p,
+            direction: [dx / length, dy / length],
+            length,
+            orientation: line.orientation(),
+            horizontal: dx.abs() >= dy.abs(),
+        })
+    }
+
+    #[must_use]
+    fn along(&self, p: [f64; 2]) -> f64 {
+        (p[0] - self.start[0]) * self.direction[0] + (p[1] - self.start[1]) * self.direction[1]
+    }
+}
+
+/// One pass of steps 2–6 around a model location.
+#[derive(Clone, Debug)]
+pub(super) struct Pass {
+    pub(super) location: TargetLocation,
+    pub(super) covariance: [[f64; 3]; 3],
+    pub(super) rms_consistency: f64,
+    pub(super) points_per_line: Vec<usize>,
+    pub(super) line_fitted: Vec<bool>,
+    pub(super) corner_measured: Vec<bool>,
+    pub(super) max_corner_deviation: Option<f64>,
+    pub(super) unexplained: usize,
+    pub(super) labelled: Vec<Vec<(u32, u32)>>,
+    /// Whether eq. 9 gave a valid estimate (possibly failing consistency).
+    pub(super) estimated: bool,
+    pub(super) failure: Option<String>,
+}
+
+impl Pass {
+    /// A pass that measured nothing, for `edges` model edges and `vertices`
+    /// model vertices, failing for `reason`.
+    #[must_use]
+    pub(super) fn failed(location: &TargetLocation, edges: usize, vertices: usize, reason: String) -> Self {
+        Pass {
+            location: *location,
+            covariance: [[0.0; 3]; 3],
+            rms_consistency: f64::NAN,
+            points_per_line: vec![0; edges],
+            line_fitted: vec![false; edges],
+            corner_measured: vec![false; vertices],
+            max_corner_deviation: None,
+            unexplained: 0,
+            labelled: vec![Vec::new(); edges],
+            estimated: false,
+            failure: Some(reason),
+        }
+    }
+}
+
+/// The edge pixels of step 2, per model line.
+#[derive(Clone, Debug)]
+pub(super) struct Association {
+    /// Sums of eq. 1–3 over each line's pixels.
+    sums: Vec<LineSums>,
+    /// Each line's pixels (x, y), for the overlay.
+    labelled: Vec<Vec<(u32, u32)>>,
+    /// Pixels of an orientation compatible with some visible line but near none.
+    unexplained: usize,
+}
+
+/// The corners of step 4.
+#[derive(Clone, Debug)]
+pub(super) struct CornerMeasurements {
+    /// (vertex, corner) for every measured vertex.
+    corners: Vec<(usize, Corner)>,
+    /// Per vertex: whether its corner was measured.
+    measured: Vec<bool>,
+    /// Largest distance of a measured corner from its predicted vertex, px.
+    max_deviation: Option<f64>,
+}
+
+/// The line along which an edge pixel runs: perpendicular to its gradient
+/// direction θ (§2.3), as an orientation modulo π.
+#[must_use]
+fn edge_orientation(feature: &Feature) -> f64 {
+    wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2)
+}
+
+/// Whether an edge pixel is one of the binary edge image's (§2.3): at least
+/// the threshold, with a defined direction.
+#[must_use]
+fn is_edge(params: &BlueParams, feature: &Feature) -> bool {
+    feature.magnitude >= params.edge_threshold && feature.theta.is_finite()
+}
+
+// ---------------------------------------------------------------------------
+// Step 1: prediction (6a) and coarse alignment.
+
+impl BlueTracker {
+    /// Step 1, prediction (eq. 15 at any time; 6a for the next frame, 6b for
+    /// the servo cycle): the motion models' (c_x, c_y, c_z) at (frame) time
+    /// `time`.
+    #[must_use]
+    pub(super) fn location_at(&self, time: f64) -> TargetLocation {
+        let value = |k: usize| {
+            let f = &self.filters[k];
+            f.predict(time - f.time()).unwrap_or(f64::NAN)
+        };
+        TargetLocation { cx: value(0), cy: value(1), cz: value(2) }
+    }
+
+    /// Step 1: the visible model lines (SPEC §4) projected at `location`,
+    /// one per model edge (`None` for a hidden or degenerate one).
+    #[must_use]
+    pub(super) fn predicted_lines(&self, location: &TargetLocation) -> Vec<Option<PredictedLine>> {
+        let vertices = self.vertices_at(location);
+        let visible = self.visible_edges(location);
+        self.geometry
+            .edges()
+            .iter()
+            .zip(&visible)
+            .map(|(&[i, j], &v)| if v { PredictedLine::between(vertices[i], vertices[j]) } else { None })
+            .collect()
+    }
+
+    /// Step 1 and the first association's strips: with
+    /// [`BlueParams::align`], the `predicted` model shifted by
+    /// [`BlueTracker::align_shift`] and the narrow
+    /// [`BlueParams::refine_distance`]; otherwise (or when no pixel votes)
+    /// the prediction itself and the association distance `distance`.
+    #[must_use]
+    pub(super) fn first_association(
+        &self,
+        edges: &[Feature],
+        predicted: &TargetLocation,
+        distance: f64,
+    ) -> (TargetLocation, f64) {
+        let shift = if self.params.align { self.align_shift(edges, predicted, distance) } else { None };
+        match shift {
+            Some([sx, sy]) => (
+                TargetLocation { cx: predicted.cx + sx, cy: predicted.cy + sy, cz: predicted.cz },
+                self.params.refine_distance,
+            ),
+            None => (*predicted, distance),
+        }
+    }
+
+    /// Coarse alignment of step 1 (extension, [`BlueParams::align`]): the image shift (s_x, s_y),
+    /// |s_x|, |s_y| ≤ `radius`, of the model projected at `model` that the
+    /// edge pixels support best. Every pixel votes, for each visible line of
+    /// compatible orientation, for the shifts that put it on that line
+    /// (foot inside the segment less the end margins): a line n·s = d in the
+    /// 1-px shift grid. The peak of the 3×3-summed votes is where many lines
+    /// of different orientations agree; a background edge supports only
+    /// shifts along one direction. `None` when no pixel votes.
+    #[must_use]
+    pub(super) fn align_shift(&self, edges: &[Feature], model: &TargetLocation, radius: f64) -> Option<[f64; 2]> {
+        let p = &self.params;
+        let lines: Vec<PredictedLine> = self.predicted_lines(model).into_iter().flatten().collect();
+        if lines.is_empty() || !(radius >= 0.0) {
+            return None;
+        }
+        let r = radius.ceil() as i64;
+        let n = (2 * r + 1) as usize;
+        let mut votes = vec![0u32; n * n];
+        for feature in edges {
+            if !is_edge(p, feature) {
+                continue;
+            }
+            let point = [f64::from(feature.x), f64::from(feature.y)];
+            let orientation = edge_orientation(feature);
+            for line in &lines {
+                if orientation_difference(orientation, line.orientation) >= p.angle_tolerance {
+                    continue;
+                }
+                let d = line.line.signed_distance(point);
+                if d.abs() > radius * std::f64::consts::SQRT_2 + 1.0 {
+                    continue;
+                }
+                let s = line.along(point);
+                let (a, b) = (line.line.a, line.line.b);
+                let [ux, uy] = line.direction;
+                let mut vote = |ix: i64, iy: i64| {
+                    if ix.abs() > r || iy.abs() > r {
+                        return;
+                    }
+                    // The foot of the pixel on the shifted segment.
+                    let along = s - (ux * ix as f64 + uy * iy as f64);
+                    if along >= p.end_margin && along <= line.length - p.end_margin {
+                        votes[(iy + r) as usize * n + (ix + r) as usize] += 1;
+                    }
+                };
+                // Shifted line: a·(x − s_x) + b·(y − s_y) + c = 0 ⇔ a·s_x + b·s_y = d.
+                if a.abs() >= b.abs() {
+                    for iy in -r..=r {
+                        let sx = (d - b * iy as f64) / a;
+                        vote(sx.round() as i64, iy);
+                    }
+                } else {
+                    for ix in -r..=r {
+                        let sy = (d - a * ix as f64) / b;
+                        vote(ix, sy.round() as i64);
+                    }
+                }
+            }
+        }
+        let mut best: Option<(u32, i64, i64)> = None;
+        for iy in -r..=r {
+            for ix in -r..=r {
+                let mut sum = 0;
+                for jy in (iy - 1).max(-r)..=(iy + 1).min(r) {
+                    for jx in (ix - 1).max(-r)..=(ix + 1).min(r) {
+                        sum += votes[(jy + r) as usize * n + (jx + r) as usize];
+                    }
+                }
+                // Ties go to the smaller shift (the prediction is a prior).
+                let closer = |bx: i64, by: i64| ix * ix + iy * iy < bx * bx + by * by;
+                if sum > 0 && best.is_none_or(|(bs, bx, by)| sum > bs || (sum == bs && closer(bx, by))) {
+                    best = Some((sum, ix, iy));
+                }
+            }
+        }
+        best.map(|(_, ix, iy)| [ix as f64, iy as f64])
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Step 2: data association (§2.4).
+
+/// Step 2 (§2.4): each edge pixel joins the visible model line of
+/// compatible orientation (within [`BlueParams::angle_tolerance`] modulo π)
+/// whose segment lies within `distance` (perpendicular distance, foot
+/// inside the segment less [`BlueParams::end_margin`] at each end); the
+/// nearest such line wins; pixels matching none are dropped.
+#[must_use]
+pub(super) fn associate_edge_pixels(
+    params: &BlueParams,
+    edges: &[Feature],
+    lines: &[Option<PredictedLine>],
+    distance: f64,
+) -> Association {
+    let p = params;
+    let mut sums: Vec<LineSums> =
+        lines.iter().map(|l| l.map_or_else(LineSums::new, |l| LineSums::with_origin(l.start))).collect();
+    let mut labelled = vec![Vec::new(); lines.len()];
+    let mut unexplained = 0;
+    for feature in edges {
+        if !is_edge(p, feature) {
+            continue;
+        }
+        let point = [f64::from(feature.x), f64::from(feature.y)];
+        let orientation = edge_orientation(feature);
+        let mut best: Option<(usize, f64)> = None;
+        let mut compatible = false;
+        for (k, line) in lines.iter().enumerate() {
+            let Some(line) = line else { continue };
+            if orientation_difference(orientation, line.orientation) >= p.angle_tolerance {
+                continue;
+            }
+            compatible = true;
+            let d = line.line.distance(point);
+            let s = line.along(point);
+            if d < distance && s >= p.end_margin && s <= line.length - p.end_margin && best.is_none_or(|(_, bd)| d < bd)
+            {
+                best = Some((k, d));
+            }
+        }
+        match best {
+            Some((k, _)) => {
+                sums[k].add(point[0], point[1]);
+                labelled[k].push((feature.x, feature.y));
+            }
+            None if compatible => unexplained += 1,
+            None => {}
+        }
+    }
+    Association { sums, labelled, unexplained }
+}
+
+// ---------------------------------------------------------------------------
+// Step 3: feature measurement (§2.5–2.6).
+
+/// Step 3 (§2.5–2.6): each line with at least
+/// [`BlueParams::min_points_per_line`] pixels fitted in the form its
+/// *predicted* orientation picks — y = m·x + b (eq. 1–2) when nearer
+/// horizontal, x = m·y + b (eq. 3) otherwise — with eq. 4's empirical
+/// variance floored at [`BlueParams::min_point_std`]². A fit turned by the
+/// angle tolerance or more from its prediction is refused (clutter, not the
+/// edge).
+#[must_use]
+pub(super) fn fit_model_lines(
+    params: &BlueParams,
+    sums: &[LineSums],
+    lines: &[Option<PredictedLine>],
+) -> Vec<Option<LineLocation>> {
+    let p = params;
+    let min_var = p.min_point_std * p.min_point_std;
+    sums.iter()
+        .zip(lines)
+        .map(|(s, line)| {
+            let line = line.as_ref()?;
+            if s.count() < p.min_points_per_line {
+                return None;
+            }
+            let fit = if line.horizontal { fit_y_on_x(s) } else { fit_x_on_y(s) }?;
+            if orientation_difference(fit.line.orientation(), line.orientation) >= p.angle_tolerance {
+                return None;
+            }
+            LineLocation::new(s, fit, min_var)
+        })
+        .collect()
+}
+
+// ---------------------------------------------------------------------------
+// Step 4: corners (§2.7).
+
+/// Step 4 (§2.7): at each vertex with two or more fitted lines among its
+/// edges (`vertex_edges`), the pair meeting at the largest angle (at least
+/// [`BlueParams::min_corner_angle`]) intersected by eq. 5 with eq. 6's
+/// covariance ([`intersect_lines`]). A corner farther from the vertex
+/// projected at the model location (`vertices`) than `distance`/sin(angle)
+/// + 2 px is dropped; the deviation is measured from `predicted_vertices`.
+#[must_use]
+pub(super) fn intersect_corners(
+    params: &BlueParams,
+    vertex_edges: &[Vec<usize>],
+    fitted: &[Option<LineLocation>],
+    vertices: &[[f64; 2]],
+    predicted_vertices: &[[f64; 2]],
+    distance: f64,
+) -> CornerMeasurements {
+    let p = params;
+    let min_sine = p.min_corner_angle.sin();
+    let mut corners: Vec<(usize, Corner)> = Vec::new();
+    let mut measured = vec![false; vertices.len()];
+    let mut max_deviation: Option<f64> = None;
+    for (v, incident) in vertex_edges.iter().enumerate() {
+        let mut best: Option<(f64, usize, usize)> = None;
+        for (a, &k1) in incident.iter().enumerate() {
+            for &k2 in &incident[a + 1..] {
+                let (Some(l1), Some(l2)) = (&fitted[k1], &fitted[k2]) else {
+                    continue;
+                };
+                let sine = (l1.fit.line.a * l2.fit.line.b - l1.fit.line.b * l2.fit.line.a).abs();
+                if sine >= min_sine && best.is_none_or(|(bs, _, _)| sine > bs) {
+                    best = Some((sine, k1, k2));
+                }
+            }
+        }
+        let Some((sine, k1, k2)) = best else { continue };
+        let (Some(l1), Some(l2)) = (&fitted[k1], &fitted[k2]) else {
+            continue;
+        };
+        let Some(corner) = intersect_lines(l1, l2, p.corner_covariance) else {
+            continue;
+        };
+        let gate = distance / sine + CORNER_GATE_SLACK_PX;
+        let (dx, dy) = (corner.position[0] - vertices[v][0], corner.position[1] - vertices[v][1]);
+        if !(dx.hypot(dy) <= gate) {
+            continue;
+        }
+        measured[v] = true;
+        let pv = predicted_vertices[v];
+        let dev = (corner.position[0] - pv[0]).hypot(corner.position[1] - pv[1]);
+        max_deviation = Some(max_deviation.map_or(dev, |m: f64| m.max(dev)));
+        corners.push((v, corner));
+    }
+    CornerMeasurements { corners, measured, max_deviation }
+}
+
+// ---------------------------------------------------------------------------
+// Steps 5–6: the BLUE (§2.8) and its confidence (§2.9).
+
+impl BlueTracker {
+    /// Step 5 (§2.8, eq. 7–9) with step 6's confidence (§2.9, eq. 10–12):
+    /// eq. 9 for `corners` (vertex, corner), the rows of eq. 8 per corner
+    /// with u_xi, u_yi of eq. 7 in the perspective form iterated from `start`
+    /// ([`super`] module doc); the estimate and eq. 9–12's solution.
+    pub(super) fn solve_blue(
+        &self,
+        corners: &[(usize, Corner)],
+        start: &TargetLocation,
+    ) -> std::result::Result<(TargetLocation, BlueSolution<3>), String> {
+        let p = &self.params;
+        let [px, py] = self.eq7_scales();
+        let (fx, fy, u0, v0) = (self.camera.fx, self.camera.fy, self.camera.cx, self.camera.cy);
+        let z0 = self.nominal_range;
+        let iterations = if p.perspective_correction { 1 + p.perspective_iterations } else { 1 };
+        let mut estimate = *start;
+        let mut solution = None;
+        for _ in 0..iterations {
+            let projected = self.vertices_at(&estimate);
+            let mut problem = BlueProblem::<3>::new();
+            for (v, corner) in corners {
+                let q = self.offsets[*v];
+                let (ux, uy) = if p.perspective_correction {
+                    let u = projected[*v];
+                    ((q.x - q.z * (u[0] - u0) / fx) / z0, (q.y - q.z * (u[1] - v0) / fy) / z0)
+                } else {
+                    (q.x / z0, q.y / z0)
+                };
+                // Eq. 8: rows [1, 0, p_x·u_x], [0, 1, p_y·u_y] for x_f = (c_x, c_y, 1/c_z).
+                problem.add([[1.0, 0.0, px * ux], [0.0, 1.0, py * uy]], corner.position, corner.covariance);
+            }
+            let floor = p.min_feature_std * p.min_feature_std;
+            let s = problem.solve(floor).ok_or_else(|| "eq. 9 is singular for the measured corners".to_string())?;
+            estimate = TargetLocation { cx: s.estimate[0], cy: s.estimate[1], cz: 1.0 / s.estimate[2] };
+            if !estimate.is_valid() {
+                return Err(format!("the estimate puts the target behind the camera (1/c_z = {})", s.estimate[2]));
+            }
+            solution = Some(s);
+        }
+        solution.map(|s| (estimate, s)).ok_or_else(|| "no estimate".to_string())
+    }
+
+    /// Steps 5–6 with the consistency extension: eq. 9 for `corners` from
+    /// `start`, then, while the least consistent corner (largest |e_j|,
+    /// eq. 11) exceeds [`BlueParams::max_corner_inconsistency`] and more
+    /// than [`BlueParams::min_corners`] remain, that corner dropped (and
+    /// unmarked in `measured`) and eq. 9 solved again from the last estimate.
+    pub(super) fn estimate_location(
+        &self,
+        corners: &mut Vec<(usize, Corner)>,
+        measured: &mut [bool],
+        start: &TargetLocation,
+    ) -> std::result::Result<(TargetLocation, BlueSolution<3>), String> {
+        let p = &self.params;
+        let (mut estimate, mut solution) = self.solve_blue(corners, start)?;
+        while corners.len() > p.min_corners.max(2) {
+            let Some((worst, e)) = solution
+                .consistency
+                .iter()
+                .enumerate()
+                .map(|(i, e)| (i, e[0].hypot(e[1])))
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+            else {
+                break;
+            };
+            if !(e > p.max_corner_inconsistency) {
+                break;
+            }
+            let (v, _) = corners.remove(worst);
+            measured[v] = false;
+            (estimate, solution) = self.solve_blue(corners, &estimate)?;
+        }
+        Ok((estimate, solution))
+    }
+
+    /// Steps 2–6 with the model at `model` and association distance
+    /// `distance`; `predicted` only serves the corner deviation. The pass
+    /// fails with fewer than [`BlueParams::min_corners`] corners, without a
+    /// valid estimate, or when the RMS of eq. 11's e exceeds
+    /// [`BlueParams::max_inconsistency`] (then still `estimated`).
+    #[must_use]
+    pub(super) fn measure(
+        &self,
+        edges: &[Feature],
+        model: &TargetLocation,
+        predicted: &TargetLocation,
+        distance: f64,
+    ) -> Pass {
+        let p = &self.params;
+        let vertices = self.vertices_at(model);
+        let lines = self.predicted_lines(model);
+        let association = associate_edge_pixels(p, edges, &lines, distance);
+        let fitted = fit_model_lines(p, &association.sums, &lines);
+        let predicted_vertices = self.vertices_at(predicted);
+        let CornerMeasurements { mut corners, measured, max_deviation } =
+            intersect_corners(p, self.geometry.vertex_edges(), &fitted, &vertices, &predicted_vertices, distance);
+        let mut pass = Pass {
+            location: *model,
+            covariance: [[0.0; 3]; 3],
+            rms_consistency: f64::NAN,
+            points_per_line: association.sums.iter().map(LineSums::count).collect(),
+            line_fitted: fitted.iter().map(Option::is_some).collect(),
+            corner_measured: measured,
+            max_corner_deviation: max_deviation,
+            unexplained: association.unexplained,
+            labelled: association.labelled,
+            estimated: false,
+            failure: None,
+        };
+        if corners.len() < p.min_corners {
+            pass.failure =
+                Some(format!("{} corners measured, fewer than min_corners = {}", corners.len(), p.min_corners));
+            return pass;
+        }
+        let (estimate, solution) = match self.estimate_location(&mut corners, &mut pass.corner_measured, model) {
+            Ok(found) => found,
+            Err(reason) => {
+                pass.failure = Some(reason);
+                return pass;
+            }
+        };
+        pass.location = estimate;
+        pass.estimated = true;
+        pass.covariance = solution.consistency_covariance;
+        pass.rms_consistency = solution.rms_consistency();
+        if !(pass.rms_consistency <= p.max_inconsistency) {
+            pass.failure = Some(format!(
+                "global consistency fails: RMS of e (eq. 11) {:.2} px > max_inconsistency {} px",
+                pass.rms_consistency, p.max_inconsistency
+            ));
+        }
+        pass
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Step 7: re-association (extension).
+
+impl BlueTracker {
+    /// Step 7 (extension, [`BlueParams::refine_passes`]): steps 2–6 again
+    /// around the location of the last pass with an estimate, with the
+    /// narrow [`BlueParams::refine_distance`]; also after a pass that failed
+    /// only the consistency check (the wide strips' clutter is what the
+    /// narrow ones drop). Stops at the first pass without an estimate; the
+    /// last pass with one decides.
+    #[must_use]
+    pub(super) fn reassociate(&self, edges: &[Feature], mut pass: Pass, predicted: &TargetLocation) -> Pass {
+        for _ in 0..self.params.refine_passes {
+            if !pass.estimated {
+                break;
+            }
+            let refined = self.measure(edges, &pass.location, predicted, self.params.refine_distance);
+            if !refined.estimated {
+                break;
+            }
+            pass = refined;
+        }
+        pass
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Step 8: motion models (§2.10).
+
+/// Fresh motion models at `location` at time `time`: the location with
+/// standard deviation [`INIT_PRIOR_PX`], velocity and acceleration zero with
+/// the params' prior deviations (px converted to m for c_z).
+pub(super) fn start_filters(
+    params: &BlueParams,
+    location: &TargetLocation,
+    time: f64,
+    range_px_per_m: f64,
+) -> Result<[PolynomialSrif<3>; 3]> {
+    let mut filters = [PolynomialSrif::<3>::new(params.lambda, time)?; 3];
+    let values = [location.cx, location.cy, location.cz];
+    let px_to_unit = [1.0, 1.0, 1.0 / range_px_per_m];
+    for ((filter, &value), &scale) in filters.iter_mut().zip(&values).zip(&px_to_unit) {
+        let (p, v, a) = (INIT_PRIOR_PX * scale, params.prior_speed * scale, params.prior_acceleration * scale);
+        filter.add_prior(0, value, p * p);
+        filter.add_prior(1, 0.0, v * v);
+        filter.add_prior(2, 0.0, a * a);
+    }
+    Ok(filters)
+}
+
+impl BlueTracker {
+    /// Step 8 on a tracked frame (§2.10, eq. 13–14): c_x, c_y and c_z of
+    /// `pass` fed to their polynomial filters at `time` with the variances of
+    /// eq. 12's C_l; c_z's from that of 1/c_z by the delta method,
+    /// Var(c_z) = Var(1/c_z)·c_z⁴.
+    pub(super) fn feed_motion_models(&mut self, time: f64, pass: &Pass) {
+        let c = pass.covariance;
+        let rho = pass.location.inverse_range();
+        let variances = [c[0][0], c[1][1], c[2][2] / rho.powi(4)];
+        let values = [pass.location.cx, pass.location.cy, pass.location.cz];
+        for ((filter, &v), &var) in self.filters.iter_mut().zip(&values).zip(&variances) {
+            filter.update(time, v, var);
+        }
+    }
+
+    /// Step 8 on a lost frame: the filters advance to `time` without data
+    /// (their information decays, the polynomials extrapolate).
+    pub(super) fn advance_motion_models(&mut self, time: f64) {
+        for filter in &mut self.filters {
+            filter.advance_to(time);
+        }
+    }
+
+    /// Step 8 restarted: fresh filters at `location` at rest at `time`
+    /// ([`start_filters`]); the filters stay as they are if that fails.
+    pub(super) fn restart_motion_models(&mut self, location: &TargetLocation, time: f64) {
+        if let Ok(filters) = start_filters(&self.params, location, time, self.range_px_per_m) {
+            self.filters = filters;
+        }
+    }
+}
