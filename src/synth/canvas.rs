@@ -354,27 +354,12 @@ impl Canvas {
 
     /// The output pixels that polygons with vertices `points` can change: their
     /// bounding box grown to whole pixels plus a one-pixel margin, clipped to
-    /// the canvas. Non-finite points are ignored.
+    /// the canvas ([`Window::around`] with a half-pixel margin). Non-finite
+    /// points are ignored.
     #[must_use]
     pub fn window_around<'a>(&self, points: impl IntoIterator<Item = &'a [f64; 2]>) -> Window {
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in points.into_iter().filter(|p| p[0].is_finite() && p[1].is_finite()) {
-            for k in 0..2 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-        if lo[0] > hi[0] {
-            return Window::default();
-        }
-        let (w, h) = (self.width as f64, self.height as f64);
-        let to = |v: f64, max: f64| v.clamp(0.0, max) as u32;
-        Window {
-            x0: to((lo[0] + 0.5).floor() - 1.0, w),
-            y0: to((lo[1] + 0.5).floor() - 1.0, h),
-            x1: to((hi[0] + 0.5).ceil() + 1.0, w),
-            y1: to((hi[1] + 0.5).ceil() + 1.0, h),
-        }
+        let finite = points.into_iter().filter(|p| p[0].is_finite() && p[1].is_finite());
+        Window::around(finite, 0.5, self.width, self.height).unwrap_or_default()
     }
 
     /// Box-filter down to a new image (see [`Canvas::downsample_into`]).

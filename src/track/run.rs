@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::backend::{BackendKind, EarlyVision, make_backend};
+use crate::geometry::ModelGeometry;
 use crate::image::GrayImage;
 use crate::io::formats::{FrameResult, Status};
 use crate::io::{AtomicFile, Sequence, StagedDir};
@@ -118,6 +119,8 @@ pub fn track_sequence(
         eprintln!("pipetrack: no GPU ({reason})");
     }
     let overlay = opts.overlay.as_deref().map(StagedDir::create).transpose()?;
+    // Overlays of a tracker with a pose draw only the edges visible at that pose.
+    let model_geometry = ModelGeometry::new(&seq.model).ok();
     let (w, h) = (seq.camera.width as usize, seq.camera.height as usize);
     let frames = seq.frames();
     let bar = progress_bar(opts.progress, frames.len_hint());
@@ -128,8 +131,17 @@ pub fn track_sequence(
         writeln!(out).map_err(|e| Error::io("output", e))?;
         if let (Some(dir), Some(frame)) = (&overlay, frame.gray()) {
             let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
-            let img =
-                crate::io::overlay::draw_overlay(frame, &outcome.corners, &seq.model.edges, outcome.status, &labelled);
+            let visible = match (&model_geometry, &outcome.pose) {
+                (Some(g), Some(pose)) => {
+                    g.visible_edges_at(&(*pose).into(), outcome.params.as_deref().unwrap_or(&[])).ok()
+                }
+                _ => None,
+            };
+            let edges: Vec<[usize; 2]> = match visible {
+                Some(v) => seq.model.edges.iter().zip(v).filter(|(_, on)| *on).map(|(e, _)| *e).collect(),
+                None => seq.model.edges.clone(),
+            };
+            let img = crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
             let path = dir.path().join(format!("{:06}.png", outcome.frame));
             img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
         }

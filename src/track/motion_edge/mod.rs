@@ -330,7 +330,13 @@ impl MotionEdgeTracker {
                 Phase::Acquiring => self.params.init_tolerance,
                 Phase::Lost => self.params.init_tolerance + max_motion,
             };
-        bounding_window(self.predicted_corners(), margin, width, height)
+        // A corner that is not finite (a diverged prediction) opens the whole image.
+        let corners = self.predicted_corners();
+        let full = Window::full(width, height);
+        if !(margin.is_finite() && corners.iter().flatten().all(|v| v.is_finite())) {
+            return full;
+        }
+        Window::around(corners, margin, width, height).unwrap_or(full)
     }
 
     /// Process frame `frame` given its motion pixels; every call returns an
@@ -834,25 +840,6 @@ fn corner_lines_of(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> Result<Vec<[us
 fn signed_turn(from: f64, to: f64) -> f64 {
     use std::f64::consts::{FRAC_PI_2, PI};
     (to - from + FRAC_PI_2).rem_euclid(PI) - FRAC_PI_2
-}
-
-/// Bounding box of `points` grown by `margin`, as a window clipped to the
-/// image; the whole image if a point is not finite.
-fn bounding_window(points: &[[f64; 2]], margin: f64, width: usize, height: usize) -> Window {
-    let (mut x0, mut y0, mut x1, mut y1) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
-    for p in points {
-        x0 = x0.min(p[0]);
-        y0 = y0.min(p[1]);
-        x1 = x1.max(p[0]);
-        y1 = y1.max(p[1]);
-    }
-    if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite() && margin.is_finite()) {
-        return Window::full(width, height);
-    }
-    // Pixel centres are integers; `as u32` saturates negatives to 0.
-    let lo = |v: f64| (v - margin).floor().max(0.0) as u32;
-    let hi = |v: f64| ((v + margin).ceil() + 1.0).max(0.0).min(u32::MAX as f64) as u32;
-    Window { x0: lo(x0), y0: lo(y0), x1: hi(x1), y1: hi(y1) }.clipped(width, height)
 }
 
 #[cfg(test)]
