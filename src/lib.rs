@@ -1,6 +1,24 @@
 //! pipetrack: model-based visual tracking with early vision on the GPU
 //! (WGSL compute shaders through wgpu) and a CPU twin of every stage.
 //!
+//! # Data flow
+//!
+//! ```text
+//! frames ──► early vision (GpuBackend | CpuBackend) ──► feature lists ──► tracker ──► FrameResult
+//!               ▲  FrameRequest: which lists, where, with which caps       │
+//!               └──────────────── the tracker's prediction ◄───────────────┘
+//! ```
+//!
+//! Per frame ([`track::run`], the one loop the CLI, the tests and embedders
+//! share): the [`Tracker`] predicts and states a [`FrameRequest`]; the
+//! backend derives a [`backend::FramePlan`] from it and runs only those
+//! stages ([`early`]: one WGSL shader and one CPU twin each), inside the
+//! window, handing back compact lists; the tracker matches, fits (with
+//! [`estimate`] and [`geometry`]), verifies and predicts, and reports a
+//! [`FrameResult`] (one line of the JSON Lines output). The layers, bottom up: [`io`] (files
+//! and formats) → [`early`], [`gpu`], [`backend`] → [`track`], [`estimate`],
+//! [`geometry`] → [`cli`]; [`synth`] renders test sequences with exact truth.
+//!
 //! # Embedding
 //!
 //! A wgpu program hands pipetrack its own device and queue, and its frames

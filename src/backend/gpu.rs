@@ -15,7 +15,9 @@ use crate::gpu::{FrameArena, GpuContext, GpuImage, Recorder};
 use crate::image::GrayImage;
 use crate::{Error, Result};
 
-/// Frame slots in the ring: up to `SLOTS − 1` frames in flight while one is read back.
+/// Frame slots in the ring: up to `SLOTS` frames may be submitted and not yet
+/// finished; [`GpuBackend::process_stream`] keeps `SLOTS − 1` in flight while
+/// it reads one back.
 const SLOTS: usize = 3;
 /// Features copied back in the frame's own submission when a list has no cap;
 /// longer lists cost one more small copy.
@@ -257,7 +259,7 @@ impl GpuBackend {
     }
 
     /// Submit a grey frame; the GPU starts on it at once. Collect the result
-    /// with [`GpuBackend::finish`]; up to two frames may be in flight.
+    /// with [`GpuBackend::finish`]; up to three frames may be in flight.
     pub fn submit(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<Ticket> {
         let (w, h) = frame.size();
         let (slot, plan) = self.prepare_slot(w, h, request)?;
@@ -314,7 +316,7 @@ impl GpuBackend {
     fn prepare_slot(&mut self, w: usize, h: usize, request: &FrameRequest) -> Result<(usize, FramePlan)> {
         let slot = self.next_slot;
         if self.slots[slot].as_ref().is_some_and(|s| s.pending.is_some()) {
-            return Err(Error::Gpu(format!("more than {} frames in flight: finish a ticket first", SLOTS - 1)));
+            return Err(Error::Gpu(format!("more than {SLOTS} frames in flight: finish a ticket first")));
         }
         if self.slots[slot].as_ref().is_none_or(|s| (s.width, s.height) != (w, h)) {
             self.slots[slot] = Some(Slot::new(&self.ctx, w, h));

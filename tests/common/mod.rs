@@ -163,30 +163,61 @@ fn report(name: &str, cpu: &Image<f32>, gpu: &Image<f32>, bad: &[(usize, f32, f3
 /// `gaussian_parity::w640_h480`, `gaussian_parity::w257_h243`, ….
 #[macro_export]
 macro_rules! per_size {
+    (@tests $check:ident $(; $name:ident = ($w:expr, $h:expr))*) => {
+        $(
+            #[test]
+            fn $name() {
+                super::$check($w, $h)
+            }
+        )*
+    };
     ($check:ident $(; $name:ident = ($w:expr, $h:expr))*) => {
         mod $check {
-            #[test]
-            fn w640_h480() {
-                super::$check(640, 480)
-            }
-            #[test]
-            fn w257_h243() {
-                super::$check(257, 243)
-            }
-            #[test]
-            fn w1_h1() {
-                super::$check(1, 1)
-            }
-            #[test]
-            fn w2_h3() {
-                super::$check(2, 3)
-            }
-            $(
-                #[test]
-                fn $name() {
-                    super::$check($w, $h)
-                }
-            )*
+            $crate::per_size!(@tests $check;
+                w640_h480 = (640, 480); w257_h243 = (257, 243); w1_h1 = (1, 1); w2_h3 = (2, 3)
+                $(; $name = ($w, $h))*);
         }
     };
+}
+
+/// A `w`×`h` 2-D texture of `format` that shaders can read and the queue can write.
+pub fn empty_texture(ctx: &GpuContext, w: usize, h: usize, format: wgpu::TextureFormat) -> wgpu::Texture {
+    ctx.device().create_texture(&wgpu::TextureDescriptor {
+        label: Some("test frame"),
+        size: wgpu::Extent3d { width: w as u32, height: h as u32, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+/// Write `bytes` (rows tightly packed) into all of `texture`.
+pub fn write_texture(ctx: &GpuContext, texture: &wgpu::Texture, bytes: &[u8]) {
+    let (w, h) = (texture.width() as usize, texture.height() as usize);
+    let bytes_per_texel = bytes.len() / (w * h).max(1);
+    ctx.queue().write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        bytes,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some((w * bytes_per_texel) as u32),
+            rows_per_image: Some(h as u32),
+        },
+        texture.size(),
+    );
+}
+
+/// A texture of `format` holding `bytes`.
+pub fn texture(ctx: &GpuContext, w: usize, h: usize, format: wgpu::TextureFormat, bytes: &[u8]) -> wgpu::Texture {
+    let t = empty_texture(ctx, w, h, format);
+    write_texture(ctx, &t, bytes);
+    t
 }

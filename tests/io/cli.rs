@@ -9,6 +9,13 @@ fn pipetrack(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
 }
 
+/// `pipetrack track SEQ --tracker motion-edge --backend cpu` with `extra` arguments.
+fn track_motion_edge_cpu(seq: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu"];
+    args.extend_from_slice(extra);
+    pipetrack(&args)
+}
+
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("pipetrack-cli-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -28,16 +35,7 @@ fn good_sequence(root: &Path) -> PathBuf {
 /// containing every `needles`, and no output file left.
 fn expect_bad_input(root: &Path, seq: &Path, needles: &[&str]) {
     let out_file = root.join("out.jsonl");
-    let out = pipetrack(&[
-        "track",
-        seq.to_str().unwrap(),
-        "--tracker",
-        "motion-edge",
-        "--backend",
-        "cpu",
-        "--out",
-        out_file.to_str().unwrap(),
-    ]);
+    let out = track_motion_edge_cpu(&seq, &["--out", out_file.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "exit status for {needles:?}; stderr: {stderr}");
     let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
@@ -56,16 +54,7 @@ fn synth_track_score_round_trip() {
     let root = scratch("ok");
     let seq = good_sequence(&root);
     let pred = root.join("pred.jsonl");
-    let out = pipetrack(&[
-        "track",
-        seq.to_str().unwrap(),
-        "--tracker",
-        "motion-edge",
-        "--backend",
-        "cpu",
-        "--out",
-        pred.to_str().unwrap(),
-    ]);
+    let out = track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = std::fs::read_to_string(&pred).unwrap();
     assert_eq!(text.lines().count(), 6);
@@ -96,16 +85,7 @@ fn stdout_output_and_overlays() {
     let root = scratch("stdout");
     let seq = good_sequence(&root);
     let overlay = root.join("overlay");
-    let out = pipetrack(&[
-        "track",
-        seq.to_str().unwrap(),
-        "--tracker",
-        "motion-edge",
-        "--backend",
-        "cpu",
-        "--overlay",
-        overlay.to_str().unwrap(),
-    ]);
+    let out = track_motion_edge_cpu(&seq, &["--overlay", overlay.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 6);
     let pngs = std::fs::read_dir(&overlay).unwrap().count();
@@ -215,29 +195,11 @@ fn unknown_tracker_and_bad_config() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("nonesuch"));
     let cfg = root.join("bad.toml");
     std::fs::write(&cfg, "[motion-edge]\nzeta = -3.0\n").unwrap();
-    let out = pipetrack(&[
-        "track",
-        seq.to_str().unwrap(),
-        "--tracker",
-        "motion-edge",
-        "--backend",
-        "cpu",
-        "--config",
-        cfg.to_str().unwrap(),
-    ]);
+    let out = track_motion_edge_cpu(&seq, &["--config", cfg.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     let cfg2 = root.join("typo.toml");
     std::fs::write(&cfg2, "zetta = 3.0\n").unwrap();
-    let out = pipetrack(&[
-        "track",
-        seq.to_str().unwrap(),
-        "--tracker",
-        "motion-edge",
-        "--backend",
-        "cpu",
-        "--config",
-        cfg2.to_str().unwrap(),
-    ]);
+    let out = track_motion_edge_cpu(&seq, &["--config", cfg2.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("typo.toml"));
 }

@@ -109,31 +109,11 @@ fn texture_frames_equal_byte_frames() {
     let (w, h) = (97, 61);
     let frames = sequence(w, h, 3);
     let request = FrameRequest::full_chain(w, h);
-    let size = wgpu::Extent3d { width: w as u32, height: h as u32, depth_or_array_layers: 1 };
-    let texture = ctx.device().create_texture(&wgpu::TextureDescriptor {
-        label: Some("frame"),
-        size,
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::R8Unorm,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+    let texture = common::empty_texture(ctx, w, h, wgpu::TextureFormat::R8Unorm);
     let mut by_bytes = GpuBackend::new(ctx.clone());
     let mut by_texture = GpuBackend::new(ctx.clone());
     for f in &frames {
-        ctx.queue().write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            f.data(),
-            wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(w as u32), rows_per_image: Some(h as u32) },
-            size,
-        );
+        common::write_texture(ctx, &texture, f.data());
         let a = by_bytes.process(f, &request).unwrap();
         let b = by_texture.process_texture(&texture, &request).unwrap();
         assert_eq!(a, b);

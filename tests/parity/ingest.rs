@@ -4,40 +4,10 @@
 use crate::common;
 use crate::per_size;
 
-use pipetrack::GpuContext;
 use pipetrack::early::ingest;
 use pipetrack::testimage::natural;
 
-fn texture(ctx: &GpuContext, w: usize, h: usize, format: wgpu::TextureFormat, bytes: &[u8]) -> wgpu::Texture {
-    let size = wgpu::Extent3d { width: w as u32, height: h as u32, depth_or_array_layers: 1 };
-    let t = ctx.device().create_texture(&wgpu::TextureDescriptor {
-        label: Some("test frame"),
-        size,
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    let bpp = bytes.len() / (w * h);
-    ctx.queue().write_texture(
-        wgpu::TexelCopyTextureInfo {
-            texture: &t,
-            mip_level: 0,
-            origin: wgpu::Origin3d::ZERO,
-            aspect: wgpu::TextureAspect::All,
-        },
-        bytes,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some((w * bpp) as u32),
-            rows_per_image: Some(h as u32),
-        },
-        size,
-    );
-    t
-}
+use common::texture;
 
 fn parity_ingest_bytes_exact(w: usize, h: usize) {
     let Some((ctx, _g)) = common::gpu(&format!("parity_ingest_bytes_exact/{w}x{h}")) else { return };
