@@ -35,7 +35,7 @@ fn good_sequence(root: &Path) -> PathBuf {
 /// containing every `needles`, and no output file left.
 fn expect_bad_input(root: &Path, seq: &Path, needles: &[&str]) {
     let out_file = root.join("out.jsonl");
-    let out = track_motion_edge_cpu(&seq, &["--out", out_file.to_str().unwrap()]);
+    let out = track_motion_edge_cpu(seq, &["--out", out_file.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "exit status for {needles:?}; stderr: {stderr}");
     let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
