@@ -1,4 +1,12 @@
 //! The `pipetrack` command line (SPEC §5).
+//!
+//! Exit status: 0 on success; 2 for bad input (a file named on the command
+//! line, its content or an output that cannot be written, one line on stderr
+//! naming it); 1 for anything else. A reader that closes our standard output
+//! early (`pipetrack score ... | head -1`) ends the command quietly with
+//! status 0, as it means the reader has had enough. SIGINT and SIGTERM remove
+//! every unfinished output (`FILE.partial`, overlay staging folders) and exit
+//! with 128 + the signal's number (130, 143).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -127,10 +135,12 @@ const EXIT_BAD_INPUT: u8 = 2;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    remove_unfinished_outputs_on_signals();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("pipetrack: {e:#}");
+            note(format_args!("pipetrack: {e:#}"));
             let bad_input = e.chain().any(|c| {
                 matches!(
                     c.downcast_ref::<pipetrack::Error>(),
@@ -145,6 +155,39 @@ fn main() -> ExitCode {
             ExitCode::from(if bad_input { EXIT_BAD_INPUT } else { 1 })
         }
     }
+}
+
+/// On SIGINT or SIGTERM, remove the unfinished outputs and exit with
+/// 128 + the signal's number. Without a signal thread the default action
+/// (ending the process) stays.
+fn remove_unfinished_outputs_on_signals() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else { return };
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            pipetrack::io::atomic::remove_unfinished();
+            note(format_args!("pipetrack: interrupted; unfinished outputs removed"));
+            std::process::exit(128 + signal);
+        }
+    });
+}
+
+/// Whether `e` comes from writing to a pipe whose reader has gone.
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe))
+}
+
+/// A line on stderr; a closed or full stderr is ignored (there is nowhere
+/// left to report it).
+fn note(line: std::fmt::Arguments<'_>) {
+    let _ = writeln!(std::io::stderr(), "{line}");
+}
+
+/// A line on stdout, flushed; a failed write is an error naming `stdout`.
+fn say(line: std::fmt::Arguments<'_>) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{line}").and_then(|()| out.flush()).map_err(|e| pipetrack::Error::io("stdout", e))?;
+    Ok(())
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -179,18 +222,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let opts = TrackOptions { tracker, backend: backend.into(), config, overlay, progress: true };
             let summary = match &out {
                 Some(path) => run::track_to_file(&seq, &opts, path)?,
-                None => {
-                    let stdout = std::io::stdout();
-                    let mut lock = std::io::BufWriter::new(stdout.lock());
-                    let s = run::track_sequence(&seq, &opts, &mut lock, |_| {})?;
-                    lock.flush()?;
-                    s
-                }
+                None => run::track_to_stdout(&seq, &opts)?,
             };
-            eprintln!(
+            note(format_args!(
                 "pipetrack: {} frames, {} tracking, {:.1} frames/s on {}",
                 summary.frames, summary.tracked, summary.fps, summary.backend
-            );
+            ));
             Ok(())
         }
         Command::Synth { scene, out_dir, frames, seed, speed, noise, occlude, set } => {
@@ -211,15 +248,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 extra.push((k.to_string(), v.to_string()));
             }
             let seq = synth::generate(&scene, &out_dir, frames, seed, &extra)?;
-            eprintln!("pipetrack: wrote {} frames of '{}' to {}", seq.frames.len(), scene, out_dir.display());
+            note(format_args!("pipetrack: wrote {} frames of '{}' to {}", seq.frames.len(), scene, out_dir.display()));
             Ok(())
         }
         Command::Score { seq_dir, pred } => {
             let seq = Sequence::open(&seq_dir, false)?;
-            let truth = seq.require_truth()?;
-            let score = pipetrack::cli::score::score_file(truth, &pred)?;
-            println!("{score}");
-            Ok(())
+            let truth = seq.read_truth()?;
+            let score = pipetrack::cli::score::score_file(&truth, &pred)?;
+            say(format_args!("{score}"))
         }
         Command::Demo => {
             pipetrack::cli::demo::run_demo(&pipetrack::cli::demo::default_root(), &mut std::io::stdout().lock())?;
@@ -237,10 +273,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 c => vec![c],
             };
             for c in configs {
-                let tables =
-                    pipetrack::cli::reproduce::run_tables(c, |done, total| eprint!("\r{c}: {done}/{total} runs"))?;
-                eprintln!();
-                println!("{}", pipetrack::cli::reproduce::markdown(c, &tables));
+                let tables = pipetrack::cli::reproduce::run_tables(c, |done, total| {
+                    let _ = write!(std::io::stderr(), "\r{c}: {done}/{total} runs");
+                })?;
+                note(format_args!(""));
+                say(format_args!("{}", pipetrack::cli::reproduce::markdown(c, &tables)))?;
             }
             Ok(())
         }
@@ -267,27 +304,35 @@ fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) 
     }
     let budget = Duration::from_secs_f64(seconds);
     if !json {
-        println!("{:<14} {:>10} {:>12} {:>12} {:>9}", "stage", "size", "cpu fps", "gpu fps", "gpu/cpu");
+        say(format_args!("{:<14} {:>10} {:>12} {:>12} {:>9}", "stage", "size", "cpu fps", "gpu fps", "gpu/cpu"))?;
     }
+    let mut write_error = None;
     let report = pipetrack::cli::bench::compare(sizes, &chosen, budget, |row| {
-        if !json {
+        if !json && write_error.is_none() {
             let gpu = row.gpu_fps.map_or("-".to_string(), |g| format!("{g:.1}"));
             let ratio = row.gpu_over_cpu.map_or("-".to_string(), |r| format!("{r:.2}"));
-            println!("{:<14} {:>10} {:>12.1} {:>12} {:>9}", row.stage, row.size, row.cpu_fps, gpu, ratio);
+            write_error = say(format_args!(
+                "{:<14} {:>10} {:>12.1} {:>12} {:>9}",
+                row.stage, row.size, row.cpu_fps, gpu, ratio
+            ))
+            .err();
         }
     })
     .context("benchmark failed")?;
+    if let Some(e) = write_error {
+        return Err(e);
+    }
     if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        say(format_args!("{}", serde_json::to_string_pretty(&report)?))?;
     } else {
         for c in &report.gpu_chain {
             let f = &c.per_frame;
-            println!(
+            say(format_args!(
                 "gpu chain {:>10}: {} dispatches, {} bytes up, {} bytes back per frame",
                 c.size, f.dispatches, f.bytes_uploaded, f.bytes_read_back
-            );
+            ))?;
         }
-        println!("adapter: {}\ncpu threads: {}", report.adapter, report.cpu_threads);
+        say(format_args!("adapter: {}\ncpu threads: {}", report.adapter, report.cpu_threads))?;
     }
     Ok(())
 }

@@ -32,7 +32,7 @@ pub fn run_demo(root: &std::path::Path, out: &mut dyn Write) -> Result<()> {
     };
     let pred_path = root.join("track.jsonl");
     let summary = track_to_file(&seq, &opts, &pred_path)?;
-    let score = super::score::score_file(seq.require_truth()?, &pred_path)?;
+    let score = super::score::score_file(&seq.read_truth()?, &pred_path)?;
     let report = format!(
         "pipetrack demo: pendulum, {DEMO_FRAMES} frames at {DEMO_SPEED} px/frame, tracker motion-edge on {}\n\
          sequence: {}\noutput:   {}\noverlays: {}\n{:.1} frames/s\n{score}\n",

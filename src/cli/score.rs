@@ -1,10 +1,12 @@
 //! Scoring a tracker's output against `truth.jsonl` (the `score` command).
 //!
-//! **Corner error** of a frame: the mean over model vertices of the
-//! Euclidean distance in pixels between predicted and true corners. It is
-//! computed on the frames where the truth is visible and the prediction is
-//! tracking; a lost frame counts against "frames tracked", not against the
-//! error figures. Over those frames we report mean, median (mean of the two
+//! **Corner error** of a frame: the mean over the visible model vertices of
+//! the Euclidean distance in pixels between predicted and true corners.
+//! `truth.jsonl`'s `"visible"` says which vertices are visible, one boolean
+//! per vertex (or one for the whole object). It is computed on the frames
+//! where at least one vertex is visible and the prediction is tracking; a
+//! lost frame counts against "frames tracked", not against the error
+//! figures. Over those frames we report mean, median (mean of the two
 //! middle values for an even count), p95 (nearest rank: the ⌈0.95·n⌉-th
 //! smallest) and max.
 //!
@@ -18,7 +20,7 @@
 use std::fmt;
 use std::path::Path;
 
-use crate::io::formats::{FrameResult, Status, TruthFrame};
+use crate::io::formats::{FrameResult, Status, TruthFrame, Visibility};
 use crate::io::read_jsonl;
 use crate::{Error, Result};
 
@@ -61,12 +63,13 @@ pub struct Score {
     pub tracked: usize,
     /// The first frame whose status is lost, if any.
     pub first_lost: Option<usize>,
-    /// `(frame, corner error)` for every scored frame (truth visible and
-    /// tracking), in frame order.
+    /// `(frame, corner error)` for every scored frame (some vertex visible
+    /// and tracking), in frame order.
     pub frame_errors: Vec<(usize, f64)>,
-    /// Mean error of each model vertex over the scored frames, in vertex
-    /// order (empty when no frame was scored).
-    pub corner_errors: Vec<f64>,
+    /// Mean error of each model vertex over the scored frames where that
+    /// vertex is visible, in vertex order; `None` for a vertex never visible
+    /// in a scored frame (empty when no frame was scored).
+    pub corner_errors: Vec<Option<f64>>,
     /// Figures over `frame_errors`; `None` when no frame was scored.
     pub stats: Option<ErrorStats>,
 }
@@ -100,12 +103,22 @@ fn score_impl(truth: &[TruthFrame], predictions: &[FrameResult]) -> std::result:
         ));
     }
     let mut frame_errors = Vec::new();
-    let mut corner_sums: Vec<f64> = Vec::new();
+    let mut corner_sums: Vec<(f64, usize)> = Vec::new();
     for (p, t) in predictions.iter().zip(truth) {
         if p.frame != t.frame {
             return Err(format!("frame {} where truth.jsonl has frame {}", p.frame, t.frame));
         }
-        if !(t.visible && p.status == Status::Tracking) {
+        if let Visibility::Vertices(seen) = &t.visible {
+            if !t.corners.is_empty() && seen.len() != t.corners.len() {
+                return Err(format!(
+                    "frame {}: truth.jsonl has {} visibility flags for {} corners",
+                    t.frame,
+                    seen.len(),
+                    t.corners.len()
+                ));
+            }
+        }
+        if !(t.visible.any() && p.status == Status::Tracking) {
             continue;
         }
         if t.corners.is_empty() {
@@ -120,7 +133,7 @@ fn score_impl(truth: &[TruthFrame], predictions: &[FrameResult]) -> std::result:
             ));
         }
         if corner_sums.is_empty() {
-            corner_sums = vec![0.0; t.corners.len()];
+            corner_sums = vec![(0.0, 0); t.corners.len()];
         } else if corner_sums.len() != t.corners.len() {
             return Err(format!(
                 "frame {}: the number of corners changes from {} to {}",
@@ -129,22 +142,25 @@ fn score_impl(truth: &[TruthFrame], predictions: &[FrameResult]) -> std::result:
                 t.corners.len()
             ));
         }
-        let mut sum = 0.0;
-        for ((pc, tc), acc) in p.corners.iter().zip(&t.corners).zip(&mut corner_sums) {
-            let d = (pc[0] - tc[0]).hypot(pc[1] - tc[1]);
-            *acc += d;
-            sum += d;
+        let (mut sum, mut visible) = (0.0, 0);
+        for (i, ((pc, tc), acc)) in p.corners.iter().zip(&t.corners).zip(&mut corner_sums).enumerate() {
+            if t.visible.vertex(i) {
+                let d = (pc[0] - tc[0]).hypot(pc[1] - tc[1]);
+                acc.0 += d;
+                acc.1 += 1;
+                sum += d;
+                visible += 1;
+            }
         }
-        frame_errors.push((p.frame, sum / t.corners.len() as f64));
+        frame_errors.push((p.frame, sum / visible as f64));
     }
     let errors: Vec<f64> = frame_errors.iter().map(|&(_, e)| e).collect();
-    let scored = errors.len() as f64;
     Ok(Score {
         frames: predictions.len(),
         tracked: predictions.iter().filter(|p| p.status == Status::Tracking).count(),
         first_lost: predictions.iter().find(|p| p.status == Status::Lost).map(|p| p.frame),
         stats: ErrorStats::of(&errors),
-        corner_errors: corner_sums.into_iter().map(|s| s / scored).collect(),
+        corner_errors: corner_sums.into_iter().map(|(sum, n)| (n > 0).then(|| sum / n as f64)).collect(),
         frame_errors,
     })
 }

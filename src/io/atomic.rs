@@ -1,10 +1,58 @@
 //! Output files and folders that never look complete before they are.
+//!
+//! Every unfinished output of the process (a `.partial` file, a staging
+//! folder) is listed in one registry, so that a signal handler can remove
+//! them all with [`remove_unfinished`] before the process exits: a run
+//! stopped by Ctrl-C leaves nothing behind.
 
 use std::fs::{self, File};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use crate::{Error, Result};
+
+/// The unfinished outputs of this process: partial files and staging folders.
+static UNFINISHED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn unfinished() -> MutexGuard<'static, Vec<PathBuf>> {
+    UNFINISHED.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+fn unregister(list: &mut Vec<PathBuf>, path: &Path) {
+    list.retain(|p| p != path);
+}
+
+/// Remove every partial file and staging folder this process has not
+/// finished, and return their paths. For a signal handler that then exits:
+/// the registry stays locked until the process ends, so no output can be
+/// finished (renamed to its final name) after its partial file is gone.
+/// Threads that go on writing write into removed files, which is harmless.
+pub fn remove_unfinished() -> Vec<PathBuf> {
+    let list = unfinished();
+    for path in list.iter() {
+        remove_path(path);
+    }
+    let removed = list.clone();
+    // Hold the lock for the rest of the process's life.
+    std::mem::forget(list);
+    removed
+}
+
+/// Remove a file or a folder tree, retrying a few times for a folder that
+/// another thread is still writing into.
+fn remove_path(path: &Path) {
+    const TRIES: usize = 10;
+    if path.is_dir() {
+        for _ in 0..TRIES {
+            if fs::remove_dir_all(path).is_ok() || !path.exists() {
+                return;
+            }
+        }
+    } else {
+        let _ = fs::remove_file(path);
+    }
+}
 
 /// A file written under `<path>.partial` and renamed to `path` by
 /// [`AtomicFile::finish`]. Dropped without `finish` (an error, a panic that
@@ -22,14 +70,20 @@ pub struct AtomicFile {
 }
 
 impl AtomicFile {
-    /// Create (or truncate) `<path>.partial` for writing.
+    /// Create (or truncate, replacing a stale one) `<path>.partial` for
+    /// writing. A `path` that is an existing folder is an input error.
     pub fn create(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
+        if path.is_dir() {
+            return Err(Error::input(&path, "is a folder: the output must be a file name"));
+        }
         let mut name = path.file_name().ok_or_else(|| Error::input(&path, "not a file name"))?.to_os_string();
         name.push(".partial");
         let partial = path.with_file_name(name);
+        let mut list = unfinished();
         let file = File::create(&partial)
             .map_err(|e| Error::input(&path, format!("cannot create (as {}): {e}", partial.display())))?;
+        list.push(partial.clone());
         Ok(Self { path, partial, writer: Some(BufWriter::new(file)) })
     }
 
@@ -53,12 +107,13 @@ impl AtomicFile {
     }
 
     /// Flush, sync to disk, and rename the partial file to the final path.
-    /// On failure the partial file is deleted.
+    /// On failure the partial file is deleted. Errors name the final path.
     pub fn finish(mut self) -> Result<()> {
         let result = self.commit();
         if result.is_err() {
             let _ = fs::remove_file(&self.partial);
         }
+        unregister(&mut unfinished(), &self.partial);
         result
     }
 
@@ -66,10 +121,15 @@ impl AtomicFile {
         let Some(writer) = self.writer.take() else {
             return Ok(());
         };
-        let file = writer.into_inner().map_err(|e| Error::io(&self.partial, e.into_error()))?;
-        file.sync_all().map_err(|e| Error::io(&self.partial, e))?;
+        let file = writer.into_inner().map_err(|e| Error::io(&self.path, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(&self.path, e))?;
         drop(file);
-        fs::rename(&self.partial, &self.path).map_err(|e| Error::io(&self.path, e))
+        // Under the registry's lock: a signal handler either removes the
+        // partial file before this or finds it finished.
+        let mut list = unfinished();
+        fs::rename(&self.partial, &self.path).map_err(|e| Error::io(&self.path, e))?;
+        unregister(&mut list, &self.partial);
+        Ok(())
     }
 
     fn writer(&mut self) -> io::Result<&mut BufWriter<File>> {
@@ -92,14 +152,17 @@ impl Drop for AtomicFile {
         if let Some(writer) = self.writer.take() {
             drop(writer);
             let _ = fs::remove_file(&self.partial);
+            unregister(&mut unfinished(), &self.partial);
         }
     }
 }
 
 /// An output folder written in full or not at all: files go into a hidden
-/// sibling staging folder, which [`StagedDir::finish`] renames to the final
-/// name; dropped unfinished, the staging folder is removed. The final folder
-/// must be absent or empty, so sequences and overlays are never mixed.
+/// sibling staging folder `.<name>.partial-<pid>`, which
+/// [`StagedDir::finish`] renames to the final name; dropped unfinished, the
+/// staging folder is removed. The final folder must be absent or empty, so
+/// sequences and overlays are never mixed. Staging folders for the same
+/// folder left by processes that no longer run are removed on creation.
 #[derive(Debug)]
 pub struct StagedDir {
     dir: PathBuf,
@@ -124,11 +187,15 @@ impl StagedDir {
             _ => PathBuf::from("."),
         };
         fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
-        let staging = parent.join(format!(".{name}.partial-{}", std::process::id()));
+        let prefix = format!(".{name}.partial-");
+        remove_stale_staging(&parent, &prefix);
+        let staging = parent.join(format!("{prefix}{}", std::process::id()));
         if staging.exists() {
             fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
         }
+        let mut list = unfinished();
         fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        list.push(staging.clone());
         Ok(Self { dir: dir.to_path_buf(), staging, finished: false })
     }
 
@@ -144,7 +211,9 @@ impl StagedDir {
             // Empty (checked in `create`): replace it.
             fs::remove_dir(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
         }
+        let mut list = unfinished();
         fs::rename(&self.staging, &self.dir).map_err(|e| Error::io(&self.dir, e))?;
+        unregister(&mut list, &self.staging);
         self.finished = true;
         Ok(())
     }
@@ -154,6 +223,26 @@ impl Drop for StagedDir {
     fn drop(&mut self) {
         if !self.finished {
             let _ = fs::remove_dir_all(&self.staging);
+            unregister(&mut unfinished(), &self.staging);
+        }
+    }
+}
+
+/// Remove the folders in `parent` named `<prefix><pid>` whose process no
+/// longer runs. Whether a process runs is read from `/proc`; where there is
+/// no `/proc`, nothing is removed.
+fn remove_stale_staging(parent: &Path, prefix: &str) {
+    let proc = Path::new("/proc");
+    if !proc.join("self").exists() {
+        return;
+    }
+    let Ok(entries) = fs::read_dir(parent) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(|n| n.strip_prefix(prefix)) else { continue };
+        let alive = pid.parse::<u32>().map_or(true, |pid| pid == std::process::id() || proc.join(pid.to_string()).exists());
+        if !alive && entry.path().is_dir() {
+            let _ = fs::remove_dir_all(entry.path());
         }
     }
 }

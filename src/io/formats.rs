@@ -89,14 +89,93 @@ pub struct InitState {
     pub corners: Vec<[f64; 2]>,
 }
 
+/// Which parts of the object a line of `truth.jsonl` says are seen: one
+/// boolean per model vertex (SPEC §4), or one boolean for the whole object.
+/// Written as JSON the way it was read: `true` or `[true, false, ...]`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Visibility {
+    /// One flag for the whole object.
+    Object(bool),
+    /// One flag per model vertex, in vertex order.
+    Vertices(Vec<bool>),
+}
+
+impl Visibility {
+    /// Whether any part of the object is seen.
+    #[must_use]
+    pub fn any(&self) -> bool {
+        match self {
+            Visibility::Object(seen) => *seen,
+            Visibility::Vertices(seen) => seen.contains(&true),
+        }
+    }
+
+    /// Whether vertex `i` is seen; a vertex beyond a per-vertex list is not.
+    #[must_use]
+    pub fn vertex(&self, i: usize) -> bool {
+        match self {
+            Visibility::Object(seen) => *seen,
+            Visibility::Vertices(seen) => seen.get(i).copied().unwrap_or(false),
+        }
+    }
+}
+
+impl Default for Visibility {
+    /// Seen, as a line without `"visible"` is.
+    fn default() -> Self {
+        Visibility::Object(true)
+    }
+}
+
+impl From<bool> for Visibility {
+    fn from(seen: bool) -> Self {
+        Visibility::Object(seen)
+    }
+}
+
+impl Serialize for Visibility {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        match self {
+            Visibility::Object(seen) => serializer.serialize_bool(*seen),
+            Visibility::Vertices(seen) => seen.serialize(serializer),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Visibility {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> std::result::Result<Self, D::Error> {
+        struct VisibilityVisitor;
+        impl<'de> serde::de::Visitor<'de> for VisibilityVisitor {
+            type Value = Visibility;
+
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a boolean or a list of booleans, one per model vertex")
+            }
+
+            fn visit_bool<E: serde::de::Error>(self, seen: bool) -> std::result::Result<Visibility, E> {
+                Ok(Visibility::Object(seen))
+            }
+
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<Visibility, A::Error> {
+                let mut seen = Vec::with_capacity(seq.size_hint().unwrap_or(0));
+                while let Some(flag) = seq.next_element::<bool>()? {
+                    seen.push(flag);
+                }
+                Ok(Visibility::Vertices(seen))
+            }
+        }
+        deserializer.deserialize_any(VisibilityVisitor)
+    }
+}
+
 /// One line of `truth.jsonl`: the fields of [`InitState`] plus frame and visibility.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TruthFrame {
     /// Frame index.
     pub frame: usize,
-    /// Whether the object is visible in this frame.
-    #[serde(default = "default_true")]
-    pub visible: bool,
+    /// Which vertices are seen in this frame (all of them when the key is absent).
+    #[serde(default)]
+    pub visible: Visibility,
     /// True pose.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pose: Option<Pose>,
@@ -106,10 +185,6 @@ pub struct TruthFrame {
     /// True image positions of every model vertex.
     #[serde(default)]
     pub corners: Vec<[f64; 2]>,
-}
-
-fn default_true() -> bool {
-    true
 }
 
 /// Tracking status of one frame.
@@ -189,21 +264,44 @@ impl Pose {
     }
 }
 
+/// The `units` a model may have: metres (SPEC §4, ViSP) and the pixel units
+/// of the synthetic planar scenes.
+pub const MODEL_UNITS: [&str; 2] = ["m", "px"];
+
+/// Two vertices closer than this fraction of the model's size (the diagonal
+/// of its bounding box) are the same point listed twice.
+pub const DUPLICATE_VERTEX_TOLERANCE: f64 = 1e-9;
+
+/// A face vertex farther than this fraction of the model's size from the
+/// plane of its face makes the face non-planar. Loose enough for coordinates
+/// printed with a few decimals, tight enough to catch a bent face.
+pub const FACE_PLANARITY_TOLERANCE: f64 = 1e-3;
+
 impl Model {
-    /// Check the model: at least two vertices and one edge, finite
-    /// coordinates, edge/face/joint indices in range, no edge from a vertex
-    /// to itself, no edge listed twice (either direction), faces of at least
-    /// three distinct vertices, joints with a finite non-zero axis,
-    /// `min <= max`, distinct names and no vertex listed twice.
-    /// `path` names the model file in the error.
+    /// Check the model: `units` one of [`MODEL_UNITS`], at least two
+    /// vertices and one edge, finite coordinates, no vertex listed twice
+    /// (within [`DUPLICATE_VERTEX_TOLERANCE`] of the model's size),
+    /// edge/face/joint indices in range, no edge from a vertex to itself, no
+    /// edge listed twice (either direction), faces of at least three distinct
+    /// vertices that enclose an area and lie in a plane (within
+    /// [`FACE_PLANARITY_TOLERANCE`] of the model's size), joints with a
+    /// finite non-zero axis, `min <= max`, distinct names and no vertex
+    /// listed twice. `path` names the model file in the error.
     pub fn validate(&self, path: &Path) -> Result<()> {
         let fail = |msg: String| Err(Error::input(path, msg));
+        if !MODEL_UNITS.contains(&self.units.as_str()) {
+            return fail(format!("units {:?} is not one pipetrack reads: use one of {}", self.units, MODEL_UNITS.join(", ")));
+        }
         let n = self.vertices.len();
         if n < 2 {
             return fail(format!("the model has {n} vertices: it needs at least 2"));
         }
         if let Some(i) = self.vertices.iter().position(|v| !all_finite(v)) {
             return fail(format!("vertex {i} has a coordinate that is not a finite number"));
+        }
+        let size = self.size();
+        if let Some((i, j)) = self.duplicate_vertex(DUPLICATE_VERTEX_TOLERANCE * size) {
+            return fail(format!("vertex {j} repeats vertex {i} ({:?}): list each point once", self.vertices[i]));
         }
         if self.edges.is_empty() {
             return fail("the model has no edges".to_string());
@@ -232,6 +330,9 @@ impl Model {
                     return fail(format!("face {f} lists vertex {v} twice"));
                 }
             }
+            if let Err(msg) = self.check_planar(f, face, size) {
+                return fail(msg);
+            }
         }
         for (j, joint) in self.joints.iter().enumerate() {
             let name = &joint.name;
@@ -257,6 +358,81 @@ impl Model {
                 if joint.vertices[..k].contains(&v) {
                     return fail(format!("joint \"{name}\" lists vertex {v} twice"));
                 }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Model {
+    /// The diagonal of the vertices' bounding box (0 for fewer than two
+    /// distinct points): the scale of the model's tolerances.
+    fn size(&self) -> f64 {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for v in &self.vertices {
+            for k in 0..3 {
+                lo[k] = lo[k].min(v[k]);
+                hi[k] = hi[k].max(v[k]);
+            }
+        }
+        let d2: f64 = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum();
+        if d2.is_finite() { d2.sqrt() } else { 0.0 }
+    }
+
+    /// The first pair `(i, j)`, `i < j`, of vertices within `tolerance` of
+    /// each other. Sweeps the vertices in x order, so only neighbours in x
+    /// are compared.
+    fn duplicate_vertex(&self, tolerance: f64) -> Option<(usize, usize)> {
+        let v = &self.vertices;
+        let mut order: Vec<usize> = (0..v.len()).collect();
+        order.sort_by(|&a, &b| v[a][0].total_cmp(&v[b][0]));
+        let mut found: Option<(usize, usize)> = None;
+        for (k, &a) in order.iter().enumerate() {
+            for &b in order[k + 1..].iter().take_while(|&&b| v[b][0] - v[a][0] <= tolerance) {
+                let d2: f64 = (0..3).map(|c| (v[a][c] - v[b][c]).powi(2)).sum();
+                if d2.sqrt() <= tolerance {
+                    let pair = (a.min(b), a.max(b));
+                    if found.is_none_or(|f| pair < f) {
+                        found = Some(pair);
+                    }
+                }
+            }
+        }
+        found
+    }
+
+    /// `Err(message)` when face `f` (indices in range) encloses no area or
+    /// has a vertex off its plane by more than [`FACE_PLANARITY_TOLERANCE`]
+    /// times `size`. The plane is Newell's: the normal of the polygon's
+    /// vector area, through the centroid of its vertices.
+    fn check_planar(&self, f: usize, face: &[usize], size: f64) -> std::result::Result<(), String> {
+        let p: Vec<[f64; 3]> = face.iter().map(|&i| self.vertices[i]).collect();
+        let mut normal = [0.0; 3];
+        let mut centroid = [0.0; 3];
+        for (k, a) in p.iter().enumerate() {
+            let b = p[(k + 1) % p.len()];
+            normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+            normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+            normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+            for c in 0..3 {
+                centroid[c] += a[c] / p.len() as f64;
+            }
+        }
+        // |normal| is twice the area.
+        let twice_area = normal.iter().map(|c| c * c).sum::<f64>().sqrt();
+        if !(twice_area > DUPLICATE_VERTEX_TOLERANCE * size * size) {
+            return Err(format!("face {f} encloses no area: its vertices are on one line"));
+        }
+        let tolerance = FACE_PLANARITY_TOLERANCE * size;
+        for (k, a) in p.iter().enumerate() {
+            let distance = (0..3).map(|c| (a[c] - centroid[c]) * normal[c]).sum::<f64>().abs() / twice_area;
+            if distance > tolerance {
+                return Err(format!(
+                    "face {f} is not planar: vertex {} is {distance:.3e} {} off the face's plane \
+                     (tolerance {tolerance:.3e}, {FACE_PLANARITY_TOLERANCE} of the model's size)",
+                    face[k], self.units
+                ));
             }
         }
         Ok(())
@@ -328,8 +504,23 @@ impl InitState {
 impl TruthFrame {
     /// Check one line (1-based `line`) of `truth.jsonl` against the model,
     /// as [`InitState::validate`] does.
+    /// A per-vertex `"visible"` list must have one flag per model vertex.
     pub fn validate(&self, path: &Path, line: usize, model: &Model, model_path: &Path) -> Result<()> {
-        validate_state(path, Some(line), self.pose.as_ref(), &self.params, &self.corners, model, model_path)
+        validate_state(path, Some(line), self.pose.as_ref(), &self.params, &self.corners, model, model_path)?;
+        if let Visibility::Vertices(seen) = &self.visible {
+            let n = model.vertices.len();
+            if seen.len() != n {
+                return Err(Error::input(
+                    path,
+                    format!(
+                        "line {line}: \"visible\" has {} flags but the model has {n} vertices \
+                         (give one boolean per vertex, or a single boolean)",
+                        seen.len()
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 }
 

@@ -18,6 +18,12 @@ use crate::{Error, Result};
 /// compare as numbers, so `2.png` < `10.png`; zero-padded names sort as
 /// usual). Files without a frame extension, hidden files and folders are
 /// ignored; an empty or missing folder is an error naming it.
+///
+/// The frames are numbered (the last digit run of a name, `000007` in
+/// `000007.png` or `img_000007.png`) from 0 or 1 without gaps: the output's
+/// frame `i` is the `i`-th file, so a missing file would shift every later
+/// frame. A gap is an error naming the missing file; a name without a
+/// number, or two files with one number, are errors naming the file.
 pub fn list_frames(frames_dir: &Path) -> Result<Vec<PathBuf>> {
     let entries = match fs::read_dir(frames_dir) {
         Ok(entries) => entries,
@@ -45,7 +51,63 @@ pub fn list_frames(frames_dir: &Path) -> Result<Vec<PathBuf>> {
         return Err(Error::input(frames_dir, "no frames: expected PNG, PGM or JPEG files"));
     }
     named.sort_by(|a, b| natural_cmp(&a.0, &b.0));
+    check_numbering(frames_dir, &named)?;
     Ok(named.into_iter().map(|(_, p)| p).collect())
+}
+
+/// A frame file name split around its number: `(before, digits, after)`,
+/// the digits being the last run of digits before the extension.
+fn split_number(name: &str) -> Option<(&str, &str, &str)> {
+    let stem_end = name.rfind('.').unwrap_or(name.len());
+    let stem = &name[..stem_end];
+    let end = stem.rfind(|c: char| c.is_ascii_digit())? + 1;
+    let start = stem[..end].rfind(|c: char| !c.is_ascii_digit()).map_or(0, |i| i + 1);
+    Some((&name[..start], &name[start..end], &name[end..]))
+}
+
+/// Check that the frames (name, path), in natural order, are numbered from
+/// 0 or 1 without gaps or repeats (see [`list_frames`]).
+fn check_numbering(frames_dir: &Path, named: &[(String, PathBuf)]) -> Result<()> {
+    let number = |name: &str, path: &Path| -> Result<(u64, String, String, usize)> {
+        let unnumbered = || {
+            Error::input(path, "frame file name has no number: name the frames 000000.png, 000001.png, ... in order")
+        };
+        let (before, digits, after) = split_number(name).ok_or_else(unnumbered)?;
+        let n = digits.parse().map_err(|_| Error::input(path, format!("frame number {digits} is too large")))?;
+        Ok((n, before.to_string(), after.to_string(), digits.len()))
+    };
+    let Some((first_name, first_path)) = named.first() else { return Ok(()) };
+    let (mut previous, mut before, mut after, mut width) = number(first_name, first_path)?;
+    if previous > 1 {
+        let missing = format!("{before}{:0width$}{after}", 0);
+        return Err(Error::input(
+            frames_dir.join(missing),
+            format!("missing: the first frame is {first_name}; frames are numbered from 0 (or 1) without gaps"),
+        ));
+    }
+    let mut previous_name = first_name;
+    for (name, path) in &named[1..] {
+        let (n, b, a, w) = number(name, path)?;
+        if n == previous {
+            return Err(Error::input(path, format!("has the frame number of {previous_name}: number each frame once")));
+        }
+        if n < previous {
+            return Err(Error::input(
+                path,
+                format!("numbered {n} but comes after {previous_name} in name order: give every frame one name pattern"),
+            ));
+        }
+        if n > previous + 1 {
+            let missing = format!("{before}{:0width$}{after}", previous + 1);
+            return Err(Error::input(
+                frames_dir.join(missing),
+                format!("missing: the frames jump from {previous_name} to {name}; number them without gaps"),
+            ));
+        }
+        (previous, before, after, width) = (n, b, a, w);
+        previous_name = name;
+    }
+    Ok(())
 }
 
 /// Compare names with digit runs taken as numbers (`frame2` < `frame10`);
@@ -263,5 +325,12 @@ mod tests {
         names.sort_by(|a, b| natural_cmp(a, b));
         assert_eq!(names, ["000001.png", "1.png", "2.png", "10.png", "a9.png", "a10.png", "b.png"]);
         assert_eq!(natural_cmp("000010.png", "000009.png"), Ordering::Greater);
+    }
+
+    #[test]
+    fn frame_numbers_are_the_last_digit_run_before_the_extension() {
+        assert_eq!(split_number("000007.png"), Some(("", "000007", ".png")));
+        assert_eq!(split_number("cam2_img_0031.jpg"), Some(("cam2_img_", "0031", ".jpg")));
+        assert_eq!(split_number("frame.png"), None);
     }
 }

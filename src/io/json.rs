@@ -19,20 +19,34 @@ fn read_text(path: &Path) -> Result<String> {
     })
 }
 
-/// Read a whole JSON file into `T`. A missing file, an empty one, malformed
-/// JSON (with line and column), a `NaN`/`Infinity` token (which JSON does
-/// not have) or a wrong field are input errors naming `path`.
+/// Read a whole JSON file holding one object into `T`. A missing file, an
+/// empty one, malformed JSON (with line and column), a `NaN`/`Infinity`
+/// token (which JSON does not have), an array where the object belongs
+/// (serde would take it as the fields in order) or a wrong field are input
+/// errors naming `path`.
 pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
     let text = read_text(path)?;
     if text.trim().is_empty() {
         return Err(Error::input(path, "empty file"));
     }
+    if let Some(msg) = not_an_object(&text) {
+        return Err(Error::input(path, msg));
+    }
     serde_json::from_str(&text).map_err(|e| Error::input(path, describe_json_error(&text, &e, None)))
 }
 
+/// The complaint about a JSON text whose top level is an array: every file
+/// and line pipetrack reads is one object with named fields.
+fn not_an_object(text: &str) -> Option<String> {
+    text.trim_start().starts_with('[').then(|| {
+        "a JSON array where an object is expected: give the fields by name, {\"key\": value, ...}".to_string()
+    })
+}
+
 /// Read a JSON Lines file: one `T` per non-blank line, each with its
-/// 1-based line number. Errors name `path` and the line. An empty file is
-/// an error.
+/// 1-based line number; each line holds one object (an array is refused as
+/// [`read_json`] refuses it). Errors name `path` and the line. An empty file
+/// is an error.
 pub fn read_jsonl<T: DeserializeOwned>(path: &Path) -> Result<Vec<(usize, T)>> {
     let file = File::open(path).map_err(|e| open_error(path, &e))?;
     let mut out = Vec::new();
@@ -44,6 +58,9 @@ pub fn read_jsonl<T: DeserializeOwned>(path: &Path) -> Result<Vec<(usize, T)>> {
         })?;
         if line.trim().is_empty() {
             continue;
+        }
+        if let Some(msg) = not_an_object(&line) {
+            return Err(Error::input(path, format!("line {n}: {msg}")));
         }
         let value = serde_json::from_str(&line)
             .map_err(|e| Error::input(path, format!("line {n}: {}", describe_json_error(&line, &e, Some(n)))))?;

@@ -1,6 +1,7 @@
 //! Sequence folders (SPEC §4): reading and validating `camera.json`, the
-//! model (`model.json`, else `model.cao`), `init.json` and the optional
-//! `truth.jsonl`, and handing out the frames as a stream.
+//! model (`model.json`, else `model.cao`) and `init.json`, handing out the
+//! frames as a stream, and reading the optional `truth.jsonl` on request
+//! (only scoring reads it, so tracking never depends on it).
 //!
 //! Every problem with a user's file is an [`Error::Input`] whose one-line
 //! message names the file (and the line, for JSON Lines) and says what is
@@ -23,6 +24,8 @@ pub const CAMERA_FILE: &str = "camera.json";
 pub const MODEL_JSON_FILE: &str = "model.json";
 /// `model.cao`, ViSP's format, read when there is no `model.json`.
 pub const MODEL_CAO_FILE: &str = "model.cao";
+/// `model.obj`, the third model file SPEC §4 names.
+pub const MODEL_OBJ_FILE: &str = "model.obj";
 /// `init.json`.
 pub const INIT_FILE: &str = "init.json";
 /// `truth.jsonl` (optional).
@@ -36,12 +39,11 @@ pub const FRAME_EXTENSIONS: [&str; 4] = ["png", "pgm", "jpg", "jpeg"];
 /// streams them.
 ///
 /// `open` guarantees: the camera has a positive size, finite positive focal
-/// lengths and a finite principal point; the model's indices are in range
-/// (see [`Model::validate`]); `init` has a pose or one corner per model
-/// vertex, and one param per joint or none; every truth line passes the same
-/// checks and truth frame numbers strictly increase and (for a frames folder)
-/// name existing frames; the frames folder is non-empty and its first frame
-/// has the camera's size.
+/// lengths and a finite principal point; the model passes
+/// [`Model::validate`]; `init` has a pose or one corner per model vertex,
+/// and one param per joint or none; the frames folder is non-empty, numbered
+/// without gaps (see [`list_frames`]) and its first frame has the camera's
+/// size. `open` does not read `truth.jsonl`: [`Sequence::read_truth`] does.
 #[derive(Clone, Debug)]
 pub struct Sequence {
     /// Intrinsics and image size.
@@ -50,8 +52,6 @@ pub struct Sequence {
     pub model: Model,
     /// The state at frame 0.
     pub init: InitState,
-    /// Ground truth, one entry per line of `truth.jsonl`, when the file exists.
-    pub truth: Option<Vec<TruthFrame>>,
     dir: PathBuf,
     model_path: PathBuf,
     frames: FrameList,
@@ -89,18 +89,7 @@ impl Sequence {
             FrameList::Files(paths)
         };
 
-        let truth_path = dir.join(TRUTH_FILE);
-        let truth = if truth_path.exists() {
-            let frame_count = match &frames {
-                FrameList::Files(paths) => Some(paths.len()),
-                FrameList::Stdin => None,
-            };
-            Some(read_truth(&truth_path, &model, &model_path, frame_count)?)
-        } else {
-            None
-        };
-
-        Ok(Self { camera, model, init, truth, dir: dir.to_path_buf(), model_path, frames })
+        Ok(Self { camera, model, init, dir: dir.to_path_buf(), model_path, frames })
     }
 
     /// The sequence folder.
@@ -121,10 +110,30 @@ impl Sequence {
         self.dir.join(TRUTH_FILE)
     }
 
-    /// The ground truth, or an input error naming `truth.jsonl` when the
-    /// folder has none (for `score`).
-    pub fn require_truth(&self) -> Result<&[TruthFrame]> {
-        self.truth.as_deref().ok_or_else(|| Error::input(self.truth_path(), "missing: scoring needs ground truth"))
+    /// Read and validate `truth.jsonl` (for `score`): every line passes
+    /// [`TruthFrame::validate`] against the model, frame numbers strictly
+    /// increase and (for a frames folder) name existing frames. A missing
+    /// file is an input error naming it.
+    pub fn read_truth(&self) -> Result<Vec<TruthFrame>> {
+        let path = self.truth_path();
+        if !path.exists() {
+            return Err(Error::input(path, "missing: scoring needs ground truth"));
+        }
+        read_truth(&path, &self.model, &self.model_path, self.frame_count())
+    }
+
+    /// The files of SPEC §4 this folder holds: `camera.json`, the model
+    /// files, `init.json`, `truth.jsonl` and the frames. An output must not
+    /// be written over any of them.
+    #[must_use]
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        let mut files: Vec<PathBuf> = [CAMERA_FILE, MODEL_JSON_FILE, MODEL_CAO_FILE, MODEL_OBJ_FILE, INIT_FILE, TRUTH_FILE]
+            .iter()
+            .map(|name| self.dir.join(name))
+            .filter(|p| p.exists())
+            .collect();
+        files.extend(self.frame_paths().unwrap_or(&[]).iter().cloned());
+        files
     }
 
     /// The frame files in order, or `None` when frames come from stdin.

@@ -363,7 +363,7 @@ pub fn render_pendulum(opts: &PendulumOptions) -> Result<SyntheticSequence> {
     let truth = (0..opts.frames)
         .map(|k| TruthFrame {
             frame: k,
-            visible: true,
+            visible: true.into(),
             pose: None,
             params: Vec::new(),
             corners: swing.corners(k).to_vec(),

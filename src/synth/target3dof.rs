@@ -787,7 +787,7 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
     let truth = (0..opts.frames)
         .map(|k| TruthFrame {
             frame: k,
-            visible: scene.visible(k),
+            visible: scene.visible(k).into(),
             pose: Some(scene.pose(k)),
             params: Vec::new(),
             corners: scene.corners(k),

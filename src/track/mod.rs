@@ -17,6 +17,7 @@ pub use blue::{BlueParams, BlueTracker, TargetLocation, TargetPrediction};
 pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker, Prediction};
 pub use run::{
     RunSummary, TRACKERS, TrackOptions, make_tracker, read_config, track_frames, track_sequence, track_to_file,
+    track_to_stdout,
 };
 
 use crate::backend::FrameRequest;

@@ -5,7 +5,8 @@
 //! frames, as bytes or as wgpu textures ([`Frame`]), or calls
 //! [`track_step`] once per frame from its own render loop.
 
-use std::io::Write;
+use std::fs;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -53,12 +54,11 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
         "motion-edge" => {
             let params: MotionEdgeParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
+            let init_path = seq.dir().join("init.json");
             if seq.init.corners.is_empty() {
-                return Err(Error::input(
-                    seq.dir().join("init.json"),
-                    "motion-edge needs \"corners\" (the operator's points)",
-                ));
+                return Err(Error::input(init_path, "motion-edge needs \"corners\" (the operator's points)"));
             }
+            check_polygon_corners(&seq.init.corners, &seq.model.edges).map_err(|msg| Error::input(&init_path, msg))?;
             let tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), params)
                 .map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
             Ok(Box::new(tracker))
@@ -72,6 +72,80 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
         }
         other => Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", ")))),
     }
+}
+
+/// Two corners closer than this (pixels) are the same point.
+const MIN_CORNER_SEPARATION_PX: f64 = 1e-6;
+/// Two edges at a corner whose directions' sine is below this are on one line.
+const MIN_CORNER_SINE: f64 = 1e-9;
+
+/// Check that `corners` (one per model vertex, from `init.json`) trace the
+/// model's polygon as a simple polygon: the two corners of an edge apart,
+/// the two edges at a corner not on one line, and edges that share no
+/// corner not touching (a bow-tie). `Err` is the message, to be blamed on
+/// `init.json`. A model that is not a polygon (a corner on other than two
+/// edges, an index out of range) passes: the tracker blames the model.
+fn check_polygon_corners(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> std::result::Result<(), String> {
+    let n = corners.len();
+    if n < 3 || edges.iter().flatten().any(|&i| i >= n) {
+        return Ok(());
+    }
+    let mut degree = vec![0usize; n];
+    for &i in edges.iter().flatten() {
+        degree[i] += 1;
+    }
+    if degree.iter().any(|&d| d != 2) {
+        return Ok(());
+    }
+    let sub = |a: [f64; 2], b: [f64; 2]| [a[0] - b[0], a[1] - b[1]];
+    let cross = |a: [f64; 2], b: [f64; 2]| a[0] * b[1] - a[1] * b[0];
+    let norm = |a: [f64; 2]| a[0].hypot(a[1]);
+    for (k, &[i, j]) in edges.iter().enumerate() {
+        if norm(sub(corners[i], corners[j])) < MIN_CORNER_SEPARATION_PX {
+            return Err(format!(
+                "corners {i} and {j} (edge {k}) are both at {:?}: the corners must trace the model's polygon",
+                corners[i]
+            ));
+        }
+    }
+    // Orientation of c relative to the line a→b: +1, −1, or 0 on the line.
+    let orient = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        let v = cross(sub(b, a), sub(c, a));
+        let scale = norm(sub(b, a)) * norm(sub(c, a));
+        if v.abs() <= MIN_CORNER_SINE * scale { 0 } else { v.signum() as i32 }
+    };
+    let within = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        c[0] >= a[0].min(b[0]) && c[0] <= a[0].max(b[0]) && c[1] >= a[1].min(b[1]) && c[1] <= a[1].max(b[1])
+    };
+    for (k, &[a, b]) in edges.iter().enumerate() {
+        for (m, &[c, d]) in edges.iter().enumerate().skip(k + 1) {
+            let (pa, pb, pc, pd) = (corners[a], corners[b], corners[c], corners[d]);
+            let shared = [a, b].into_iter().find(|v| *v == c || *v == d);
+            if let Some(v) = shared {
+                let (u, w) = (if v == a { pb } else { pa }, if v == c { pd } else { pc });
+                let (du, dw) = (sub(u, corners[v]), sub(w, corners[v]));
+                if cross(du, dw).abs() <= MIN_CORNER_SINE * norm(du) * norm(dw) {
+                    return Err(format!(
+                        "edges {k} and {m} are on one line at corner {v}: the corners must trace the model's polygon"
+                    ));
+                }
+                continue;
+            }
+            let (o1, o2, o3, o4) = (orient(pa, pb, pc), orient(pa, pb, pd), orient(pc, pd, pa), orient(pc, pd, pb));
+            let crossing = (o1 * o2 < 0 && o3 * o4 < 0)
+                || (o1 == 0 && within(pa, pb, pc))
+                || (o2 == 0 && within(pa, pb, pd))
+                || (o3 == 0 && within(pc, pd, pa))
+                || (o4 == 0 && within(pc, pd, pb));
+            if crossing {
+                return Err(format!(
+                    "edges {k} [{a}, {b}] and {m} [{c}, {d}] cross: the corners must trace the model's polygon \
+                     without crossing itself (check the corner order)"
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Options of one tracking run.
@@ -106,19 +180,32 @@ pub struct RunSummary {
 
 /// Track `seq` and write one JSON line per frame to `out`; with
 /// `opts.overlay`, write one PNG per frame into that folder (a
-/// [`StagedDir`]: an interrupted run never leaves a folder that looks complete).
+/// [`StagedDir`]: an interrupted run never leaves a folder that looks
+/// complete). The overlay folder is checked before the tracker starts.
+/// Errors writing `out` are [`Error::Io`] naming `output`.
 pub fn track_sequence(
     seq: &Sequence,
     opts: &TrackOptions,
     out: &mut dyn Write,
+    on_result: impl FnMut(&FrameResult),
+) -> Result<RunSummary> {
+    track_named(seq, opts, out, Path::new("output"), on_result)
+}
+
+/// [`track_sequence`] with errors writing `out` naming `out_name`.
+fn track_named(
+    seq: &Sequence,
+    opts: &TrackOptions,
+    out: &mut dyn Write,
+    out_name: &Path,
     mut on_result: impl FnMut(&FrameResult),
 ) -> Result<RunSummary> {
+    let overlay = opts.overlay.as_deref().map(StagedDir::create).transpose()?;
     let mut tracker = make_tracker(&opts.tracker, seq, opts.config.as_deref())?;
     let (mut backend, fallback) = make_backend(opts.backend);
     if let Some(reason) = &fallback {
-        eprintln!("pipetrack: no GPU ({reason})");
+        let _ = writeln!(std::io::stderr(), "pipetrack: no GPU ({reason})");
     }
-    let overlay = opts.overlay.as_deref().map(StagedDir::create).transpose()?;
     // Overlays of a tracker with a pose draw only the edges visible at that pose.
     let model_geometry = ModelGeometry::new(&seq.model).ok();
     let (w, h) = (seq.camera.width as usize, seq.camera.height as usize);
@@ -127,8 +214,8 @@ pub fn track_sequence(
     let start = Instant::now();
     let (mut count, mut tracked) = (0, 0);
     track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), |frame, outcome, result| {
-        serde_json::to_writer(&mut *out, result).map_err(|e| Error::io("output", e.into()))?;
-        writeln!(out).map_err(|e| Error::io("output", e))?;
+        serde_json::to_writer(&mut *out, result).map_err(|e| Error::io(out_name, e.into()))?;
+        writeln!(out).map_err(|e| Error::io(out_name, e))?;
         if let (Some(dir), Some(frame)) = (&overlay, frame.gray()) {
             let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
             let visible = match (&model_geometry, &outcome.pose) {
@@ -300,11 +387,72 @@ fn progress_bar(enabled: bool, len: Option<usize>) -> indicatif::ProgressBar {
     bar
 }
 
-/// Track `seq` writing JSON Lines to `out_path` atomically (the file appears
-/// only when the run completed).
+/// Track `seq` writing JSON Lines to `out_path` atomically: a regular file
+/// appears only when the run completed (an [`AtomicFile`]). An existing
+/// `out_path` that is not a regular file or a folder (a device such as
+/// `/dev/null`, a named pipe) is written in place, as it cannot be replaced.
+///
+/// Before tracking, `out_path` is checked (see [`check_output`]) and so is
+/// the overlay folder. Errors writing name `out_path`.
 pub fn track_to_file(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Result<RunSummary> {
-    let mut file = AtomicFile::create(out_path)?;
-    let summary = track_sequence(seq, opts, &mut file, |_| {})?;
-    file.finish()?;
+    check_output(seq, opts, out_path)?;
+    match fs::metadata(out_path) {
+        Ok(meta) if !meta.is_file() => {
+            let file = fs::OpenOptions::new()
+                .write(true)
+                .open(out_path)
+                .map_err(|e| Error::input(out_path, format!("cannot open for writing: {e}")))?;
+            let mut out = BufWriter::new(file);
+            let summary = track_named(seq, opts, &mut out, out_path, |_| {})?;
+            out.flush().map_err(|e| Error::io(out_path, e))?;
+            Ok(summary)
+        }
+        _ => {
+            let mut file = AtomicFile::create(out_path)?;
+            let summary = track_named(seq, opts, &mut file, out_path, |_| {})?;
+            file.finish()?;
+            Ok(summary)
+        }
+    }
+}
+
+/// Track `seq` writing JSON Lines to standard output; errors writing name
+/// `stdout`. A closed pipe is an [`Error::Io`] of kind
+/// [`std::io::ErrorKind::BrokenPipe`], which the command line takes as the
+/// reader having had enough.
+pub fn track_to_stdout(seq: &Sequence, opts: &TrackOptions) -> Result<RunSummary> {
+    let name = Path::new("stdout");
+    let stdout = std::io::stdout();
+    let mut out = BufWriter::new(stdout.lock());
+    let summary = track_named(seq, opts, &mut out, name, |_| {})?;
+    out.flush().map_err(|e| Error::io(name, e))?;
     Ok(summary)
+}
+
+/// Check `--out` before a run: it must not be a folder, one of the
+/// sequence's input files ([`Sequence::input_files`]), the config file, or
+/// the overlay folder. Input errors name `out_path`.
+pub fn check_output(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Result<()> {
+    if out_path.is_dir() {
+        return Err(Error::input(out_path, "is a folder: --out takes a file name"));
+    }
+    if opts.overlay.as_deref().is_some_and(|o| o == out_path) {
+        return Err(Error::input(out_path, "is also the overlay folder: give --out and --overlay different names"));
+    }
+    // Only an existing file can be an input; compare resolved paths so that
+    // `./seq/../seq/init.json` and links are caught.
+    let Ok(out) = fs::canonicalize(out_path) else { return Ok(()) };
+    let same = |p: &Path| {
+        (p.file_name() == out.file_name() || p.is_symlink()) && fs::canonicalize(p).is_ok_and(|p| p == out)
+    };
+    if let Some(input) = seq.input_files().iter().find(|p| same(p)) {
+        return Err(Error::input(
+            out_path,
+            format!("is the sequence's input file {}: write the output elsewhere", input.display()),
+        ));
+    }
+    if opts.config.as_deref().is_some_and(same) {
+        return Err(Error::input(out_path, "is the --config file: write the output elsewhere"));
+    }
+    Ok(())
 }

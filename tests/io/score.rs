@@ -11,7 +11,7 @@ use pipetrack::io::formats::{FrameResult, Status, TruthFrame};
 const SQUARE: [[f64; 2]; 4] = [[10.0, 10.0], [20.0, 10.0], [20.0, 20.0], [10.0, 20.0]];
 
 fn truth(frame: usize, visible: bool) -> TruthFrame {
-    TruthFrame { frame, visible, pose: None, params: Vec::new(), corners: SQUARE.to_vec() }
+    TruthFrame { frame, visible: visible.into(), pose: None, params: Vec::new(), corners: SQUARE.to_vec() }
 }
 
 /// A prediction at the square moved by `(dx, dy)`, with corner 2 moved a further `(0, extra)`.
@@ -48,7 +48,7 @@ fn score_hand_worked_run() {
     // Scored errors 5, 0, 1, 2: mean 2, median (1 + 2) / 2, p95 = 4th of 4 (rank ⌈3.8⌉), max 5.
     assert_eq!(s.stats, Some(ErrorStats { mean: 2.0, median: 1.5, p95: 5.0, max: 5.0 }));
     // Corner 2: 5 + 0 + 4 + 2 over 4 frames; the others 5 + 0 + 0 + 2.
-    assert_eq!(s.corner_errors, vec![1.75, 1.75, 2.75, 1.75]);
+    assert_eq!(s.corner_errors, vec![Some(1.75), Some(1.75), Some(2.75), Some(1.75)]);
     let text = s.to_string();
     assert!(text.contains("mean corner error:   2.000 px"), "{text}");
     assert!(text.contains("p95 corner error:    5.000 px"), "{text}");

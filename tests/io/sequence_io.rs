@@ -92,14 +92,13 @@ fn good_folder_loads_and_streams_frames() {
     assert_eq!(seq.camera, Camera { width: 4, height: 3, fx: 100.0, fy: 100.0, cx: 1.5, cy: 1.0 });
     assert_eq!(seq.model.vertices.len(), 4);
     assert_eq!(seq.init.corners.len(), 4);
-    assert!(seq.truth.is_none());
     assert!(seq.model_path().ends_with("model.json"));
     assert_eq!(seq.frame_count(), Some(2));
     let frames = all_frames(&seq).unwrap();
     assert_eq!(frames.len(), 2);
     assert_eq!(frames[1].size(), (4, 3));
     assert_eq!(frames[1].data()[..3], [10, 11, 12]);
-    assert!(input_error(seq.require_truth(), "truth.jsonl").starts_with("missing"));
+    assert!(input_error(seq.read_truth(), "truth.jsonl").starts_with("missing"));
 }
 
 #[test]
@@ -110,9 +109,9 @@ fn good_truth_loads() {
         "{\"frame\":0,\"visible\":true,\"corners\":[[1,1],[2,1],[2,2],[1,2]]}\n\n{\"frame\":1,\"visible\":false}\n",
     );
     let seq = f.open().unwrap();
-    let truth = seq.require_truth().unwrap();
+    let truth = seq.read_truth().unwrap();
     assert_eq!(truth.len(), 2);
-    assert!(!truth[1].visible);
+    assert!(!truth[1].visible.any());
 }
 
 #[test]

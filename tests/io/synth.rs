@@ -237,7 +237,7 @@ fn synth_pendulum_peak_corner_speed_is_the_requested_speed() {
         let truth: Vec<TruthFrame> = (0..200)
             .map(|k| TruthFrame {
                 frame: k,
-                visible: true,
+                visible: true.into(),
                 pose: None,
                 params: Vec::new(),
                 corners: swing.corners(k).to_vec(),
@@ -348,7 +348,7 @@ fn synth_pendulum_jump_moves_the_truth() {
                 assert!((d - JUMP_OFFSET_PX[0].hypot(JUMP_OFFSET_PX[1])).abs() < 1e-9, "frame {k}");
             }
         }
-        assert!(seq.truth[k].visible);
+        assert!(seq.truth[k].visible.any());
     }
     let step = seq.truth[jump_at - 1].corners.iter().zip(&seq.truth[jump_at].corners);
     for (a, b) in step {
@@ -434,7 +434,7 @@ fn synth_generate_writes_a_sequence_folder() {
         .collect();
     assert_eq!(truth.len(), 6);
     for (read, made) in truth.iter().zip(&seq.truth) {
-        assert_eq!((read.frame, read.visible), (made.frame, made.visible));
+        assert_eq!((read.frame, &read.visible), (made.frame, &made.visible));
         assert_corners_close(&read.corners, &made.corners);
     }
     let meta: serde_json::Value = read_json(&dir.join("meta.json"));
