@@ -311,11 +311,9 @@ fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) 
         if !json && write_error.is_none() {
             let gpu = row.gpu_fps.map_or("-".to_string(), |g| format!("{g:.1}"));
             let ratio = row.gpu_over_cpu.map_or("-".to_string(), |r| format!("{r:.2}"));
-            write_error = say(format_args!(
-                "{:<14} {:>10} {:>12.1} {:>12} {:>9}",
-                row.stage, row.size, row.cpu_fps, gpu, ratio
-            ))
-            .err();
+            write_error =
+                say(format_args!("{:<14} {:>10} {:>12.1} {:>12} {:>9}", row.stage, row.size, row.cpu_fps, gpu, ratio))
+                    .err();
         }
     })
     .context("benchmark failed")?;

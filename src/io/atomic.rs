@@ -240,7 +240,8 @@ fn remove_stale_staging(parent: &Path, prefix: &str) {
     for entry in entries.flatten() {
         let name = entry.file_name();
         let Some(pid) = name.to_str().and_then(|n| n.strip_prefix(prefix)) else { continue };
-        let alive = pid.parse::<u32>().map_or(true, |pid| pid == std::process::id() || proc.join(pid.to_string()).exists());
+        let alive =
+            pid.parse::<u32>().map_or(true, |pid| pid == std::process::id() || proc.join(pid.to_string()).exists());
         if !alive && entry.path().is_dir() {
             let _ = fs::remove_dir_all(entry.path());
         }

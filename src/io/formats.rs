@@ -290,7 +290,11 @@ impl Model {
     pub fn validate(&self, path: &Path) -> Result<()> {
         let fail = |msg: String| Err(Error::input(path, msg));
         if !MODEL_UNITS.contains(&self.units.as_str()) {
-            return fail(format!("units {:?} is not one pipetrack reads: use one of {}", self.units, MODEL_UNITS.join(", ")));
+            return fail(format!(
+                "units {:?} is not one pipetrack reads: use one of {}",
+                self.units,
+                MODEL_UNITS.join(", ")
+            ));
         }
         let n = self.vertices.len();
         if n < 2 {

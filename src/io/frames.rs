@@ -94,7 +94,9 @@ fn check_numbering(frames_dir: &Path, named: &[(String, PathBuf)]) -> Result<()>
         if n < previous {
             return Err(Error::input(
                 path,
-                format!("numbered {n} but comes after {previous_name} in name order: give every frame one name pattern"),
+                format!(
+                    "numbered {n} but comes after {previous_name} in name order: give every frame one name pattern"
+                ),
             ));
         }
         if n > previous + 1 {

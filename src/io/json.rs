@@ -38,9 +38,9 @@ pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
 /// The complaint about a JSON text whose top level is an array: every file
 /// and line pipetrack reads is one object with named fields.
 fn not_an_object(text: &str) -> Option<String> {
-    text.trim_start().starts_with('[').then(|| {
-        "a JSON array where an object is expected: give the fields by name, {\"key\": value, ...}".to_string()
-    })
+    text.trim_start()
+        .starts_with('[')
+        .then(|| "a JSON array where an object is expected: give the fields by name, {\"key\": value, ...}".to_string())
 }
 
 /// Read a JSON Lines file: one `T` per non-blank line, each with its

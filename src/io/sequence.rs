@@ -127,11 +127,12 @@ impl Sequence {
     /// be written over any of them.
     #[must_use]
     pub fn input_files(&self) -> Vec<PathBuf> {
-        let mut files: Vec<PathBuf> = [CAMERA_FILE, MODEL_JSON_FILE, MODEL_CAO_FILE, MODEL_OBJ_FILE, INIT_FILE, TRUTH_FILE]
-            .iter()
-            .map(|name| self.dir.join(name))
-            .filter(|p| p.exists())
-            .collect();
+        let mut files: Vec<PathBuf> =
+            [CAMERA_FILE, MODEL_JSON_FILE, MODEL_CAO_FILE, MODEL_OBJ_FILE, INIT_FILE, TRUTH_FILE]
+                .iter()
+                .map(|name| self.dir.join(name))
+                .filter(|p| p.exists())
+                .collect();
         files.extend(self.frame_paths().unwrap_or(&[]).iter().cloned());
         files
     }

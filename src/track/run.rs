@@ -181,8 +181,9 @@ pub struct RunSummary {
 /// Track `seq` and write one JSON line per frame to `out`; with
 /// `opts.overlay`, write one PNG per frame into that folder (a
 /// [`StagedDir`]: an interrupted run never leaves a folder that looks
-/// complete). The overlay folder is checked before the tracker starts.
-/// Errors writing `out` are [`Error::Io`] naming `output`.
+/// complete). The overlay folder is checked before the tracker starts, and
+/// published only after `out` is flushed without error. Errors writing
+/// `out` are [`Error::Io`] naming `output`.
 pub fn track_sequence(
     seq: &Sequence,
     opts: &TrackOptions,
@@ -239,6 +240,8 @@ fn track_named(
         Ok(())
     })?;
     bar.finish_and_clear();
+    // The output first: a run whose lines could not all be written publishes no overlays.
+    out.flush().map_err(|e| Error::io(out_name, e))?;
     if let Some(dir) = overlay {
         dir.finish()?;
     }
@@ -442,9 +445,8 @@ pub fn check_output(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Res
     // Only an existing file can be an input; compare resolved paths so that
     // `./seq/../seq/init.json` and links are caught.
     let Ok(out) = fs::canonicalize(out_path) else { return Ok(()) };
-    let same = |p: &Path| {
-        (p.file_name() == out.file_name() || p.is_symlink()) && fs::canonicalize(p).is_ok_and(|p| p == out)
-    };
+    let same =
+        |p: &Path| (p.file_name() == out.file_name() || p.is_symlink()) && fs::canonicalize(p).is_ok_and(|p| p == out);
     if let Some(input) = seq.input_files().iter().find(|p| same(p)) {
         return Err(Error::input(
             out_path,

@@ -3,7 +3,7 @@
 //! output file; the happy path synthesises, tracks and scores.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 fn pipetrack(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
@@ -225,4 +225,238 @@ fn score_rejects_short_predictions() {
     let out = pipetrack(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("short.jsonl"));
+}
+
+/// `pipetrack ARGS` with stdout a pipe whose reader is gone before the
+/// command writes (it is closed right after the spawn).
+fn with_stdout_closed(args: &[&str]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("binary runs");
+    drop(child.stdout.take());
+    child.wait_with_output().expect("binary ends")
+}
+
+/// `pipetrack ARGS` with stdout `/dev/full`, or `None` where there is no `/dev/full`.
+fn with_stdout_full(args: &[&str]) -> Option<Output> {
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").ok()?;
+    Some(Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).stdout(full).output().expect("binary runs"))
+}
+
+/// The lines of `out`'s stderr starting with `pipetrack:`, checking there is no panic.
+fn error_lines(out: &Output) -> Vec<String> {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    stderr.lines().filter(|l| l.starts_with("pipetrack:")).map(str::to_string).collect()
+}
+
+#[test]
+fn a_closed_stdout_ends_quietly_with_status_0() {
+    let root = scratch("pipe");
+    let seq = good_sequence(&root);
+    let pred = root.join("pred.jsonl");
+    assert!(track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]).status.success());
+    let out = with_stdout_closed(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(out.stderr.is_empty(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    let overlay = root.join("overlay");
+    let seq_arg = seq.to_str().unwrap();
+    let args =
+        ["track", seq_arg, "--tracker", "motion-edge", "--backend", "cpu", "--overlay", overlay.to_str().unwrap()];
+    let out = with_stdout_closed(&args);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(error_lines(&out).is_empty(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(!overlay.exists(), "the stopped run's overlays are not left looking complete");
+    assert_eq!(std::fs::read_dir(&root).unwrap().count(), 2, "only seq and pred.jsonl: no staging folder left");
+}
+
+#[test]
+fn a_full_stdout_or_out_file_is_one_error_line() {
+    let root = scratch("full");
+    let seq = good_sequence(&root);
+    let pred = root.join("pred.jsonl");
+    assert!(track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]).status.success());
+    let Some(out) = with_stdout_full(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]) else {
+        eprintln!("skipped: no /dev/full");
+        return;
+    };
+    let lines = error_lines(&out);
+    assert_ne!(out.status.code(), Some(0));
+    assert!(out.status.code().is_some(), "ended by a signal");
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    assert!(lines[0].contains("stdout") && lines[0].contains("No space left"), "{}", lines[0]);
+
+    let seq_arg = seq.to_str().unwrap();
+    let out = with_stdout_full(&["track", seq_arg, "--tracker", "motion-edge", "--backend", "cpu"]).unwrap();
+    let lines = error_lines(&out);
+    assert_ne!(out.status.code(), Some(0));
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    assert!(lines[0].contains("stdout") && lines[0].contains("No space left"), "{}", lines[0]);
+
+    // A device as --out is written in place, never replaced by a file.
+    let out = track_motion_edge_cpu(&seq, &["--out", "/dev/full"]);
+    let lines = error_lines(&out);
+    assert_ne!(out.status.code(), Some(0));
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    assert!(lines[0].contains("/dev/full") && lines[0].contains("No space left"), "{}", lines[0]);
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::metadata("/dev/full").unwrap().file_type().is_char_device());
+    assert!(!Path::new("/dev/full.partial").exists());
+}
+
+#[test]
+fn out_over_an_input_file_or_a_folder_is_refused_before_tracking() {
+    let root = scratch("outcheck");
+    let seq = good_sequence(&root);
+    for input in ["init.json", "camera.json", "model.json", "truth.jsonl", "frames/000002.png"] {
+        let target = seq.join(input);
+        let before = std::fs::read(&target).unwrap();
+        // Through a detour, so only the resolved paths are equal.
+        let detour = seq.join("frames").join("..").join(input);
+        let out = track_motion_edge_cpu(&seq, &["--out", detour.to_str().unwrap()]);
+        let lines = error_lines(&out);
+        assert_eq!(out.status.code(), Some(2), "{lines:?}");
+        assert!(lines[0].contains("input file") && lines[0].contains(input), "{}", lines[0]);
+        assert_eq!(std::fs::read(&target).unwrap(), before, "{input} untouched");
+    }
+    let dir = root.join("a-folder");
+    std::fs::create_dir(&dir).unwrap();
+    let out = track_motion_edge_cpu(&seq, &["--out", dir.to_str().unwrap()]);
+    let lines = error_lines(&out);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(lines.len(), 1, "refused before tracking, so no summary line: {lines:?}");
+    assert!(lines[0].contains("a-folder: is a folder"), "{}", lines[0]);
+    assert!(!root.join("a-folder.partial").exists());
+
+    let file = root.join("a-file");
+    std::fs::write(&file, "x").unwrap();
+    let out = track_motion_edge_cpu(&seq, &["--overlay", file.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(out.stdout.is_empty(), "refused before the first frame");
+}
+
+#[test]
+fn a_gap_in_the_frames_is_refused_naming_the_missing_file() {
+    let root = scratch("gap");
+    let seq = good_sequence(&root);
+    std::fs::remove_file(seq.join("frames/000002.png")).unwrap();
+    expect_bad_input(&root, &seq, &["frames/000002.png", "missing"]);
+}
+
+#[test]
+fn camera_as_a_positional_array_is_refused() {
+    let root = scratch("camarray");
+    let seq = good_sequence(&root);
+    std::fs::write(seq.join("camera.json"), "[256, 242, 300, 300, 127.5, 120.5]").unwrap();
+    expect_bad_input(&root, &seq, &["camera.json", "array"]);
+}
+
+#[test]
+fn bad_models_are_refused() {
+    let model = |units: &str, vertices: &str| {
+        format!(
+            r#"{{"name":"r","units":"{units}","vertices":{vertices},"edges":[[0,1],[1,2],[2,3],[3,0]],"faces":[[0,3,2,1]]}}"#
+        )
+    };
+    let cases = [
+        (model("px", "[[0,0,0],[10,0,0],[10,5,0],[10,0,0]]"), "vertex 3 repeats vertex 1"),
+        (model("px", "[[0,0,0],[10,0,0],[10,5,3],[0,5,0]]"), "face 0 is not planar"),
+        (model("inch", "[[0,0,0],[10,0,0],[10,5,0],[0,5,0]]"), "m, px"),
+    ];
+    for (text, needle) in cases {
+        let root = scratch("badmodel");
+        let seq = good_sequence(&root);
+        std::fs::write(seq.join("model.json"), text).unwrap();
+        expect_bad_input(&root, &seq, &["model.json", needle]);
+    }
+}
+
+#[test]
+fn track_never_reads_truth_and_score_takes_per_vertex_visibility() {
+    let root = scratch("truth");
+    let seq = good_sequence(&root);
+    let truth_text = std::fs::read_to_string(seq.join("truth.jsonl")).unwrap();
+    std::fs::write(seq.join("truth.jsonl"), "{\"frame\": damaged").unwrap();
+    let pred = root.join("pred.jsonl");
+    let out = track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "a damaged truth.jsonl does not stop track: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = pipetrack(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(error_lines(&out)[0].contains("truth.jsonl"));
+
+    // Per-vertex visibility, corner 0 hidden everywhere, and an extra key.
+    let per_vertex: String = truth_text
+        .lines()
+        .map(|l| {
+            let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
+            v["visible"] = serde_json::json!([false, true, true, true]);
+            v["occluded_fraction"] = serde_json::json!(0.25);
+            format!("{v}\n")
+        })
+        .collect();
+    std::fs::write(seq.join("truth.jsonl"), per_vertex).unwrap();
+    let out = track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = pipetrack(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("frames scored:       6"));
+}
+
+#[test]
+fn degenerate_init_corners_are_blamed_on_init_json() {
+    for (name, corners) in [
+        ("equal", "[[100,100],[100,100],[100,100],[100,100]]"),
+        ("bowtie", "[[100,100],[160,160],[160,100],[100,160]]"),
+        ("collinear", "[[100,100],[130,100],[160,100],[100,160]]"),
+    ] {
+        let root = scratch(&format!("init-{name}"));
+        let seq = good_sequence(&root);
+        std::fs::write(seq.join("init.json"), format!("{{\"corners\":{corners}}}")).unwrap();
+        expect_bad_input(&root, &seq, &["init.json"]);
+    }
+}
+
+#[test]
+fn sigint_during_track_leaves_no_partial_output() {
+    let root = scratch("sigint");
+    let seq = root.join("seq");
+    let out = pipetrack(&["synth", "pendulum", seq.to_str().unwrap(), "--frames", "2000", "--seed", "1"]);
+    assert!(out.status.success(), "synth failed: {}", String::from_utf8_lossy(&out.stderr));
+    let pred = root.join("pred.jsonl");
+    let overlay = root.join("overlay");
+    // Stale leftovers of an earlier run killed outright (a process id that
+    // does not run: above the kernel's pid limit).
+    let stale = root.join(".overlay.partial-4294967295");
+    std::fs::create_dir(&stale).unwrap();
+    let args = ["--out", pred.to_str().unwrap(), "--overlay", overlay.to_str().unwrap()];
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .args(["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu"])
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("binary runs");
+    let partial = root.join("pred.jsonl.partial");
+    let staging = root.join(format!(".overlay.partial-{}", child.id()));
+    let started = std::time::Instant::now();
+    while !(partial.exists() && std::fs::read_dir(&staging).is_ok_and(|mut d| d.next().is_some())) {
+        assert!(started.elapsed().as_secs() < 120, "the run never started writing");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended before the signal");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(!stale.exists(), "a stale staging folder of the same output is removed at start");
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill runs");
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{}", String::from_utf8_lossy(&out.stderr));
+    let left: Vec<_> = std::fs::read_dir(&root).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left, ["seq"], "nothing but the sequence is left");
 }

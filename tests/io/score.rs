@@ -68,6 +68,41 @@ fn score_with_nothing_to_score_says_so() {
 }
 
 #[test]
+fn per_vertex_visibility_scores_only_the_visible_corners() {
+    use pipetrack::io::formats::Visibility;
+    // Frame 0: corner 2 hidden and off by 100 px, the others off by 2: error 2.
+    // Frame 1: corners 0 and 2 hidden, corner 1 off by 6, corners 3 exact: error 3.
+    // Frame 2: nothing visible: not scored although tracking.
+    let mut truth = vec![truth(0, true), truth(1, true), truth(2, true)];
+    truth[0].visible = Visibility::Vertices(vec![true, true, false, true]);
+    truth[1].visible = Visibility::Vertices(vec![false, true, false, true]);
+    truth[2].visible = Visibility::Vertices(vec![false; 4]);
+    let p0 = pred(0, Status::Tracking, 0.0, 2.0, 98.0);
+    let mut p1 = pred(1, Status::Tracking, 0.0, 0.0, 0.0);
+    p1.corners[1][0] += 6.0;
+    p1.corners[0][0] += 50.0;
+    let p2 = pred(2, Status::Tracking, 9.0, 9.0, 0.0);
+    let s = score(&truth, &[p0, p1, p2]).unwrap();
+    assert_eq!(s.frame_errors, vec![(0, 2.0), (1, 3.0)]);
+    // Corner 0 seen once (2), corner 1 twice (2, 6), corner 2 never, corner 3 twice (2, 0).
+    assert_eq!(s.corner_errors, vec![Some(2.0), Some(4.0), None, Some(1.0)]);
+
+    let mut short = truth.clone();
+    short[0].visible = Visibility::Vertices(vec![true, true]);
+    let msg = score(
+        &short,
+        &[
+            pred(0, Status::Tracking, 0.0, 0.0, 0.0),
+            pred(1, Status::Lost, 0.0, 0.0, 0.0),
+            pred(2, Status::Lost, 0.0, 0.0, 0.0),
+        ],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(msg.contains("frame 0: truth.jsonl has 2 visibility flags for 4 corners"), "{msg}");
+}
+
+#[test]
 fn error_stats_percentiles() {
     let values: Vec<f64> = (1..=20).map(f64::from).collect();
     let s = ErrorStats::of(&values).unwrap();

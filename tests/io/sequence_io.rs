@@ -6,7 +6,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use pipetrack::Error;
-use pipetrack::io::formats::Camera;
+use pipetrack::io::formats::{Camera, Visibility};
 use pipetrack::io::{FrameSource, Sequence};
 
 /// A sequence folder under the temp dir, removed when dropped.
@@ -152,12 +152,40 @@ fn frames_sort_by_name_with_numbers_as_numbers() {
     let f = Folder::good("order");
     f.remove("frames");
     fs::create_dir(f.path("frames")).unwrap();
-    for (name, v) in [("10.png", 10u8), ("2.png", 2), ("1.PNG", 1)] {
+    // 1 to 10 in an order where plain string order would put 10 before 2.
+    let mut names: Vec<(String, u8)> = vec![("10.png".into(), 10), ("2.png".into(), 2), ("1.PNG".into(), 1)];
+    names.extend((3..10).map(|k| (format!("{k}.png"), k)));
+    for (name, v) in names {
         f.gray_png(&format!("frames/{name}"), 4, 3, |_| v);
     }
     let seq = f.open().unwrap();
     let firsts: Vec<u8> = all_frames(&seq).unwrap().iter().map(|im| im.data()[0]).collect();
-    assert_eq!(firsts, [1, 2, 10]);
+    assert_eq!(firsts, [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
+}
+
+#[test]
+fn a_gap_in_the_frame_numbers_names_the_missing_frame() {
+    let f = Folder::good("gap");
+    f.gray_png("frames/000003.png", 4, 3, |_| 0);
+    let msg = input_error(f.open(), "frames/000002.png");
+    assert!(msg.starts_with("missing") && msg.contains("000001.png") && msg.contains("000003.png"), "{msg}");
+
+    // Numbering from 1 is accepted; from 2 the first frame is missing.
+    f.remove("frames/000003.png");
+    f.remove("frames/000000.png");
+    f.gray_png("frames/000002.png", 4, 3, |_| 0);
+    assert_eq!(f.open().unwrap().frame_count(), Some(2));
+    f.remove("frames/000001.png");
+    f.gray_png("frames/000003.png", 4, 3, |_| 0);
+    assert!(input_error(f.open(), "frames/000000.png").starts_with("missing"));
+
+    let f = Folder::good("same-number");
+    f.gray_png("frames/1.png", 4, 3, |_| 0);
+    assert!(input_error(f.open(), "frames/1.png").contains("frame number of 000001.png"));
+
+    let f = Folder::good("no-number");
+    f.gray_png("frames/last.png", 4, 3, |_| 0);
+    assert!(input_error(f.open(), "frames/last.png").contains("no number"));
 }
 
 #[test]
@@ -340,26 +368,102 @@ fn bad_models_are_named() {
 }
 
 #[test]
+fn a_json_array_in_place_of_an_object_is_refused() {
+    let f = Folder::good("array-camera");
+    f.write("camera.json", "[4, 3, 100.0, 100.0, 1.5, 1.0]");
+    assert!(input_error(f.open(), "camera.json").contains("array where an object is expected"));
+    let f = Folder::good("array-init");
+    f.write("init.json", " [null, [], [[1,1],[2,1],[2,2],[1,2]]]");
+    input_error(f.open(), "init.json");
+    let f = Folder::good("array-truth");
+    f.write("truth.jsonl", "{\"frame\":0}\n[1, true]\n");
+    assert!(f.open().unwrap().read_truth().is_err_and(|e| e.to_string().contains("line 2: a JSON array")));
+}
+
+#[test]
+fn model_units_duplicate_vertices_and_bent_faces_are_refused() {
+    let model = |units: &str, vertices: &str| {
+        format!(
+            r#"{{"name":"sq","units":"{units}","vertices":{vertices},"edges":[[0,1],[1,2],[2,3],[3,0]],"faces":[[0,1,2,3]]}}"#
+        )
+    };
+    let square = "[[0,0,0],[0.1,0,0],[0.1,0.1,0],[0,0.1,0]]";
+    let f = Folder::good("units");
+    f.write("model.json", &model("px", square));
+    f.open().expect("px, the synthetic scenes' unit, is accepted");
+    f.write("model.json", &model("furlong", square));
+    let msg = input_error(f.open(), "model.json");
+    assert!(msg.contains("\"furlong\"") && msg.contains("m, px"), "{msg}");
+
+    f.write("model.json", &model("m", "[[0,0,0],[0.1,0,0],[0.1,0.1,0],[0.1,0,0]]"));
+    assert!(input_error(f.open(), "model.json").starts_with("vertex 3 repeats vertex 1"));
+
+    // A corner lifted by 10 % of the size is far outside the tolerance; a
+    // rounding-sized lift (1e-6 of the size) is not.
+    f.write("model.json", &model("m", "[[0,0,0],[0.1,0,0],[0.1,0.1,0.01],[0,0.1,0]]"));
+    assert!(input_error(f.open(), "model.json").starts_with("face 0 is not planar"));
+    f.write("model.json", &model("m", "[[0,0,0],[0.1,0,0],[0.1,0.1,1e-7],[0,0.1,0]]"));
+    f.open().expect("a face within the tolerance is planar");
+    // The tolerance scales with the model: the same shape in kilometres.
+    f.write("model.json", &model("m", "[[0,0,0],[100,0,0],[100,100,0.0001],[0,100,0]]"));
+    f.write("init.json", r#"{"pose":{"rotation":[0,0,0],"translation":[0,0,1000]}}"#);
+    f.open().expect("tolerance relative to the model's size");
+
+    f.write("model.json", &model("m", "[[0,0,0],[0.1,0,0],[0.2,0,0],[0.3,0,0]]"));
+    assert!(input_error(f.open(), "model.json").contains("encloses no area"));
+}
+
+#[test]
+fn truth_is_read_only_on_request_and_takes_per_vertex_visibility() {
+    let f = Folder::good("truth-lazy");
+    f.write("truth.jsonl", "this is not JSON\n");
+    let seq = f.open().expect("open does not read truth.jsonl");
+    assert!(input_error(seq.read_truth(), "truth.jsonl").starts_with("line 1: malformed JSON"));
+
+    f.write(
+        "truth.jsonl",
+        "{\"frame\":0,\"visible\":[true,true,false,true],\"corners\":[[1,1],[2,1],[2,2],[1,2]]}\n\
+         {\"frame\":1,\"visible\":false,\"occluded_fraction\":1.0}\n",
+    );
+    let truth = f.open().unwrap().read_truth().unwrap();
+    assert_eq!(truth[0].visible, Visibility::Vertices(vec![true, true, false, true]));
+    assert!(truth[0].visible.any() && !truth[0].visible.vertex(2));
+    assert_eq!(truth[1].visible, Visibility::Object(false));
+
+    f.write("truth.jsonl", "{\"frame\":0,\"visible\":[true,false]}\n");
+    let msg = input_error(f.open().unwrap().read_truth(), "truth.jsonl");
+    assert!(msg.starts_with("line 1: \"visible\" has 2 flags but the model has 4 vertices"), "{msg}");
+    f.write("truth.jsonl", "{\"frame\":0,\"visible\":[1,0,1,1]}\n");
+    let msg = input_error(f.open().unwrap().read_truth(), "truth.jsonl");
+    assert!(msg.contains("wrong content"), "{msg}");
+}
+
+#[test]
 fn bad_truth_lines_are_named_with_their_line() {
     let f = Folder::good("truth-bad");
     f.write("truth.jsonl", "{\"frame\":0,\"corners\":[[1,1],[2,1],[2,2],[1,2]]}\n{\"frame\":1,\"corners\":[[1,1],\n");
-    let msg = input_error(f.open(), "truth.jsonl");
+    let msg = input_error(f.open().unwrap().read_truth(), "truth.jsonl");
     assert!(msg.starts_with("line 2: malformed JSON at column"), "{msg}");
 
     f.write("truth.jsonl", "{\"frame\":1}\n{\"frame\":0}\n");
-    assert!(input_error(f.open(), "truth.jsonl").starts_with("line 2: frame 0 after frame 1"));
+    assert!(input_error(f.open().unwrap().read_truth(), "truth.jsonl").starts_with("line 2: frame 0 after frame 1"));
 
     f.write("truth.jsonl", "{\"frame\":0}\n{\"frame\":5}\n");
-    assert!(input_error(f.open(), "truth.jsonl").starts_with("line 2: frame 5 but the sequence has 2 frames"));
+    assert!(
+        input_error(f.open().unwrap().read_truth(), "truth.jsonl")
+            .starts_with("line 2: frame 5 but the sequence has 2 frames")
+    );
 
     f.write("truth.jsonl", "{\"frame\":0,\"corners\":[[1,NaN],[2,1],[2,2],[1,2]]}\n");
-    assert!(input_error(f.open(), "truth.jsonl").starts_with("line 1: NaN at column"));
+    assert!(input_error(f.open().unwrap().read_truth(), "truth.jsonl").starts_with("line 1: NaN at column"));
 
     f.write("truth.jsonl", "{\"frame\":0,\"corners\":[[1,1],[2,1]]}\n");
-    assert!(input_error(f.open(), "truth.jsonl").starts_with("line 1: 2 corners but the model has 4"));
+    assert!(
+        input_error(f.open().unwrap().read_truth(), "truth.jsonl").starts_with("line 1: 2 corners but the model has 4")
+    );
 
     f.write("truth.jsonl", "\n\n");
-    assert!(input_error(f.open(), "truth.jsonl").starts_with("empty file"));
+    assert!(input_error(f.open().unwrap().read_truth(), "truth.jsonl").starts_with("empty file"));
 }
 
 /// A 4×3 mono Y4M stream with `frames` frames.
