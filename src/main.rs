@@ -22,7 +22,14 @@ use pipetrack::track::run::{self, TrackOptions};
 
 /// Model-based visual tracking with GPU early vision.
 #[derive(Parser)]
-#[command(name = "pipetrack", version, about)]
+#[command(
+    name = "pipetrack",
+    version,
+    about,
+    after_help = "Exit status: 0 on success, and when the reader of stdout closes it early; 2 for bad input \
+                  (one line on stderr naming the file); 130 or 143 after SIGINT or SIGTERM, with unfinished \
+                  outputs removed; 1 otherwise."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
