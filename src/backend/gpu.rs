@@ -314,6 +314,7 @@ impl GpuBackend {
     /// Pick the next slot, plan the frame, and (re)allocate the slot's
     /// buffers for this size and plan.
     fn prepare_slot(&mut self, w: usize, h: usize, request: &FrameRequest) -> Result<(usize, FramePlan)> {
+        request.validate()?;
         let slot = self.next_slot;
         if self.slots[slot].as_ref().is_some_and(|s| s.pending.is_some()) {
             return Err(Error::Gpu(format!("more than {SLOTS} frames in flight: finish a ticket first")));
