@@ -437,6 +437,23 @@ impl EarlyVision for GpuBackend {
         self.previous = None;
     }
 
+    /// A list may hold every pixel of the frame (a window of the whole
+    /// frame, uncapped), and an f32 image takes `4·w·h` bytes; both must fit
+    /// one storage binding of the device.
+    fn check_frame_size(&self, width: usize, height: usize) -> Result<()> {
+        let pixels = width.saturating_mul(height);
+        let limits = self.ctx.device.limits();
+        crate::early::compaction::check_list_fits(&limits, pixels)?;
+        let image_bytes = (pixels as u64).saturating_mul(4);
+        if image_bytes > limits.max_storage_buffer_binding_size {
+            return Err(Error::Parameter(format!(
+                "a {width}x{height} image takes {image_bytes} bytes, more than the device's buffer limit of {} bytes",
+                limits.max_storage_buffer_binding_size
+            )));
+        }
+        Ok(())
+    }
+
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {
         let t = self.submit(frame, request)?;
         self.finish(t)

@@ -218,6 +218,16 @@ pub trait EarlyVision {
     /// Forget the previous frame: the next frame starts a new sequence.
     fn reset(&mut self);
 
+    /// `Ok` when frames of `width`×`height` fit this backend: the GPU
+    /// backend's lists and images must fit its device's buffer limits, the
+    /// CPU backend takes any size. A caller that knows the frame size
+    /// checks it before the first frame, so a size the device cannot take
+    /// is refused before anything is written.
+    fn check_frame_size(&self, width: usize, height: usize) -> Result<()> {
+        let _ = (width, height);
+        Ok(())
+    }
+
     /// Hand a frame's features back once read, so that the next
     /// [`process`](Self::process) refills their lists and pyramid levels
     /// instead of allocating new ones (optional: a backend may ignore it).

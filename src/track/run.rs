@@ -14,6 +14,7 @@ use crate::bounds::shorten_digit_runs;
 use crate::geometry::ModelGeometry;
 use crate::image::GrayImage;
 use crate::io::formats::{FrameResult, Status};
+use crate::io::sequence::CAMERA_FILE;
 use crate::io::{AtomicFile, Sequence, StagedDir};
 use crate::track::{BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
 use crate::{Error, Result};
@@ -144,10 +145,20 @@ pub fn track_sequence(
     if let Some(reason) = &fallback {
         eprintln!("pipetrack: no GPU ({reason})");
     }
+    let (w, h) = (seq.camera.width as usize, seq.camera.height as usize);
+    // The frame size comes from camera.json: a size the backend cannot take
+    // is that file's problem, refused before any output.
+    backend.check_frame_size(w, h).map_err(|e| {
+        let why = match e {
+            Error::Parameter(msg) => msg,
+            other => other.to_string(),
+        };
+        let message = format!("frames of {w}x{h} are too large for the backend ({}): {why}", backend.name());
+        Error::input(seq.dir().join(CAMERA_FILE), format!("{message}; try --backend cpu"))
+    })?;
     let overlay = opts.overlay.as_deref().map(StagedDir::create).transpose()?;
     // Overlays of a tracker with a pose draw only the edges visible at that pose.
     let model_geometry = ModelGeometry::new(&seq.model).ok();
-    let (w, h) = (seq.camera.width as usize, seq.camera.height as usize);
     let frames = seq.frames();
     let bar = progress_bar(opts.progress, frames.len_hint());
     let start = Instant::now();
