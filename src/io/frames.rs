@@ -56,7 +56,6 @@ fn decode_error(path: &Path, e: &::image::ImageError) -> Error {
         ::image::ImageError::Limits(limit) => {
             Error::input(path, format!("image too large ({limit}): {}", limits_text()))
         }
-        ::image::ImageError::IoError(io) => open_error(path, io),
         other => Error::input(path, format!("corrupt image: {other}")),
     }
 }

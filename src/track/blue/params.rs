@@ -211,7 +211,7 @@ impl Default for BlueParams {
 
 impl BlueParams {
     /// Check every parameter against its documented range
-    /// ([`Error::Parameter`] naming the first bad one and its range).
+    /// ([`crate::Error::Parameter`] naming the first bad one and its range).
     pub fn validate(&self) -> Result<()> {
         const WHO: &str = "blue";
         let reals = [
