@@ -50,6 +50,7 @@
 #![deny(missing_docs)]
 
 pub mod backend;
+pub mod bounds;
 pub mod cli;
 pub mod early;
 pub mod error;

@@ -151,6 +151,7 @@ impl EarlyVision for CpuBackend {
     }
 
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {
+        request.validate()?;
         let (w, h) = frame.size();
         let plan = FramePlan::new(request, w, h, self.previous.as_ref());
         let mut out = FrameFeatures::default();

@@ -314,6 +314,7 @@ impl GpuBackend {
     /// Pick the next slot, plan the frame, and (re)allocate the slot's
     /// buffers for this size and plan.
     fn prepare_slot(&mut self, w: usize, h: usize, request: &FrameRequest) -> Result<(usize, FramePlan)> {
+        request.validate()?;
         let slot = self.next_slot;
         if self.slots[slot].as_ref().is_some_and(|s| s.pending.is_some()) {
             return Err(Error::Gpu(format!("more than {SLOTS} frames in flight: finish a ticket first")));
@@ -434,6 +435,23 @@ impl EarlyVision for GpuBackend {
 
     fn reset(&mut self) {
         self.previous = None;
+    }
+
+    /// A list may hold every pixel of the frame (a window of the whole
+    /// frame, uncapped), and an f32 image takes `4·w·h` bytes; both must fit
+    /// one storage binding of the device.
+    fn check_frame_size(&self, width: usize, height: usize) -> Result<()> {
+        let pixels = width.saturating_mul(height);
+        let limits = self.ctx.device.limits();
+        crate::early::compaction::check_list_fits(&limits, pixels)?;
+        let image_bytes = (pixels as u64).saturating_mul(4);
+        if image_bytes > limits.max_storage_buffer_binding_size {
+            return Err(Error::Parameter(format!(
+                "a {width}x{height} image takes {image_bytes} bytes, more than the device's buffer limit of {} bytes",
+                limits.max_storage_buffer_binding_size
+            )));
+        }
+        Ok(())
     }
 
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {

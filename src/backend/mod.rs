@@ -16,8 +16,7 @@ pub use cpu::CpuBackend;
 pub use gpu::{FrameStats, GpuBackend, Ticket};
 pub use plan::FramePlan;
 
-use crate::Result;
-use crate::early::compaction::CompactionParams;
+use crate::early::compaction::{CompactionParams, MAX_CAP};
 use crate::early::cpf::CpfPyramids;
 use crate::early::edge_pyramid::EdgePyramids;
 use crate::early::gaussian::GaussianParams;
@@ -26,6 +25,7 @@ use crate::early::temporal_diff::TemporalDiffParams;
 use crate::early::zero_crossing::ZeroCrossingParams;
 use crate::early::{Feature, Window};
 use crate::image::GrayImage;
+use crate::{Error, Result};
 
 /// Where a list's pixels are kept: window, cap and subsample seed.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -117,6 +117,40 @@ pub enum Pyramids {
 }
 
 impl FrameRequest {
+    /// Check every parameter of the request before any stage runs: the
+    /// smoothing and LoG σ ([`GaussianParams::validate`],
+    /// [`LogParams::validate`]), the thresholds (finite, not NaN) and the
+    /// caps (at most [`MAX_CAP`]). Both backends call it first, so a bad
+    /// request is refused before anything is recorded or allocated.
+    pub fn validate(&self) -> Result<()> {
+        self.smoothing.validate()?;
+        let cap_ok = |list: &ListSpec, what: &str| match list.cap {
+            Some(cap) if cap > MAX_CAP => Err(Error::Parameter(format!("{what} list cap {cap} exceeds {MAX_CAP}"))),
+            _ => Ok(()),
+        };
+        if let Some(m) = &self.motion {
+            m.diff.validate()?;
+            cap_ok(&m.list, "motion")?;
+        }
+        if let Some(e) = &self.edges {
+            if !e.threshold.is_finite() {
+                return Err(Error::Parameter(format!("edge threshold {} must be finite", e.threshold)));
+            }
+            cap_ok(&e.list, "edge")?;
+        }
+        if let Some(z) = &self.zero_crossings {
+            z.log.validate()?;
+            if !z.crossings.min_slope.is_finite() {
+                return Err(Error::Parameter(format!(
+                    "zero-crossing min_slope {} must be finite",
+                    z.crossings.min_slope
+                )));
+            }
+            cap_ok(&z.list, "zero-crossing")?;
+        }
+        Ok(())
+    }
+
     /// The full chain, every list over the whole frame, pyramids built but
     /// kept where they were computed: what the benchmarks run.
     #[must_use]
@@ -183,6 +217,16 @@ pub trait EarlyVision {
 
     /// Forget the previous frame: the next frame starts a new sequence.
     fn reset(&mut self);
+
+    /// `Ok` when frames of `width`×`height` fit this backend: the GPU
+    /// backend's lists and images must fit its device's buffer limits, the
+    /// CPU backend takes any size. A caller that knows the frame size
+    /// checks it before the first frame, so a size the device cannot take
+    /// is refused before anything is written.
+    fn check_frame_size(&self, width: usize, height: usize) -> Result<()> {
+        let _ = (width, height);
+        Ok(())
+    }
 
     /// Hand a frame's features back once read, so that the next
     /// [`process`](Self::process) refills their lists and pyramid levels

@@ -275,6 +275,21 @@ pub struct CompactionGpu {
     prefetched: AtomicU32,
 }
 
+/// `Ok` when a list of up to `max_pixels` features fits a device with
+/// `limits` (one storage binding, one buffer with its header); otherwise an
+/// [`Error::Parameter`] stating the list's size and the device's limit.
+pub fn check_list_fits(limits: &wgpu::Limits, max_pixels: usize) -> Result<()> {
+    let list_bytes = (max_pixels.max(1) as u64).saturating_mul(FEATURE_BYTES);
+    let limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size.saturating_sub(HEADER_BYTES));
+    if list_bytes > limit {
+        return Err(Error::Parameter(format!(
+            "a list of {max_pixels} features takes {list_bytes} bytes, more than the device's buffer limit of \
+             {limit} bytes"
+        )));
+    }
+    Ok(())
+}
+
 impl CompactionGpu {
     /// Scratch for windows of up to `max_pixels` pixels and caps up to
     /// `max_cap` (`None`: uncapped lists only). Errors when `max_cap` exceeds
@@ -283,13 +298,8 @@ impl CompactionGpu {
         if let Some(cap) = max_cap.filter(|&c| c > MAX_CAP) {
             return Err(Error::Parameter(format!("compaction cap {cap} exceeds {MAX_CAP}")));
         }
-        let limits = ctx.device.limits();
+        check_list_fits(&ctx.device.limits(), max_pixels)?;
         let list_bytes = max_pixels.max(1) as u64 * FEATURE_BYTES;
-        if list_bytes > limits.max_storage_buffer_binding_size || HEADER_BYTES + list_bytes > limits.max_buffer_size {
-            return Err(Error::Parameter(format!(
-                "a list of {max_pixels} features exceeds the device's buffer limits"
-            )));
-        }
         let max_blocks = max_pixels.div_ceil(BLOCK as usize).max(1) as u64;
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
         let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {

@@ -10,12 +10,13 @@ use rayon::prelude::*;
 
 use super::rows::for_each_row;
 
+use crate::Result;
+use crate::bounds::Interval;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
     EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
 };
 use crate::image::FloatImage;
-use crate::{Error, Result};
 
 /// The shader of this stage.
 pub const SHADER: ShaderDef = ShaderDef {
@@ -48,11 +49,21 @@ impl Default for GaussianParams {
     }
 }
 
+impl GaussianParams {
+    /// Error unless σ lies in `(0, MAX_SIGMA]` (NaN never does).
+    pub fn validate(&self) -> Result<()> {
+        Interval::open_closed(0.0, f64::from(MAX_SIGMA)).check(
+            "Gaussian smoothing",
+            "sigma",
+            f64::from(self.sigma),
+            " px",
+        )
+    }
+}
+
 /// The half kernel `w_0..=w_r` of a Gaussian with standard deviation `sigma`.
 pub fn half_kernel(sigma: f32) -> Result<Vec<f32>> {
-    if !(sigma > 0.0 && sigma <= MAX_SIGMA) {
-        return Err(Error::Parameter(format!("Gaussian sigma {sigma} must be in (0, {MAX_SIGMA}]")));
-    }
+    GaussianParams { sigma }.validate()?;
     let radius = ((3.0 * sigma as f64).ceil() as usize).max(1);
     let s2 = 2.0 * (sigma as f64) * (sigma as f64);
     let w: Vec<f64> = (0..=radius).map(|k| (-((k * k) as f64) / s2).exp()).collect();

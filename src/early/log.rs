@@ -25,6 +25,7 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
 use super::rows::for_each_row;
+use crate::bounds::Interval;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
     EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
@@ -64,6 +65,13 @@ impl Default for LogParams {
     }
 }
 
+impl LogParams {
+    /// Error unless σ lies in `(0, MAX_SIGMA]` (NaN never does).
+    pub fn validate(&self) -> Result<()> {
+        Interval::open_closed(0.0, f64::from(MAX_SIGMA)).check("LoG", "sigma", f64::from(self.sigma), " px")
+    }
+}
+
 /// The two half kernels of the separable LoG, `k = 0..=r`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LogKernels {
@@ -84,9 +92,7 @@ impl LogKernels {
 /// The half kernels of an LoG with standard deviation `sigma` (see the
 /// module documentation for how they are built).
 pub fn log_kernels(sigma: f32) -> Result<LogKernels> {
-    if !(sigma > 0.0 && sigma <= MAX_SIGMA) {
-        return Err(Error::Parameter(format!("LoG sigma {sigma} must be in (0, {MAX_SIGMA}]")));
-    }
+    LogParams { sigma }.validate()?;
     let s = sigma as f64;
     let radius = ((3.0 * s).ceil() as usize).max(1);
     // Full-kernel sum of a symmetric half kernel: h_0 + 2 Σ_{k≥1} h_k.

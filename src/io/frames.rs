@@ -14,6 +14,52 @@ use super::y4m::Y4mReader;
 use crate::image::{GrayImage, luma};
 use crate::{Error, Result};
 
+/// Largest width or height of a frame, px: four times HD, and the side of
+/// the largest 2-D texture most GPUs take.
+pub const MAX_FRAME_SIDE: usize = 16_384;
+
+/// Largest frame, pixels (2²⁵: 8192×4096; 8K UHD, 7680×4320, fits). The
+/// backends keep about a dozen 4-byte planes of a frame, so this bounds
+/// their memory to a few GiB; a header that promises more is refused before
+/// anything of that size is allocated.
+pub const MAX_FRAME_PIXELS: usize = 1 << 25;
+
+/// The limits of a frame, for messages.
+fn limits_text() -> String {
+    format!("pipetrack takes frames of at most {MAX_FRAME_SIDE} px a side and {MAX_FRAME_PIXELS} pixels")
+}
+
+/// `Ok` unless a `width`×`height` frame exceeds [`MAX_FRAME_SIDE`] or
+/// [`MAX_FRAME_PIXELS`]; the error names `path` (the file that declares the
+/// size: a frame, a stream, `camera.json`) and states the limits.
+pub fn check_frame_size(path: &Path, width: usize, height: usize) -> Result<()> {
+    let pixels = width.checked_mul(height);
+    if width <= MAX_FRAME_SIDE && height <= MAX_FRAME_SIDE && pixels.is_some_and(|p| p <= MAX_FRAME_PIXELS) {
+        return Ok(());
+    }
+    Err(Error::input(path, format!("frame size {width}x{height} is too large: {}", limits_text())))
+}
+
+/// The decoder limits of a frame file: [`MAX_FRAME_SIDE`] a side, and the
+/// image crate's default cap on what a decoder allocates.
+fn decoder_limits() -> ::image::Limits {
+    let side = u32::try_from(MAX_FRAME_SIDE).unwrap_or(u32::MAX);
+    let mut limits = ::image::Limits::default();
+    limits.max_image_width = Some(side);
+    limits.max_image_height = Some(side);
+    limits
+}
+
+/// An image that failed to decode: too large (a decoder limit) or corrupt.
+fn decode_error(path: &Path, e: &::image::ImageError) -> Error {
+    match e {
+        ::image::ImageError::Limits(limit) => {
+            Error::input(path, format!("image too large ({limit}): {}", limits_text()))
+        }
+        other => Error::input(path, format!("corrupt image: {other}")),
+    }
+}
+
 /// The frame images in `frames_dir`, in natural name order (digit runs
 /// compare as numbers, so `2.png` < `10.png`; zero-padded names sort as
 /// usual). Files without a frame extension, hidden files and folders are
@@ -166,7 +212,8 @@ pub(crate) fn check_frame_header(path: &Path, camera: &Camera, camera_path: &Pat
         .with_guessed_format()
         .map_err(|e| open_error(path, &e))?
         .into_dimensions()
-        .map_err(|e| Error::input(path, format!("corrupt image: {e}")))?;
+        .map_err(|e| decode_error(path, &e))?;
+    check_frame_size(path, w as usize, h as usize)?;
     if (w, h) != (camera.width, camera.height) {
         return Err(size_mismatch(path, w as usize, h as usize, camera, camera_path));
     }
@@ -183,15 +230,20 @@ pub(crate) fn open_error(path: &Path, e: &io::Error) -> Error {
 
 /// Decode an image file to an 8-bit grey frame: grey as is (16-bit scaled
 /// to 8), colour through BT.601 luma ([`luma`], the weights the GPU ingest
-/// uses) rounded to the nearest integer, alpha ignored.
+/// uses) rounded to the nearest integer, alpha ignored. A frame larger
+/// than [`check_frame_size`] allows is refused from its header, before it
+/// is decoded.
 pub fn decode_gray(path: &Path) -> Result<GrayImage> {
-    let img = ::image::ImageReader::open(path)
+    let mut reader = ::image::ImageReader::open(path)
         .map_err(|e| open_error(path, &e))?
         .with_guessed_format()
-        .map_err(|e| open_error(path, &e))?
-        .decode()
-        .map_err(|e| Error::input(path, format!("corrupt image: {e}")))?;
-    dynamic_to_gray(img)
+        .map_err(|e| open_error(path, &e))?;
+    reader.limits(decoder_limits());
+    let decoder = reader.into_decoder().map_err(|e| decode_error(path, &e))?;
+    let (w, h) = ::image::ImageDecoder::dimensions(&decoder);
+    check_frame_size(path, w as usize, h as usize)?;
+    let img = ::image::DynamicImage::from_decoder(decoder).map_err(|e| decode_error(path, &e))?;
+    dynamic_to_gray(img).map_err(|e| Error::input(path, e.to_string()))
 }
 
 /// Convert any decoded image to grey as [`decode_gray`] describes.
@@ -256,12 +308,18 @@ impl FrameSource {
         }
     }
 
-    /// The next frame: `None` after the last one (or after an error).
+    /// The next frame: `None` after the last one (or after an error). Before
+    /// the first, the camera's size is checked against [`check_frame_size`]
+    /// (the error names the camera file).
     pub fn next_frame(&mut self) -> Option<Result<GrayImage>> {
         if self.failed {
             return None;
         }
-        let result = self.read_next();
+        let (cw, ch) = (self.camera.width as usize, self.camera.height as usize);
+        let result = match check_frame_size(&self.camera_path, cw, ch) {
+            Ok(()) => self.read_next(),
+            Err(e) => Some(Err(e)),
+        };
         match &result {
             Some(Ok(_)) => self.delivered += 1,
             Some(Err(_)) => self.failed = true,

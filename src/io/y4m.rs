@@ -9,11 +9,16 @@
 //! height bytes for 8-bit colour spaces). Accepted colour spaces: `420jpeg`,
 //! `420paldv`, `420mpeg2`, `420` (the default when `C` is absent), `411`,
 //! `422`, `444`, `444alpha` and `mono`; higher bit depths (`420p10`, ...)
-//! are refused with a hint to convert to 8 bits.
+//! are refused with a hint to convert to 8 bits. A header declaring a frame
+//! larger than [`super::frames::check_frame_size`] allows is refused, and a
+//! frame's buffer grows with the bytes that arrive, so a short stream that
+//! promises a large frame costs only what it sent.
 
 use std::io::{self, BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
+use super::frames::check_frame_size;
+use crate::bounds::shorten_digit_runs;
 use crate::image::GrayImage;
 use crate::{Error, Result};
 
@@ -24,8 +29,9 @@ const MAGIC: &[u8] = b"YUV4MPEG2";
 const FRAME_TAG: &[u8] = b"FRAME";
 /// Longest header or `FRAME` line we read before calling the stream corrupt.
 const MAX_LINE: usize = 4096;
-/// Largest width or height we accept (keeps `w * h` far from overflow).
-const MAX_SIDE: usize = 1 << 16;
+/// Largest first allocation of a frame's Y plane, bytes; a larger plane's
+/// buffer grows as its bytes arrive.
+const FIRST_READ: usize = 1 << 22;
 
 /// Chroma layout of a stream: decides how many bytes follow the Y plane in
 /// each frame.
@@ -57,11 +63,12 @@ impl Chroma {
             "mono" => Chroma::Mono,
             other if other.contains('p') || other.ends_with("16") => {
                 return Err(format!(
-                    "colour space C{other} has more than 8 bits per sample; convert to 8 bits \
-                     (e.g. ffmpeg -pix_fmt gray or yuv420p)"
+                    "colour space {} has more than 8 bits per sample; convert to 8 bits \
+                     (e.g. ffmpeg -pix_fmt gray or yuv420p)",
+                    quoted(&format!("C{other}"))
                 ));
             }
-            other => return Err(format!("unknown colour space C{other}")),
+            other => return Err(format!("unknown colour space {}", quoted(&format!("C{other}")))),
         })
     }
 
@@ -132,6 +139,7 @@ impl<R: Read> Y4mReader<R> {
             return Err(Error::input(&name, "YUV4MPEG2 header line is truncated or too long"));
         }
         let header = parse_header(&line[MAGIC.len()..]).map_err(|msg| Error::input(&name, msg))?;
+        check_frame_size(&name, header.width, header.height)?;
         Ok(Self { input, name, header, frames_read: 0, done: false, line })
     }
 
@@ -179,10 +187,20 @@ impl<R: Read> Y4mReader<R> {
             return Err(fail(&self.name, "truncated stream: FRAME line without its data".to_string()));
         }
         let Y4mHeader { width, height, chroma, .. } = self.header;
-        out.resize(width, height);
         let luma_bytes = width * height;
-        let got =
-            read_full(&mut self.input, out.data_mut()).map_err(|e| fail(&self.name, format!("cannot read: {e}")))?;
+        let got = if out.size() == (width, height) {
+            read_full(&mut self.input, out.data_mut())
+        } else {
+            // A new buffer grows with what arrives rather than with what the
+            // header promises.
+            let mut data = Vec::with_capacity(luma_bytes.min(FIRST_READ));
+            let got = (&mut self.input).take(luma_bytes as u64).read_to_end(&mut data);
+            if data.len() == luma_bytes {
+                *out = GrayImage::from_vec(width, height, data).map_err(|e| fail(&self.name, e.to_string()))?;
+            }
+            got
+        }
+        .map_err(|e| fail(&self.name, format!("cannot read: {e}")))?;
         let extra = chroma.extra_bytes(width, height) as u64;
         let skipped = if got == luma_bytes {
             io::copy(&mut (&mut self.input).take(extra), &mut io::sink())
@@ -258,24 +276,37 @@ fn parse_header(params: &[u8]) -> std::result::Result<Y4mHeader, String> {
                 let side: usize = value
                     .parse()
                     .ok()
-                    .filter(|&v| v > 0 && v <= MAX_SIDE)
-                    .ok_or_else(|| format!("bad frame size parameter {token:?} in the YUV4MPEG2 header"))?;
+                    .filter(|&v| v > 0)
+                    .ok_or_else(|| format!("bad frame size parameter {} in the YUV4MPEG2 header", quoted(token)))?;
                 if key == 'W' {
                     width = Some(side);
                 } else {
                     height = Some(side);
                 }
             }
-            'F' => frame_rate = Some(parse_ratio(value).ok_or_else(|| format!("bad frame rate {token:?}"))?),
+            'F' => frame_rate = Some(parse_ratio(value).ok_or_else(|| format!("bad frame rate {}", quoted(token)))?),
             'C' => chroma = Chroma::parse(value)?,
             // Interlacing, pixel aspect and comments do not change the layout.
             'I' | 'A' | 'X' => {}
-            _ => return Err(format!("unknown parameter {token:?} in the YUV4MPEG2 header")),
+            _ => return Err(format!("unknown parameter {} in the YUV4MPEG2 header", quoted(token))),
         }
     }
     match (width, height) {
         (Some(width), Some(height)) => Ok(Y4mHeader { width, height, frame_rate, chroma }),
         _ => Err("YUV4MPEG2 header lacks the W (width) or H (height) parameter".to_string()),
+    }
+}
+
+/// Longest header token quoted whole in a message.
+const MAX_QUOTED: usize = 32;
+
+/// A header token for a message: long digit runs shortened
+/// ([`shorten_digit_runs`]), then at most [`MAX_QUOTED`] characters, quoted.
+fn quoted(token: &str) -> String {
+    let short = shorten_digit_runs(token);
+    match short.char_indices().nth(MAX_QUOTED) {
+        Some((end, _)) => format!("{:?}", format!("{}…", &short[..end])),
+        None => format!("{short:?}"),
     }
 }
 

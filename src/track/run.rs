@@ -6,14 +6,16 @@
 //! [`track_step`] once per frame from its own render loop.
 
 use std::fs;
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::backend::{BackendKind, EarlyVision, make_backend};
+use crate::bounds::shorten_digit_runs;
 use crate::geometry::ModelGeometry;
 use crate::image::GrayImage;
 use crate::io::formats::{FrameResult, Status};
+use crate::io::sequence::CAMERA_FILE;
 use crate::io::{AtomicFile, Sequence, StagedDir};
 use crate::track::{BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
 use crate::{Error, Result};
@@ -21,19 +23,44 @@ use crate::{Error, Result};
 /// The `--tracker` names pipetrack knows.
 pub const TRACKERS: &[&str] = &["motion-edge", "blue"];
 
+/// Largest config file read, bytes: a tracker has a few dozen parameters.
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
 /// Read tracker parameters of type `P` from a TOML file: the table named after
 /// the tracker (`[motion-edge]`) when there is one, else the whole file.
+/// Errors name the file, in one line, with long numbers shortened
+/// ([`crate::bounds::shorten_digit_runs`]).
 pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>, tracker: &str) -> Result<P> {
     let Some(path) = path else { return Ok(P::default()) };
-    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
-    let mut table: toml::Table =
-        text.parse().map_err(|e: toml::de::Error| Error::input(path, one_line(&e.to_string())))?;
+    let cannot_read = |e: std::io::Error| Error::input(path, format!("cannot read: {e}"));
+    let mut text = String::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(MAX_CONFIG_BYTES + 1).read_to_string(&mut text))
+        .map_err(cannot_read)?;
+    if text.len() as u64 > MAX_CONFIG_BYTES {
+        return Err(Error::input(path, format!("too large for a config file (at most {MAX_CONFIG_BYTES} bytes)")));
+    }
+    let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| toml_error(path, &text, &e))?;
     let section = match table.remove(tracker) {
         Some(toml::Value::Table(t)) => t,
         Some(_) => return Err(Error::input(path, format!("[{tracker}] must be a table"))),
         None => table,
     };
-    toml::Value::Table(section).try_into().map_err(|e: toml::de::Error| Error::input(path, one_line(&e.to_string())))
+    toml::Value::Table(section).try_into().map_err(|e: toml::de::Error| toml_error(path, &text, &e))
+}
+
+/// A TOML error as one line naming `path`: `line L, column C: message` when
+/// the error points into `text`, with long numbers shortened.
+fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> Error {
+    let message = match e.span().and_then(|span| text.get(..span.start)) {
+        Some(before) => {
+            let line = before.matches('\n').count() + 1;
+            let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+            format!("line {line}, column {column}: {}", one_line(e.message()))
+        }
+        None => one_line(&e.to_string()),
+    };
+    Error::input(path, shorten_digit_runs(&message))
 }
 
 /// A parameter error blamed on the config file when there is one.
@@ -207,9 +234,19 @@ fn track_named(
     if let Some(reason) = &fallback {
         let _ = writeln!(std::io::stderr(), "pipetrack: no GPU ({reason})");
     }
+    let (w, h) = (seq.camera.width as usize, seq.camera.height as usize);
+    // The frame size comes from camera.json: a size the backend cannot take
+    // is that file's problem, refused before any output.
+    backend.check_frame_size(w, h).map_err(|e| {
+        let why = match e {
+            Error::Parameter(msg) => msg,
+            other => other.to_string(),
+        };
+        let message = format!("frames of {w}x{h} are too large for the backend ({}): {why}", backend.name());
+        Error::input(seq.dir().join(CAMERA_FILE), format!("{message}; try --backend cpu"))
+    })?;
     // Overlays of a tracker with a pose draw only the edges visible at that pose.
     let model_geometry = ModelGeometry::new(&seq.model).ok();
-    let (w, h) = (seq.camera.width as usize, seq.camera.height as usize);
     let frames = seq.frames();
     let bar = progress_bar(opts.progress, frames.len_hint());
     let start = Instant::now();

@@ -1,6 +1,7 @@
 //! Files and commands: sequence folders and their errors, scoring, the
 //! synthetic scenes, and the `pipetrack` binary on good and bad input.
 
+mod bounds;
 mod cli;
 mod score;
 mod sequence_io;

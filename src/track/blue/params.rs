@@ -4,8 +4,10 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::Result;
+use crate::bounds::{Interval, check_count};
+use crate::early::compaction::MAX_CAP;
 use crate::estimate::CornerCovariance;
-use crate::{Error, Result};
 
 /// Parameters of the blue tracker (paper 002), all with defaults, so a
 /// `--config` TOML file may set any subset (unknown keys are refused).
@@ -16,11 +18,11 @@ pub struct BlueParams {
     /// backend; weaker pixels handed over are ignored). Unnormalised Sobel on
     /// 0..255 grey levels gives 4·C on a step of contrast C; 80 keeps steps
     /// of 20 grey levels and more. The paper gives no value.
-    /// Range: positive, finite.
+    /// Range: (0, [`MAX_EDGE_THRESHOLD`]].
     pub edge_threshold: f32,
     /// Cap on the edge pixels sampled in the window (§2.3: 1500).
-    /// Range: at least 1 (the backend lists at most
-    /// [`crate::early::compaction::MAX_CAP`]).
+    /// Range: 1 ..= [`MAX_COUNT`] (the backend lists at most
+    /// [`MAX_CAP`] pixels).
     pub max_edge_points: usize,
     /// Seed of the backend's random subsample. Range: any.
     pub sample_seed: u64,
@@ -63,11 +65,11 @@ pub struct BlueParams {
     /// Range: [0, [`MAX_DISTANCE_PX`]].
     pub end_margin: f64,
     /// Fewest associated pixels to fit a line (eq. 1–3 need 2; eq. 4's
-    /// variance 3). Range: at least 3.
+    /// variance 3). Range: 3 ..= [`MAX_COUNT`].
     pub min_points_per_line: usize,
     /// Floor on the standard deviation of eq. 4, px: pixel positions are
     /// quantised (1/√12 ≈ 0.29 px), so a perfectly straight run of pixels
-    /// does not claim infinite precision. Range: positive, finite.
+    /// does not claim infinite precision. Range: (0, [`MAX_DISTANCE_PX`]].
     pub min_point_std: f64,
     /// How eq. 6's Σ is formed ([`crate::estimate`] module doc). Range: any.
     pub corner_covariance: CornerCovariance,
@@ -76,7 +78,7 @@ pub struct BlueParams {
     /// Range: (0, π/2].
     pub min_corner_angle: f64,
     /// Nominal range Z₀ of the model (§2.8), m; `None`: the init range.
-    /// Range: positive, finite.
+    /// Range: (0, [`MAX_RANGE_M`]].
     pub nominal_range: Option<f64>,
     /// The general (perspective) form of eq. 7 ([`super`] module doc); off:
     /// the paper's affine form. Range: either.
@@ -95,52 +97,84 @@ pub struct BlueParams {
     /// Range: (0, 1).
     pub lambda: f64,
     /// Fewest corners of a tracked frame: two corners give the four
-    /// equations eq. 9 needs for its three unknowns. Range: at least 2.
+    /// equations eq. 9 needs for its three unknowns. Range: 2 ..= [`MAX_COUNT`].
     pub min_corners: usize,
     /// Largest RMS of the consistency vector e of eq. 11 of a tracked frame, px.
-    /// Range: positive, finite.
+    /// Range: (0, [`MAX_DISTANCE_PX`]].
     pub max_inconsistency: f64,
     /// Corners whose consistency |e_j| (eq. 11) exceeds this are dropped
     /// one at a time, worst first, and eq. 9 solved again, while more than
     /// `min_corners` remain (extension: the paper only down-weights), px.
-    /// Range: positive, finite.
+    /// Range: (0, [`MAX_DISTANCE_PX`]].
     pub max_corner_inconsistency: f64,
     /// Floor on each |e_j| in eq. 12, px (a perfect fit does not make the
     /// location exact). 0.2: the corners of Sobel edges on rendered frames
     /// are good to a few tenths of a pixel; a floor of 0.05 px let one
     /// frame whose few corners happened to agree outweigh the motion
     /// models' memory (eq. 14 weights by 1/C_l), and its error was
-    /// extrapolated into the next predictions. Range: positive, finite.
+    /// extrapolated into the next predictions. Range: (0, [`MAX_DISTANCE_PX`]].
     pub min_feature_std: f64,
     /// Margin of the window of interest beyond the association distance, px.
     /// Range: [0, [`MAX_DISTANCE_PX`]].
     pub window_margin: f64,
     /// Prior standard deviation of the velocity at the start, px per frame:
     /// loose, it only makes the first predictions defined.
-    /// Range: positive, finite.
+    /// Range: (0, [`MAX_DISTANCE_PX`]].
     pub prior_speed: f64,
     /// Prior standard deviation of the acceleration at the start, px per
     /// frame²: a hand-held target reversing 20 px/frame within half a second
     /// accelerates ≈ 1.3 px/frame²; without this prior the second frame's
     /// prediction extrapolates a parabola through two samples.
-    /// Range: positive, finite.
+    /// Range: (0, [`MAX_DISTANCE_PX`]].
     pub prior_acceleration: f64,
     /// Lost frames during which the motion models keep extrapolating; after
     /// them the models restart at the last tracked location at rest (a
     /// parabola extrapolated for long runs away from where the target was).
-    /// Range: any (0 restarts them at the first lost frame).
+    /// Range: 0 ..= [`MAX_COAST_FRAMES`] (0 restarts them at the first lost frame).
     pub coast_frames: usize,
 }
 
-/// Upper bound of the distances and margins, px: the association strips,
-/// the window of interest and the alignment's (2d + 1)² vote grid grow
-/// with them, and a frame is at most a few thousand pixels across.
+/// Upper bound of the distances, margins and pixel-sized tolerances and
+/// priors, px: the association strips, the window of interest and the
+/// alignment's (2d + 1)² vote grid grow with them (at 1000 px a frame takes
+/// a fraction of a second on the CPU), and a frame is at most a few
+/// thousand pixels across.
 pub const MAX_DISTANCE_PX: f64 = 1000.0;
 
 /// Upper bound of [`BlueParams::refine_passes`] and
 /// [`BlueParams::perspective_iterations`]: each is one more solve per frame,
 /// and both converge within a handful.
 pub const MAX_PASSES: usize = 100;
+
+/// Upper bound of [`BlueParams::edge_threshold`]: the unnormalised 3×3 Sobel
+/// magnitude on 0..255 grey levels is at most 4·255·√2 ≈ 1442.5, so a higher
+/// threshold keeps no pixel.
+pub const MAX_EDGE_THRESHOLD: f32 = 1443.0;
+
+/// Upper bound of the pixel counts [`BlueParams::max_edge_points`] and
+/// [`BlueParams::min_points_per_line`], and of [`BlueParams::min_corners`]:
+/// the backend lists at most [`MAX_CAP`] pixels a frame, so no line (and no
+/// model) can have more.
+pub const MAX_COUNT: usize = MAX_CAP as usize;
+
+/// Upper bound of [`BlueParams::nominal_range`], m: Z₀ only scales the
+/// model's image size (§2.8), and a target a thousand kilometres away is not
+/// one a camera tracks by its edges; the bound keeps products of Z₀ with
+/// focal lengths and image coordinates far from overflow.
+pub const MAX_RANGE_M: f64 = 1e6;
+
+/// Upper bound of [`BlueParams::coast_frames`]: extrapolating the motion
+/// models for longer than about half a minute at 30 Hz only carries the
+/// prediction away from where the target was.
+pub const MAX_COAST_FRAMES: usize = 1000;
+
+/// Range of the angles [`BlueParams::angle_tolerance`] and
+/// [`BlueParams::min_corner_angle`], radians.
+const ANGLE: Interval = Interval::open_closed(0.0, std::f64::consts::FRAC_PI_2);
+/// Range of the positive pixel-sized parameters, px.
+const POSITIVE_PX: Interval = Interval::open_closed(0.0, MAX_DISTANCE_PX);
+/// Range of the margins, px.
+const MARGIN_PX: Interval = Interval::closed(0.0, MAX_DISTANCE_PX);
 
 impl Default for BlueParams {
     fn default() -> Self {
@@ -176,74 +210,48 @@ impl Default for BlueParams {
 }
 
 impl BlueParams {
-    /// Check every parameter's range (`Error::Parameter` naming the first bad one).
+    /// Check every parameter against its documented range
+    /// ([`crate::Error::Parameter`] naming the first bad one and its range).
     pub fn validate(&self) -> Result<()> {
-        let bad = |msg: String| Err(Error::Parameter(format!("blue: {msg}")));
-        let positive = [
-            ("edge_threshold", f64::from(self.edge_threshold)),
-            ("angle_tolerance", self.angle_tolerance),
-            ("distance_tolerance", self.distance_tolerance),
-            ("acquire_distance", self.acquire_distance),
-            ("refine_distance", self.refine_distance),
-            ("min_point_std", self.min_point_std),
-            ("min_corner_angle", self.min_corner_angle),
-            ("max_inconsistency", self.max_inconsistency),
-            ("max_corner_inconsistency", self.max_corner_inconsistency),
-            ("min_feature_std", self.min_feature_std),
-            ("prior_speed", self.prior_speed),
-            ("prior_acceleration", self.prior_acceleration),
+        const WHO: &str = "blue";
+        let reals = [
+            (
+                "edge_threshold",
+                f64::from(self.edge_threshold),
+                Interval::open_closed(0.0, f64::from(MAX_EDGE_THRESHOLD)),
+                "",
+            ),
+            ("angle_tolerance", self.angle_tolerance, ANGLE, " radians"),
+            ("distance_tolerance", self.distance_tolerance, POSITIVE_PX, " px"),
+            ("acquire_distance", self.acquire_distance, POSITIVE_PX, " px"),
+            ("refine_distance", self.refine_distance, POSITIVE_PX, " px"),
+            ("end_margin", self.end_margin, MARGIN_PX, " px"),
+            ("min_point_std", self.min_point_std, POSITIVE_PX, " px"),
+            ("min_corner_angle", self.min_corner_angle, ANGLE, " radians"),
+            ("lambda", self.lambda, Interval::open(0.0, 1.0), ""),
+            ("max_inconsistency", self.max_inconsistency, POSITIVE_PX, " px"),
+            ("max_corner_inconsistency", self.max_corner_inconsistency, POSITIVE_PX, " px"),
+            ("min_feature_std", self.min_feature_std, POSITIVE_PX, " px"),
+            ("window_margin", self.window_margin, MARGIN_PX, " px"),
+            ("prior_speed", self.prior_speed, POSITIVE_PX, " px/frame"),
+            ("prior_acceleration", self.prior_acceleration, POSITIVE_PX, " px/frame²"),
         ];
-        for (name, v) in positive {
-            if !(v > 0.0 && v.is_finite()) {
-                return bad(format!("{name} must be positive and finite, got {v}"));
-            }
-        }
-        for (name, v) in [("end_margin", self.end_margin), ("window_margin", self.window_margin)] {
-            if !(v >= 0.0 && v.is_finite()) {
-                return bad(format!("{name} must be ≥ 0 and finite, got {v}"));
-            }
-        }
-        let distances = [
-            ("distance_tolerance", self.distance_tolerance),
-            ("acquire_distance", self.acquire_distance),
-            ("refine_distance", self.refine_distance),
-            ("end_margin", self.end_margin),
-            ("window_margin", self.window_margin),
-        ];
-        for (name, v) in distances {
-            if v > MAX_DISTANCE_PX {
-                return bad(format!("{name} is at most {MAX_DISTANCE_PX} px, got {v}"));
-            }
-        }
-        for (name, v) in
-            [("refine_passes", self.refine_passes), ("perspective_iterations", self.perspective_iterations)]
-        {
-            if v > MAX_PASSES {
-                return bad(format!("{name} is at most {MAX_PASSES}, got {v}"));
-            }
-        }
-        if self.angle_tolerance > std::f64::consts::FRAC_PI_2 {
-            return bad(format!("angle_tolerance is at most π/2 radians, got {}", self.angle_tolerance));
-        }
-        if self.min_corner_angle > std::f64::consts::FRAC_PI_2 {
-            return bad(format!("min_corner_angle is at most π/2 radians, got {}", self.min_corner_angle));
-        }
-        if !(self.lambda > 0.0 && self.lambda < 1.0) {
-            return bad(format!("lambda must be in (0, 1), got {}", self.lambda));
-        }
-        if self.max_edge_points == 0 {
-            return bad("max_edge_points must be at least 1".into());
-        }
-        if self.min_points_per_line < 3 {
-            return bad(format!("min_points_per_line must be at least 3, got {}", self.min_points_per_line));
-        }
-        if self.min_corners < 2 {
-            return bad(format!("min_corners must be at least 2, got {}", self.min_corners));
+        for (name, v, range, unit) in reals {
+            range.check(WHO, name, v, unit)?;
         }
         if let Some(z) = self.nominal_range {
-            if !(z > 0.0 && z.is_finite()) {
-                return bad(format!("nominal_range must be positive and finite, got {z}"));
-            }
+            Interval::open_closed(0.0, MAX_RANGE_M).check(WHO, "nominal_range", z, " m")?;
+        }
+        let counts = [
+            ("max_edge_points", self.max_edge_points, 1, MAX_COUNT),
+            ("refine_passes", self.refine_passes, 0, MAX_PASSES),
+            ("min_points_per_line", self.min_points_per_line, 3, MAX_COUNT),
+            ("perspective_iterations", self.perspective_iterations, 0, MAX_PASSES),
+            ("min_corners", self.min_corners, 2, MAX_COUNT),
+            ("coast_frames", self.coast_frames, 0, MAX_COAST_FRAMES),
+        ];
+        for (name, v, lo, hi) in counts {
+            check_count(WHO, name, v, lo, hi)?;
         }
         Ok(())
     }

@@ -188,7 +188,10 @@
 mod params;
 mod steps;
 
-pub use params::{LineFitMethod, MissingMeasurement, MotionEdgeParams, Prediction};
+pub use params::{
+    LineFitMethod, MAX_COUNT, MAX_DISTANCE_PX, MAX_MIN_MAGNITUDE, MAX_MOTION_THRESHOLD, MAX_PASSES, MissingMeasurement,
+    MotionEdgeParams, Prediction,
+};
 pub use steps::{
     Labelling, LineTolerance, ModelLine, corner_deviation, fit_model_lines, intersect_corners, label_motion_pixels,
     model_lines,

@@ -5,7 +5,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::{Error, Result};
+use crate::Result;
+use crate::bounds::{Interval, check_count};
+use crate::early::gaussian::MAX_SIGMA;
+use crate::io::frames::MAX_FRAME_PIXELS;
 
 /// What a corner without a measurement feeds its smoother.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -60,62 +63,105 @@ pub struct MotionEdgeParams {
     /// Sobel orientations of blurred edges are good to a few degrees, a model
     /// line turns little in a frame, and 15° still rejects 5/6 of clutter of
     /// random orientation (2δ/π = 1/6) and separates lines meeting at > 30°.
+    /// Range: (0, π/2].
     pub delta: f64,
     /// Distance threshold ζ of eq. 4, px. Tables 1–3 test 3, 5, 10, 15: 3 and
     /// 5 give the smallest errors, 10–15 mislabel at 3.9–4.5 px/frame; 5 is as
     /// accurate as 3 in the tables and leaves room for blur tails and for
     /// prediction error when the object accelerates.
+    /// Range: (0, [`MAX_DISTANCE_PX`]].
     pub zeta: f64,
     /// Corner check ε of eq. 9, px. Tables test 20, 26, 32 with no significant
     /// difference; the tightest, 20, detects loss soonest.
+    /// Range: (0, [`MAX_DISTANCE_PX`]].
     pub epsilon: f64,
-    /// Smoothing constant α of eq. 10–12 (paper: 0.2), 0 < α < 1.
+    /// Smoothing constant α of eq. 10–12 (paper: 0.2). Range: (0, 1).
     pub alpha: f64,
     /// Gaussian σ the backend smooths frames with before eq. 1 (not given in
-    /// the paper), px.
+    /// the paper), px. Range: (0, [`MAX_SIGMA`]] (the smoothing stage's own
+    /// bound, [`crate::early::gaussian::GaussianParams::validate`]).
     pub sigma: f32,
     /// Threshold on |temporal difference| (eq. 1) in grey levels (0..255): well
     /// above sensor noise of a smoothed frame, well below edge contrasts.
+    /// Range: [0, [`MAX_MOTION_THRESHOLD`]].
     pub motion_threshold: f32,
-    /// Fewest labelled pixels that update a line (≥ 2); fewer keep its prediction.
+    /// Fewest labelled pixels that update a line; fewer keep its prediction.
+    /// Range: 2 ..= [`MAX_COUNT`].
     pub min_points_per_line: usize,
     /// Extra margin of the window of interest beyond ζ plus a frame's
     /// predicted motion (covers blur and acceleration), px.
+    /// Range: [0, [`MAX_DISTANCE_PX`]].
     pub window_margin: f64,
     /// Labelling distance and corner acceptance distance while acquiring (and
     /// re-acquiring), px: must exceed one frame's motion when tracking starts.
+    /// Range: (0, [`MAX_DISTANCE_PX`]].
     pub init_tolerance: f64,
     /// Report corners at the current frame rather than at the band centre
-    /// half a frame earlier (module doc).
+    /// half a frame earlier (module doc). Range: either.
     pub lag_correction: bool,
-    /// Widen ζ by half the predicted band width (module doc); off: eq. 4 as printed.
+    /// Widen ζ by half the predicted band width (module doc); off: eq. 4 as
+    /// printed. Range: either.
     pub band_tolerance: bool,
     /// Motion pixels with a weaker Sobel magnitude carry no edge orientation
     /// (eq. 2 is undefined where the gradient vanishes, and noise where it is
     /// small) and are ignored. Sobel units on the sum of two frames of 0..255
     /// grey levels: an edge steep enough to pass `motion_threshold` (≥ 10 grey
     /// levels, σ ≈ 1) gives ≳ 25 at the band's ends; noise of a smoothed frame
-    /// gives a few units. Default 10.
+    /// gives a few units. Default 10. Range: [0, [`MAX_MIN_MAGNITUDE`]].
     pub min_magnitude: f32,
     /// What a line or corner without motion pixels does (module doc).
+    /// Range: any.
     pub missing: MissingMeasurement,
     /// Unlabelled pixels of a starved line's orientation that declare it
     /// contradicted, i.e. the object lost (module doc).
+    /// Range: 1 ..= [`MAX_COUNT`].
     pub lost_evidence: usize,
     /// A tracking frame in which no line is fitted right after a frame in
     /// which every corner was measured moving at least this, px/frame, loses
     /// the track (module doc, "vanished motion"); infinity disables the
-    /// check. Default 1.
+    /// check. Default 1. Range: [0, [`MAX_DISTANCE_PX`]], or infinity.
     pub vanished_motion: f64,
-    /// Line fit of step 3.
+    /// Line fit of step 3. Range: any.
     pub line_fit: LineFitMethod,
     /// Re-labelling passes around the fitted lines after the first one
     /// (module doc, "Re-centred labelling"); 0: the paper's single pass.
+    /// Range: 0 ..= [`MAX_PASSES`].
     pub refine_iterations: usize,
     /// Prediction of the next frame's corners (module doc, "Prediction under
-    /// acceleration").
+    /// acceleration"). Range: any.
     pub prediction: Prediction,
 }
+
+/// Upper bound of the distances, tolerances and margins, px: the window of
+/// interest grows with them (it is clipped to the frame, but a frame is at
+/// most a few thousand pixels across), and a corner further than this from
+/// its prediction is no longer the same corner.
+pub const MAX_DISTANCE_PX: f64 = 1000.0;
+
+/// Upper bound of [`MotionEdgeParams::refine_iterations`]: each pass
+/// re-labels every motion pixel of the window, and the labelling settles
+/// within a few passes (it stops early when no corner moves).
+pub const MAX_PASSES: usize = 100;
+
+/// Upper bound of [`MotionEdgeParams::motion_threshold`], grey levels: the
+/// temporal difference of two frames of 0..255 is at most 255 in magnitude,
+/// and a pixel moves only when it exceeds the threshold, so from 255 on no
+/// pixel moves.
+pub const MAX_MOTION_THRESHOLD: f32 = 255.0;
+
+/// Upper bound of [`MotionEdgeParams::min_magnitude`]: the 3×3 Sobel magnitude
+/// of the sum of two frames of 0..255 is at most 4·510·√2 ≈ 2885, so a higher
+/// floor ignores every pixel.
+pub const MAX_MIN_MAGNITUDE: f32 = 2885.0;
+
+/// Upper bound of the pixel counts [`MotionEdgeParams::min_points_per_line`]
+/// and [`MotionEdgeParams::lost_evidence`]: no frame has more pixels.
+pub const MAX_COUNT: usize = MAX_FRAME_PIXELS;
+
+/// Range of the positive distances, px.
+const POSITIVE_PX: Interval = Interval::open_closed(0.0, MAX_DISTANCE_PX);
+/// Range of the margins, px.
+const MARGIN_PX: Interval = Interval::closed(0.0, MAX_DISTANCE_PX);
 
 impl Default for MotionEdgeParams {
     fn default() -> Self {
@@ -143,53 +189,39 @@ impl Default for MotionEdgeParams {
 }
 
 impl MotionEdgeParams {
-    /// Check every parameter's range (`Error::Parameter` naming the first bad one).
+    /// Check every parameter against its documented range
+    /// ([`crate::Error::Parameter`] naming the first bad one and its range).
     pub fn validate(&self) -> Result<()> {
-        let positive = |name: &str, v: f64| {
-            if v > 0.0 && v.is_finite() {
-                Ok(())
-            } else {
-                Err(Error::Parameter(format!("motion-edge: {name} must be positive and finite, got {v}")))
-            }
-        };
-        let non_negative = |name: &str, v: f64| {
-            if v >= 0.0 && v.is_finite() {
-                Ok(())
-            } else {
-                Err(Error::Parameter(format!("motion-edge: {name} must be ≥ 0 and finite, got {v}")))
-            }
-        };
-        positive("delta", self.delta)?;
-        if self.delta > std::f64::consts::FRAC_PI_2 {
-            return Err(Error::Parameter(format!(
-                "motion-edge: delta is an angle tolerance in radians, at most π/2, got {}",
-                self.delta
-            )));
+        const WHO: &str = "motion-edge";
+        let reals = [
+            ("delta", self.delta, Interval::open_closed(0.0, std::f64::consts::FRAC_PI_2), " radians"),
+            ("zeta", self.zeta, POSITIVE_PX, " px"),
+            ("epsilon", self.epsilon, POSITIVE_PX, " px"),
+            ("alpha", self.alpha, Interval::open(0.0, 1.0), ""),
+            ("sigma", f64::from(self.sigma), Interval::open_closed(0.0, f64::from(MAX_SIGMA)), " px"),
+            (
+                "motion_threshold",
+                f64::from(self.motion_threshold),
+                Interval::closed(0.0, f64::from(MAX_MOTION_THRESHOLD)),
+                " grey levels",
+            ),
+            ("window_margin", self.window_margin, MARGIN_PX, " px"),
+            ("init_tolerance", self.init_tolerance, POSITIVE_PX, " px"),
+            ("min_magnitude", f64::from(self.min_magnitude), Interval::closed(0.0, f64::from(MAX_MIN_MAGNITUDE)), ""),
+        ];
+        for (name, v, range, unit) in reals {
+            range.check(WHO, name, v, unit)?;
         }
-        positive("zeta", self.zeta)?;
-        positive("epsilon", self.epsilon)?;
-        if !(self.alpha > 0.0 && self.alpha < 1.0) {
-            return Err(Error::Parameter(format!("motion-edge: alpha must be in (0, 1), got {}", self.alpha)));
+        if self.vanished_motion != f64::INFINITY {
+            MARGIN_PX.check(WHO, "vanished_motion", self.vanished_motion, " px/frame (or inf)")?;
         }
-        positive("sigma", f64::from(self.sigma))?;
-        non_negative("motion_threshold", f64::from(self.motion_threshold))?;
-        if self.min_points_per_line < 2 {
-            return Err(Error::Parameter(format!(
-                "motion-edge: min_points_per_line must be at least 2, got {}",
-                self.min_points_per_line
-            )));
-        }
-        non_negative("window_margin", self.window_margin)?;
-        positive("init_tolerance", self.init_tolerance)?;
-        non_negative("min_magnitude", f64::from(self.min_magnitude))?;
-        if !(self.vanished_motion >= 0.0) {
-            return Err(Error::Parameter(format!(
-                "motion-edge: vanished_motion must be ≥ 0, got {}",
-                self.vanished_motion
-            )));
-        }
-        if self.lost_evidence == 0 {
-            return Err(Error::Parameter("motion-edge: lost_evidence must be at least 1".into()));
+        let counts = [
+            ("min_points_per_line", self.min_points_per_line, 2, MAX_COUNT),
+            ("lost_evidence", self.lost_evidence, 1, MAX_COUNT),
+            ("refine_iterations", self.refine_iterations, 0, MAX_PASSES),
+        ];
+        for (name, v, lo, hi) in counts {
+            check_count(WHO, name, v, lo, hi)?;
         }
         Ok(())
     }
