@@ -367,7 +367,7 @@ impl BlueTracker {
     /// or behind the camera, or whose pixel is not finite; `None` when every
     /// vertex projects.
     #[must_use]
-    pub fn unprojectable_vertex(&self, location: &TargetLocation) -> Option<String> {
+    fn unprojectable_vertex(&self, location: &TargetLocation) -> Option<String> {
         let x = self.reference_point(location);
         self.offsets.iter().enumerate().find_map(|(i, &q)| {
             let p = x + q;
