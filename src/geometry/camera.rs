@@ -19,11 +19,16 @@ impl Camera {
         [self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy]
     }
 
-    /// [`Camera::project`] for a point in front of the camera (Z > 0);
-    /// `None` otherwise (also for a NaN Z).
+    /// [`Camera::project`] for a point in front of the camera (Z > 0) whose
+    /// pixel is finite; `None` otherwise: a point at or behind the camera, a
+    /// NaN coordinate, or a Z so small against X, Y that the pixel overflows.
     #[must_use]
     pub fn project_in_front(&self, p: DVec3) -> Option<[f64; 2]> {
-        (p.z > 0.0).then(|| self.project(p))
+        if p.z.is_nan() || p.z <= 0.0 {
+            return None;
+        }
+        let pixel = self.project(p);
+        (pixel[0].is_finite() && pixel[1].is_finite()).then_some(pixel)
     }
 
     /// The camera-frame point at depth Z = `depth` whose image is `pixel`:
@@ -71,6 +76,10 @@ mod tests {
         assert_eq!(c.project(DVec3::new(1.0, 0.5, 2.0)), [569.5, 359.5]);
         assert_eq!(c.project_in_front(DVec3::new(0.0, 0.0, -1.0)), None);
         assert_eq!(c.project_in_front(DVec3::new(0.0, 0.0, 1.0)), Some([319.5, 239.5]));
+        assert_eq!(c.project_in_front(DVec3::new(0.0, 0.0, 0.0)), None);
+        assert_eq!(c.project_in_front(DVec3::new(f64::NAN, 0.0, 1.0)), None);
+        // In front, but so close that f_x·X/Z overflows.
+        assert_eq!(c.project_in_front(DVec3::new(1.0, 0.0, 1e-310)), None);
     }
 
     #[test]

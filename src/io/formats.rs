@@ -232,27 +232,72 @@ fn all_finite(values: &[f64]) -> bool {
     values.iter().all(|v| v.is_finite())
 }
 
+/// Smallest focal length, in units of the larger image side max(W, H): a
+/// pinhole camera with f = max(W, H)/100 sees 2·atan(50) ≈ 177.7° across that
+/// side, and no pinhole camera sees 180°.
+pub const MIN_FOCAL_PER_IMAGE_SIZE: f64 = 0.01;
+/// Largest focal length, in units of max(W, H): 10⁴ is a field of view of
+/// 2·atan(1/(2·10⁴)) ≈ 0.006° (20″), narrower than long telescope optics.
+pub const MAX_FOCAL_PER_IMAGE_SIZE: f64 = 1e4;
+/// How far the principal point may lie outside the image, in image widths
+/// (c_x) or heights (c_y): a crop keeps the principal point of the full
+/// frame, which lies outside the crop for an off-centre one; 10 allows a
+/// crop of a tenth of the frame at its border.
+pub const MAX_PRINCIPAL_POINT_OFFSET: f64 = 10.0;
+
 impl Camera {
-    /// Check the intrinsics: width and height > 0, fx and fy finite and
-    /// positive, cx and cy finite. `path` names `camera.json` in the error.
-    pub fn validate(&self, path: &Path) -> Result<()> {
+    /// The first thing wrong with the intrinsics, in words, or `None`:
+    /// width and height > 0; f_x and f_y finite, within
+    /// [[`MIN_FOCAL_PER_IMAGE_SIZE`], [`MAX_FOCAL_PER_IMAGE_SIZE`]]·max(W, H);
+    /// c_x within [−k·W, (1 + k)·W] and c_y within [−k·H, (1 + k)·H] for
+    /// k = [`MAX_PRINCIPAL_POINT_OFFSET`]. The ranges cover every real
+    /// pinhole camera (wide angle to telescope, crops) and keep projection,
+    /// back-projection and the trackers' covariances far from overflow and
+    /// underflow (an f_x of 1e-300 or a c_x of 1e308 yields infinite or
+    /// undefined numbers downstream).
+    #[must_use]
+    pub fn intrinsics_problem(&self) -> Option<String> {
         if self.width == 0 || self.height == 0 {
-            return Err(Error::input(
-                path,
-                format!("image size {}x{} is empty: width and height must be > 0", self.width, self.height),
-            ));
+            return Some(format!("image size {}x{} is empty: width and height must be > 0", self.width, self.height));
         }
+        let (w, h) = (f64::from(self.width), f64::from(self.height));
+        let size = w.max(h);
+        let (f_min, f_max) = (MIN_FOCAL_PER_IMAGE_SIZE * size, MAX_FOCAL_PER_IMAGE_SIZE * size);
         for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(Error::input(path, format!("{name} = {v}: focal lengths must be finite and > 0")));
+                return Some(format!("{name} = {v}: focal lengths must be finite and > 0"));
+            }
+            if !(f_min..=f_max).contains(&v) {
+                return Some(format!(
+                    "{name} = {v:?} px: focal lengths must lie in [{f_min}, {f_max}] px \
+                     ({MIN_FOCAL_PER_IMAGE_SIZE} to {MAX_FOCAL_PER_IMAGE_SIZE} times the larger image side, {size} px)"
+                ));
             }
         }
-        for (name, v) in [("cx", self.cx), ("cy", self.cy)] {
+        let k = MAX_PRINCIPAL_POINT_OFFSET;
+        for (name, v, side) in [("cx", self.cx, w), ("cy", self.cy, h)] {
             if !v.is_finite() {
-                return Err(Error::input(path, format!("{name} = {v}: the principal point must be finite")));
+                return Some(format!("{name} = {v}: the principal point must be finite"));
+            }
+            let (lo, hi) = (-k * side, (1.0 + k) * side);
+            if !(lo..=hi).contains(&v) {
+                return Some(format!(
+                    "{name} = {v:?} px: the principal point must lie in [{lo}, {hi}] px \
+                     (at most {k} image sizes outside the {}x{} image)",
+                    self.width, self.height
+                ));
             }
         }
-        Ok(())
+        None
+    }
+
+    /// Check the intrinsics ([`Camera::intrinsics_problem`]). `path` names
+    /// `camera.json` in the error.
+    pub fn validate(&self, path: &Path) -> Result<()> {
+        match self.intrinsics_problem() {
+            Some(problem) => Err(Error::input(path, problem)),
+            None => Ok(()),
+        }
     }
 }
 
@@ -529,8 +574,9 @@ impl TruthFrame {
 }
 
 impl FrameResult {
-    /// Check one line (1-based `line`) of a tracker output file: finite
-    /// numbers, and corners present while tracking.
+    /// Check one line (1-based `line`) of a tracker output file: every
+    /// number finite (corners, pose, params, covariance, ms), and corners
+    /// present while tracking.
     pub fn validate(&self, path: &Path, line: usize) -> Result<()> {
         let fail = |msg: &str| Err(Error::input(path, format!("line {line}: {msg}")));
         if self.status == Status::Tracking && self.corners.is_empty() {
@@ -541,6 +587,15 @@ impl FrameResult {
         }
         if self.pose.is_some_and(|p| !p.is_finite()) {
             return fail("the pose has a value that is not a finite number");
+        }
+        if self.params.as_deref().is_some_and(|p| !all_finite(p)) {
+            return fail("params has a value that is not a finite number");
+        }
+        if self.covariance.as_deref().is_some_and(|c| !all_finite(c)) {
+            return fail("covariance has a value that is not a finite number");
+        }
+        if !self.ms.is_finite() {
+            return fail("ms is not a finite number");
         }
         Ok(())
     }

@@ -91,16 +91,30 @@ pub struct FrameOutcome {
 
 impl FrameOutcome {
     /// The output line of SPEC §4 for this frame, with its timing.
+    ///
+    /// Every number in it is finite (SPEC §4; serde would write NaN and ±∞
+    /// as `null`, which no reader takes back). The trackers report finite
+    /// numbers themselves; this is the last guard: a frame whose corners,
+    /// pose or params are not all finite is reported `lost`, without its
+    /// corners (an empty list) and without the offending pose or params; a
+    /// covariance that is not all finite is left out; a non-finite `ms` is
+    /// written as 0.
     #[must_use]
     pub fn to_result(&self, ms: f64) -> FrameResult {
+        let finite = |values: &[f64]| values.iter().all(|v| v.is_finite());
+        let corners_finite = self.corners.iter().all(|c| finite(c));
+        let pose = self.pose.filter(Pose::is_finite);
+        let params = self.params.clone().filter(|p| finite(p));
+        let state_finite =
+            corners_finite && pose.is_some() == self.pose.is_some() && params.is_some() == self.params.is_some();
         FrameResult {
             frame: self.frame,
-            status: self.status,
-            corners: self.corners.clone(),
-            pose: self.pose,
-            params: self.params.clone(),
-            covariance: self.covariance.clone(),
-            ms,
+            status: if state_finite { self.status } else { Status::Lost },
+            corners: if corners_finite { self.corners.clone() } else { Vec::new() },
+            pose,
+            params,
+            covariance: self.covariance.clone().filter(|c| finite(c)),
+            ms: if ms.is_finite() { ms } else { 0.0 },
         }
     }
 }

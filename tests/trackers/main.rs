@@ -7,5 +7,6 @@ mod common;
 mod blue_e2e;
 mod blue_logic;
 mod embed;
+mod finite;
 mod motion_edge_e2e;
 mod motion_edge_logic;

@@ -111,7 +111,9 @@
 //!
 //! A frame is **lost** when fewer than [`BlueParams::min_corners`] corners
 //! are measured (2: four equations for three unknowns), when eq. 9 is
-//! singular, when the estimate is not in front of the camera, or when the
+//! singular, when the estimate is not in front of the camera or puts a
+//! model vertex where it cannot be projected (at or behind the camera, or
+//! so close to Z = 0 that its pixel overflows), or when the
 //! global consistency fails badly: RMS of e (eq. 11) above
 //! [`BlueParams::max_inconsistency`] px. A lost frame feeds nothing to the
 //! motion models (their information decays, the polynomials extrapolate),
@@ -126,6 +128,12 @@
 //! order, hidden ones too) at the frame's BLUE (the prediction when lost),
 //! the pose, and as covariance C_l of (c_x, c_y, 1/c_z) row-major (eq. 12; when
 //! lost, the motion models' prediction variances on the diagonal).
+//! Every reported number is finite (SPEC §4). A tracked frame projects
+//! every vertex (see above); on a lost frame a vertex that cannot be
+//! projected at the prediction is reported at its last reported position
+//! (at the init image of the centroid, c_x, c_y, if it never had one), and
+//! the lost reason says so. A covariance that is not finite (a motion model
+//! without a prediction variance) is left out.
 //!
 //! # Layout
 //! [`params`]: the parameters and their ranges; `steps.rs`: steps 1–8 above,
@@ -222,6 +230,9 @@ pub struct BlueTracker {
     last_tracked: TargetLocation,
     /// Consecutive lost frames.
     lost_run: usize,
+    /// Per vertex, its last reported image position (finite; module doc,
+    /// "Start, loss and output").
+    last_corners: Vec<[f64; 2]>,
 }
 
 impl BlueTracker {
@@ -230,9 +241,8 @@ impl BlueTracker {
     pub fn new(camera: Camera, model: Model, init: InitState, params: BlueParams) -> Result<Self> {
         params.validate()?;
         let bad = |msg: String| Err(Error::Parameter(format!("blue: {msg}")));
-        let intrinsics = [camera.fx, camera.fy, camera.cx, camera.cy];
-        if !(intrinsics.iter().all(|v| v.is_finite()) && camera.fx > 0.0 && camera.fy > 0.0) {
-            return bad(format!("camera intrinsics must be finite with fx, fy > 0, got {intrinsics:?}"));
+        if let Some(problem) = camera.intrinsics_problem() {
+            return bad(format!("camera: {problem}"));
         }
         let Some(init_pose) = init.pose else {
             return bad("init.json has no pose; the blue tracker needs the initial pose".into());
@@ -276,6 +286,10 @@ impl BlueTracker {
         let extent = offsets.iter().map(|q| q.x.hypot(q.y)).fold(0.0, f64::max).max(1e-9);
         let range_px_per_m = camera.fx.max(camera.fy) * extent / (reference.z * reference.z);
         let filters = start_filters(&params, &init_location, 0.0, range_px_per_m)?;
+        let init_corners = offsets
+            .iter()
+            .map(|&q| camera.project_in_front(reference + q).unwrap_or([init_location.cx, init_location.cy]))
+            .collect();
         Ok(Self {
             params,
             camera,
@@ -293,6 +307,7 @@ impl BlueTracker {
             last_frame: None,
             last_tracked: init_location,
             lost_run: 0,
+            last_corners: init_corners,
         })
     }
 
@@ -346,6 +361,36 @@ impl BlueTracker {
     pub fn vertices_at(&self, location: &TargetLocation) -> Vec<[f64; 2]> {
         let x = self.reference_point(location);
         self.offsets.iter().map(|&q| self.camera.project_in_front(x + q).unwrap_or([f64::NAN; 2])).collect()
+    }
+
+    /// Why the model at `location` cannot be projected: the first vertex at
+    /// or behind the camera, or whose pixel is not finite; `None` when every
+    /// vertex projects.
+    #[must_use]
+    fn unprojectable_vertex(&self, location: &TargetLocation) -> Option<String> {
+        let x = self.reference_point(location);
+        self.offsets.iter().enumerate().find_map(|(i, &q)| {
+            let p = x + q;
+            self.camera.project_in_front(p).is_none().then(|| {
+                format!(
+                    "model vertex {i} cannot be projected: it is at camera Z = {:?} m (c_z = {:?} m)",
+                    p.z, location.cz
+                )
+            })
+        })
+    }
+
+    /// The corners reported at `location`: [`BlueTracker::vertices_at`],
+    /// with a vertex that cannot be projected at its last reported position;
+    /// remembers the reported positions.
+    fn report_corners(&mut self, location: &TargetLocation) -> Vec<[f64; 2]> {
+        let projected = self.vertices_at(location);
+        for (last, p) in self.last_corners.iter_mut().zip(&projected) {
+            if p[0].is_finite() && p[1].is_finite() {
+                *last = *p;
+            }
+        }
+        self.last_corners.clone()
     }
 
     /// The pose at `location`: init rotation, translation t = X − R·c.
@@ -409,8 +454,14 @@ impl BlueTracker {
         let pass = self.reassociate(edges, pass, &predicted);
         self.next_frame = frame + 1;
         self.last_frame = Some(frame);
-        // Step 8, and the phase.
-        let tracked = pass.failure.is_none();
+        // Step 8, and the phase. Steps 5–6 refuse an estimate that puts a
+        // vertex where it cannot be projected; checked again here because
+        // every reported corner must be finite.
+        let mut failure = pass.failure.clone();
+        if failure.is_none() {
+            failure = self.unprojectable_vertex(&pass.location);
+        }
+        let tracked = failure.is_none();
         let (location, covariance) = if tracked {
             self.feed_motion_models(time, &pass);
             self.phase = Phase::Tracking;
@@ -432,14 +483,24 @@ impl BlueTracker {
             let cov = vec![var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2] * rho.powi(4)];
             (predicted, cov)
         };
+        if !tracked {
+            if let Some(reason) = self.unprojectable_vertex(&location) {
+                let reason = format!("{reason}; reported at its last position");
+                failure = Some(match failure {
+                    Some(first) => format!("{first}; {reason}"),
+                    None => reason,
+                });
+            }
+        }
+        let corners = self.report_corners(&location);
         FrameOutcome {
             frame,
             status: if tracked { Status::Tracking } else { Status::Lost },
             phase: self.phase,
-            corners: self.vertices_at(&location),
+            corners,
             pose: Some(self.pose_at(&location)),
             params: None,
-            covariance: Some(covariance),
+            covariance: covariance.iter().all(|v| v.is_finite()).then_some(covariance),
             labelled: pass.labelled,
             diagnostics: Diagnostics {
                 points_per_line: pass.points_per_line,
@@ -447,7 +508,7 @@ impl BlueTracker {
                 corner_measured: pass.corner_measured,
                 max_corner_deviation: pass.max_corner_deviation,
                 unexplained_points: pass.unexplained,
-                lost_reason: pass.failure,
+                lost_reason: failure,
             },
         }
     }

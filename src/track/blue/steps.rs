@@ -415,16 +415,35 @@ pub(super) fn intersect_corners(
 // ---------------------------------------------------------------------------
 // Steps 5–6: the BLUE (§2.8) and its confidence (§2.9).
 
+/// Eq. 9–12 solved for a list of corners.
+#[derive(Clone, Debug)]
+pub(super) struct BlueEstimate {
+    /// (c_x, c_y, c_z) from x̂_f = (c_x, c_y, 1/c_z).
+    pub(super) location: TargetLocation,
+    /// Eq. 9–12's solution; its per-block vectors (residuals, e of eq. 11)
+    /// are in block order.
+    pub(super) solution: BlueSolution<3>,
+    /// Block j of the solution is the corner at index `used[j]` of the list
+    /// solved: [`BlueProblem::add`] refuses a corner whose rows or value
+    /// are not finite or whose covariance is not positive definite, and a
+    /// refused corner has no block.
+    pub(super) used: Vec<usize>,
+}
+
 impl BlueTracker {
     /// Step 5 (§2.8, eq. 7–9) with step 6's confidence (§2.9, eq. 10–12):
     /// eq. 9 for `corners` (vertex, corner), the rows of eq. 8 per corner
     /// with u_xi, u_yi of eq. 7 in the perspective form iterated from `start`
-    /// ([`super`] module doc); the estimate and eq. 9–12's solution.
+    /// ([`super`] module doc); the estimate, eq. 9–12's solution and which
+    /// corners its blocks are. Fails when eq. 9 is singular, or when an
+    /// estimate is not in front of the camera or puts a model vertex where
+    /// it cannot be projected (the perspective rows need every vertex's
+    /// pixel, and so does the output).
     pub(super) fn solve_blue(
         &self,
         corners: &[(usize, Corner)],
         start: &TargetLocation,
-    ) -> std::result::Result<(TargetLocation, BlueSolution<3>), String> {
+    ) -> std::result::Result<BlueEstimate, String> {
         let p = &self.params;
         let [px, py] = self.eq7_scales();
         let (fx, fy, u0, v0) = (self.camera.fx, self.camera.fy, self.camera.cx, self.camera.cy);
@@ -435,7 +454,8 @@ impl BlueTracker {
         for _ in 0..iterations {
             let projected = self.vertices_at(&estimate);
             let mut problem = BlueProblem::<3>::new();
-            for (v, corner) in corners {
+            let mut used = Vec::with_capacity(corners.len());
+            for (i, (v, corner)) in corners.iter().enumerate() {
                 let q = self.offsets[*v];
                 let (ux, uy) = if p.perspective_correction {
                     let u = projected[*v];
@@ -444,7 +464,9 @@ impl BlueTracker {
                     (q.x / z0, q.y / z0)
                 };
                 // Eq. 8: rows [1, 0, p_x·u_x], [0, 1, p_y·u_y] for x_f = (c_x, c_y, 1/c_z).
-                problem.add([[1.0, 0.0, px * ux], [0.0, 1.0, py * uy]], corner.position, corner.covariance);
+                if problem.add([[1.0, 0.0, px * ux], [0.0, 1.0, py * uy]], corner.position, corner.covariance) {
+                    used.push(i);
+                }
             }
             let floor = p.min_feature_std * p.min_feature_std;
             let s = problem.solve(floor).ok_or_else(|| "eq. 9 is singular for the measured corners".to_string())?;
@@ -452,9 +474,14 @@ impl BlueTracker {
             if !estimate.is_valid() {
                 return Err(format!("the estimate puts the target behind the camera (1/c_z = {})", s.estimate[2]));
             }
-            solution = Some(s);
+            if let Some(reason) = self.unprojectable_vertex(&estimate) {
+                return Err(format!("the estimate cannot be projected: {reason}"));
+            }
+            solution = Some((s, used));
         }
-        solution.map(|s| (estimate, s)).ok_or_else(|| "no estimate".to_string())
+        solution
+            .map(|(solution, used)| BlueEstimate { location: estimate, solution, used })
+            .ok_or_else(|| "no estimate".to_string())
     }
 
     /// Steps 5–6 with the consistency extension: eq. 9 for `corners` from
@@ -462,6 +489,9 @@ impl BlueTracker {
     /// eq. 11) exceeds [`BlueParams::max_corner_inconsistency`] and more
     /// than [`BlueParams::min_corners`] remain, that corner dropped (and
     /// unmarked in `measured`) and eq. 9 solved again from the last estimate.
+    /// Corners eq. 9 refuses (no block, [`BlueEstimate::used`]) are dropped
+    /// and unmarked too, so that on return `corners[j]` is the solution's
+    /// block j; fewer than [`BlueParams::min_corners`] left is a failure.
     pub(super) fn estimate_location(
         &self,
         corners: &mut Vec<(usize, Corner)>,
@@ -469,9 +499,21 @@ impl BlueTracker {
         start: &TargetLocation,
     ) -> std::result::Result<(TargetLocation, BlueSolution<3>), String> {
         let p = &self.params;
-        let (mut estimate, mut solution) = self.solve_blue(corners, start)?;
-        while corners.len() > p.min_corners.max(2) {
-            let Some((worst, e)) = solution
+        let mut found = self.solve_blue(corners, start)?;
+        loop {
+            keep_used_corners(corners, measured, &found.used);
+            if corners.len() < p.min_corners {
+                return Err(format!(
+                    "{} corners usable in eq. 9, fewer than min_corners = {}",
+                    corners.len(),
+                    p.min_corners
+                ));
+            }
+            if corners.len() <= p.min_corners.max(2) {
+                break;
+            }
+            let Some((worst, e)) = found
+                .solution
                 .consistency
                 .iter()
                 .enumerate()
@@ -485,9 +527,9 @@ impl BlueTracker {
             }
             let (v, _) = corners.remove(worst);
             measured[v] = false;
-            (estimate, solution) = self.solve_blue(corners, &estimate)?;
+            found = self.solve_blue(corners, &found.location)?;
         }
-        Ok((estimate, solution))
+        Ok((found.location, found.solution))
     }
 
     /// Steps 2–6 with the model at `model` and association distance
@@ -548,6 +590,24 @@ impl BlueTracker {
         }
         pass
     }
+}
+
+/// Keep only the corners at the indices `used` (increasing, as
+/// [`BlueEstimate::used`]), unmarking the others' vertices in `measured`:
+/// afterwards corner j is block j of the solution that `used` describes.
+fn keep_used_corners(corners: &mut Vec<(usize, Corner)>, measured: &mut [bool], used: &[usize]) {
+    if used.len() == corners.len() {
+        return;
+    }
+    let mut index = 0;
+    corners.retain(|(v, _)| {
+        let keep = used.binary_search(&index).is_ok();
+        index += 1;
+        if !keep {
+            measured[*v] = false;
+        }
+        keep
+    });
 }
 
 // ---------------------------------------------------------------------------
@@ -629,5 +689,78 @@ impl BlueTracker {
         if let Ok(filters) = start_filters(&self.params, location, time, self.range_px_per_m) {
             self.filters = filters;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::formats::{Camera, InitState, Model, Pose};
+
+    /// A 0.2 × 0.15 × 0.1 m box (vertex i: signs from bits 0–2 of i), its
+    /// centroid 0.9 m in front of a 640×480 camera with f = 500 px.
+    fn tracker() -> BlueTracker {
+        let half = [0.1, 0.075, 0.05];
+        let vertices: Vec<[f64; 3]> =
+            (0..8).map(|i| std::array::from_fn(|a| if (i >> a) & 1 == 1 { half[a] } else { -half[a] })).collect();
+        let edges = (0..8usize).flat_map(|i| (0..3).map(move |a| [i, i | (1 << a)])).filter(|&[i, j]| i != j).collect();
+        let model =
+            Model { name: "box".into(), units: "m".into(), vertices, edges, faces: Vec::new(), joints: Vec::new() };
+        let camera = Camera { width: 640, height: 480, fx: 500.0, fy: 500.0, cx: 319.5, cy: 239.5 };
+        let pose = Pose { rotation: [0.4, -0.5, 0.1], translation: [0.02, -0.01, 0.9] };
+        let init = InitState { pose: Some(pose), ..InitState::default() };
+        BlueTracker::new(camera, model, init, BlueParams::default()).expect("tracker")
+    }
+
+    /// Five exact corners (vertices 0–4, Σ = 0.25 px²·I) where eq. 9
+    /// refuses vertex 0's block (its covariance is not positive definite)
+    /// and vertex 3 is 8 px off. The consistency extension must drop vertex
+    /// 3 (the outlier), not the corner that sits at its block index in the
+    /// list with the refused one; vertex 0 is unmarked too, and the estimate
+    /// is eq. 9 on vertices 1, 2 and 4: the true location.
+    #[test]
+    fn a_refused_block_keeps_corners_and_blocks_aligned() {
+        let tracker = tracker();
+        let truth = tracker.last_tracked;
+        let vertices = tracker.vertices_at(&truth);
+        let covariance = [[0.25, 0.0], [0.0, 0.25]];
+        let mut corners: Vec<(usize, Corner)> =
+            (0..5).map(|v| (v, Corner { position: vertices[v], covariance })).collect();
+        corners[0].1.covariance = [[0.0; 2]; 2];
+        corners[3].1.position[0] += 8.0;
+        let mut measured = [true, true, true, true, true, false, false, false];
+
+        let (location, solution) = tracker.estimate_location(&mut corners, &mut measured, &truth).expect("an estimate");
+
+        let kept: Vec<usize> = corners.iter().map(|&(v, _)| v).collect();
+        assert_eq!(kept, [1, 2, 4], "corners left");
+        assert_eq!(measured, [false, true, true, false, true, false, false, false]);
+        assert_eq!(solution.consistency.len(), corners.len(), "one block per corner left");
+        // The perspective rows are iterated a fixed number of times, so the
+        // estimate is the true location to within the iteration's residue.
+        let alone = tracker.solve_blue(&corners, &truth).expect("eq. 9 on vertices 1, 2, 4");
+        assert_eq!(alone.used, [0, 1, 2]);
+        for other in [truth, alone.location] {
+            let close = (location.cx - other.cx).abs() < 1e-4
+                && (location.cy - other.cy).abs() < 1e-4
+                && (location.cz - other.cz).abs() < 1e-6;
+            assert!(close, "estimate {location:?}, expected {other:?}");
+        }
+    }
+
+    /// Eq. 9 reports which corners its blocks are: a corner with a NaN
+    /// position gets no block.
+    #[test]
+    fn solve_blue_lists_the_corners_it_used() {
+        let tracker = tracker();
+        let truth = tracker.last_tracked;
+        let vertices = tracker.vertices_at(&truth);
+        let covariance = [[0.25, 0.0], [0.0, 0.25]];
+        let mut corners: Vec<(usize, Corner)> =
+            (0..4).map(|v| (v, Corner { position: vertices[v], covariance })).collect();
+        corners[1].1.position = [f64::NAN, 0.0];
+        let found = tracker.solve_blue(&corners, &truth).expect("eq. 9");
+        assert_eq!(found.used, [0, 2, 3]);
+        assert_eq!(found.solution.consistency.len(), 3);
     }
 }

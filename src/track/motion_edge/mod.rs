@@ -242,6 +242,9 @@ pub struct MotionEdgeTracker {
     earlier_measured_speed: Option<f64>,
     /// Per model line: its last fitted position (initially the operator's).
     held_lines: Vec<Option<Line>>,
+    /// Per corner, its last reported position (finite; initially the
+    /// operator's): what a corner that is not finite is reported as.
+    last_reported: Vec<[f64; 2]>,
 }
 
 /// One frame's measurement (steps 1–5).
@@ -269,6 +272,9 @@ impl MotionEdgeTracker {
             corners.iter().map(|&c| DoubleExponentialSmoother::new(params.alpha, c)).collect::<Result<Vec<_>>>()?;
         let n = corners.len();
         let held_lines = model_lines(&corners, &edges).iter().map(|l| l.map(|l| l.line)).collect();
+        if corners.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(Error::Parameter("motion-edge: the initial corners must be finite".into()));
+        }
         Ok(Self {
             params,
             edges,
@@ -278,6 +284,7 @@ impl MotionEdgeTracker {
             smoothers,
             predicted: corners.clone(),
             trend: vec![[0.0; 2]; n],
+            last_reported: corners.clone(),
             last_measured: corners,
             previous_measured: vec![None; n],
             measured_speed: None,
@@ -734,14 +741,32 @@ impl MotionEdgeTracker {
         reported
     }
 
+    /// The frame's outcome. Reported corners are finite (SPEC §4): a corner
+    /// that is not (a diverged measurement or prediction) is reported at its
+    /// last reported position and makes the frame lost, with the reason.
     fn outcome(
-        &self,
+        &mut self,
         frame: usize,
-        status: Status,
-        corners: Vec<[f64; 2]>,
+        mut status: Status,
+        mut corners: Vec<[f64; 2]>,
         m: Measurement,
-        lost_reason: Option<String>,
+        mut lost_reason: Option<String>,
     ) -> FrameOutcome {
+        if let Some(i) = corners.iter().position(|c| !(c[0].is_finite() && c[1].is_finite())) {
+            status = Status::Lost;
+            let reason = format!("corner {i} is not a finite number; reported at its last position");
+            lost_reason = Some(match lost_reason {
+                Some(first) => format!("{first}; {reason}"),
+                None => reason,
+            });
+        }
+        for (corner, last) in corners.iter_mut().zip(&mut self.last_reported) {
+            if corner[0].is_finite() && corner[1].is_finite() {
+                *last = *corner;
+            } else {
+                *corner = *last;
+            }
+        }
         let diagnostics = Diagnostics {
             points_per_line: m.labelling.sums.iter().map(LineSums::count).collect(),
             line_fitted: m.fitted.iter().map(Option::is_some).collect(),
@@ -975,5 +1000,26 @@ mod tests {
         assert_eq!(out.phase, Phase::Acquiring);
         assert_eq!(out.corners, square);
         assert_eq!(out.labelled.len(), 4);
+    }
+
+    /// A prediction that is not finite (a diverged state) gives a lost
+    /// frame whose corners are the last reported ones, never NaN.
+    #[test]
+    fn corners_that_are_not_finite_are_reported_at_their_last_position() {
+        let square = vec![[10.0, 10.0], [50.0, 10.0], [50.0, 50.0], [10.0, 50.0]];
+        let mut t = MotionEdgeTracker::new(square.clone(), vec![[0, 1], [1, 2], [2, 3], [3, 0]], Default::default())
+            .expect("tracker");
+        assert_eq!(t.update(0, &[]).corners, square);
+        t.phase = Phase::Tracking;
+        t.predicted[2] = [f64::NAN, 50.0];
+        t.last_measured[2] = [f64::NAN, 50.0];
+        let out = t.update(1, &[]);
+        assert!(out.corners.iter().flatten().all(|v| v.is_finite()), "{:?}", out.corners);
+        assert_eq!(out.corners[2], square[2]);
+        assert_eq!(out.status, Status::Lost);
+        assert!(out.diagnostics.lost_reason.is_some_and(|r| r.contains("corner 2")));
+        let mut bad = square.clone();
+        bad[1][0] = f64::INFINITY;
+        assert!(MotionEdgeTracker::new(bad, vec![[0, 1], [1, 2], [2, 3], [3, 0]], Default::default()).is_err());
     }
 }
