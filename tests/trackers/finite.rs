@@ -96,7 +96,13 @@ fn write_check_and_score(name: &str, results: &[FrameResult], truth: &[TruthFram
 /// matter for reading; lost frames are not scored).
 fn truth(frames: usize, corners: &[[f64; 2]]) -> Vec<TruthFrame> {
     (0..frames)
-        .map(|frame| TruthFrame { frame, visible: true, pose: None, params: Vec::new(), corners: corners.to_vec() })
+        .map(|frame| TruthFrame {
+            frame,
+            visible: true.into(),
+            pose: None,
+            params: Vec::new(),
+            corners: corners.to_vec(),
+        })
         .collect()
 }
 
