@@ -82,6 +82,26 @@ fn describe_json_error(text: &str, e: &serde_json::Error, line: Option<usize>) -
     }
     let full = e.to_string();
     let message = full.rfind(" at line ").map_or(full.as_str(), |i| &full[..i]);
+    // serde reports a fixed-length list with too many entries (a vertex of
+    // four coordinates) as "trailing characters" at the first extra entry,
+    // right after a comma; say what it is.
+    let before: String = text
+        .lines()
+        .take(e.line())
+        .enumerate()
+        .map(
+            |(i, l)| {
+                if i + 1 == e.line() { l.chars().take(e.column().saturating_sub(1)).collect() } else { l.to_string() }
+            },
+        )
+        .collect();
+    let after_comma = before.trim_end().ends_with(',');
+    if message == "trailing characters" && after_comma {
+        return format!(
+            "wrong content at {}: this list has more entries than expected here",
+            position(e.line(), e.column())
+        );
+    }
     let kind = match e.classify() {
         serde_json::error::Category::Data => "wrong content",
         _ => "malformed JSON",
@@ -145,5 +165,21 @@ mod tests {
         assert!(!msg.contains('\n'));
         let msg = describe_json_error(r#"{"fx": nan}"#, &e, Some(3));
         assert_eq!(msg, "nan at column 8: JSON has no NaN or Infinity, every number must be finite");
+    }
+
+    #[test]
+    fn a_list_too_long_is_named_not_trailing_characters() {
+        #[derive(Debug, serde::Deserialize)]
+        #[allow(dead_code)]
+        struct Model {
+            vertices: Vec<[f64; 3]>,
+        }
+        let text = r#"{"vertices": [[0, 0, 0], [1, 0, 0, 7]]}"#;
+        let e = serde_json::from_str::<Model>(text).unwrap_err();
+        let msg = describe_json_error(text, &e, None);
+        assert_eq!(msg, "wrong content at line 1 column 36: this list has more entries than expected here");
+        let text = "{\"vertices\": []} x";
+        let e = serde_json::from_str::<Model>(text).unwrap_err();
+        assert!(describe_json_error(text, &e, None).contains("trailing characters"));
     }
 }

@@ -73,6 +73,9 @@ impl Sequence {
         check_folder(dir)?;
         let camera_path = dir.join(CAMERA_FILE);
         let camera: Camera = read_json(&camera_path)?;
+        // A size no frame may have is named as such before the intrinsics
+        // are judged against it.
+        check_frame_size(&camera_path, camera.width as usize, camera.height as usize)?;
         camera.validate(&camera_path)?;
 
         let (model, model_path) = read_model(dir)?;
