@@ -50,16 +50,7 @@ fn from_device_names_the_limit_a_device_lacks() {
 #[test]
 fn a_texture_on_the_cpu_backend_is_an_error() {
     let Some((ctx, _guard)) = common::gpu("a_texture_on_the_cpu_backend_is_an_error") else { return };
-    let texture = ctx.device().create_texture(&wgpu::TextureDescriptor {
-        label: Some("frame"),
-        size: wgpu::Extent3d { width: 8, height: 8, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8Unorm,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
+    let texture = common::empty_texture(ctx, 8, 8, wgpu::TextureFormat::Rgba8Unorm);
     let corners = vec![[1.0, 1.0], [6.0, 1.0], [6.0, 6.0], [1.0, 6.0]];
     let mut tracker = MotionEdgeTracker::new(corners, example::EDGES.to_vec(), MotionEdgeParams::default()).unwrap();
     let err = track_step(&mut tracker, &mut CpuBackend::new(), 0, Frame::Texture(&texture)).unwrap_err();
