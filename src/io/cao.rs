@@ -34,6 +34,7 @@ use std::collections::HashSet;
 use std::path::Path;
 
 use crate::io::formats::Model;
+use crate::io::json::one_short_line;
 use crate::{Error, Result};
 
 /// Read and convert a `.cao` file.
@@ -49,11 +50,10 @@ pub fn read_cao(path: &Path) -> Result<Model> {
 /// Convert the text of a `.cao` file; `path` names it in errors and gives
 /// the model its name (the file stem).
 pub fn parse_cao(text: &str, path: &Path) -> Result<Model> {
-    let records = tokenize(text).map_err(|(line, msg)| Error::input(path, format!("line {line}: {msg}")))?;
+    let fail = |(line, msg): Failure| Error::input(path, one_short_line(&format!("line {line}: {msg}")));
+    let records = tokenize(text).map_err(fail)?;
     let name = path.file_stem().map_or_else(|| "model".to_string(), |s| s.to_string_lossy().into_owned());
-    let model = Parser { records, next: 0 }
-        .model(name)
-        .map_err(|(line, msg)| Error::input(path, format!("line {line}: {msg}")))?;
+    let model = Parser { records, next: 0 }.model(name).map_err(fail)?;
     model.validate(path)?;
     Ok(model)
 }

@@ -226,7 +226,14 @@ pub struct FrameResult {
 
 use std::path::Path;
 
+use super::json::one_short_line;
 use crate::{Error, Result};
+
+/// An input error naming `path`, its message made one short line
+/// ([`one_short_line`]): messages quote names and values from the file.
+fn input_error(path: &Path, message: impl AsRef<str>) -> Error {
+    Error::input(path, one_short_line(message.as_ref()))
+}
 
 fn all_finite(values: &[f64]) -> bool {
     values.iter().all(|v| v.is_finite())
@@ -295,7 +302,7 @@ impl Camera {
     /// `camera.json` in the error.
     pub fn validate(&self, path: &Path) -> Result<()> {
         match self.intrinsics_problem() {
-            Some(problem) => Err(Error::input(path, problem)),
+            Some(problem) => Err(input_error(path, problem)),
             None => Ok(()),
         }
     }
@@ -333,7 +340,7 @@ impl Model {
     /// finite non-zero axis, `min <= max`, distinct names and no vertex
     /// listed twice. `path` names the model file in the error.
     pub fn validate(&self, path: &Path) -> Result<()> {
-        let fail = |msg: String| Err(Error::input(path, msg));
+        let fail = |msg: String| Err(input_error(path, msg));
         if !MODEL_UNITS.contains(&self.units.as_str()) {
             return fail(format!(
                 "units {:?} is not one pipetrack reads: use one of {}",
@@ -502,7 +509,7 @@ fn validate_state(
     model_path: &Path,
 ) -> Result<()> {
     let what = line.map_or_else(String::new, |l| format!("line {l}: "));
-    let fail = |msg: String| Err(Error::input(path, format!("{what}{msg}")));
+    let fail = |msg: String| Err(input_error(path, format!("{what}{msg}")));
     if pose.is_some_and(|p| !p.is_finite()) {
         return fail("the pose has a value that is not a finite number".to_string());
     }
@@ -524,7 +531,7 @@ fn validate_state(
         // The model is the likelier culprit: name it, and the file with the corners.
         let file = path.file_name().map_or_else(|| path.display().to_string(), |f| f.to_string_lossy().into_owned());
         let at = line.map_or_else(String::new, |l| format!(" line {l}"));
-        return Err(Error::input(
+        return Err(input_error(
             model_path,
             format!("the model has {n} vertices, fewer than the {} corners in {file}{at}", corners.len()),
         ));
@@ -544,7 +551,7 @@ impl InitState {
     /// pose or corners. More corners than vertices names the model file.
     pub fn validate(&self, path: &Path, model: &Model, model_path: &Path) -> Result<()> {
         if self.pose.is_none() && self.corners.is_empty() {
-            return Err(Error::input(path, "neither a pose nor corners: a tracker needs one of them"));
+            return Err(input_error(path, "neither a pose nor corners: a tracker needs one of them"));
         }
         validate_state(path, None, self.pose.as_ref(), &self.params, &self.corners, model, model_path)
     }
@@ -559,7 +566,7 @@ impl TruthFrame {
         if let Visibility::Vertices(seen) = &self.visible {
             let n = model.vertices.len();
             if seen.len() != n {
-                return Err(Error::input(
+                return Err(input_error(
                     path,
                     format!(
                         "line {line}: \"visible\" has {} flags but the model has {n} vertices \
@@ -578,7 +585,7 @@ impl FrameResult {
     /// number finite (corners, pose, params, covariance, ms), and corners
     /// present while tracking.
     pub fn validate(&self, path: &Path, line: usize) -> Result<()> {
-        let fail = |msg: &str| Err(Error::input(path, format!("line {line}: {msg}")));
+        let fail = |msg: &str| Err(input_error(path, format!("line {line}: {msg}")));
         if self.status == Status::Tracking && self.corners.is_empty() {
             return fail("status is tracking but there are no corners");
         }
