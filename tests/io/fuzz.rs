@@ -32,10 +32,10 @@ use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Inputs per parser, at most.
-const CASES: usize = 2000;
+const CASES: usize = 5000;
 /// Time box per parser: generation stops after this even if [`CASES`]
 /// have not all run (the count run is printed).
-const TIME_BOX: Duration = Duration::from_millis(1200);
+const TIME_BOX: Duration = Duration::from_millis(1500);
 /// A single input taking longer than this fails the test.
 const SLOW_CASE: Duration = Duration::from_secs(1);
 /// A single input running longer than this is a hang: the watchdog fails.
@@ -63,7 +63,7 @@ struct Target<C> {
 
 enum Report {
     Tick,
-    Done { cases: usize, elapsed: Duration },
+    Done { cases: usize, elapsed: Duration, checking: Duration, slowest: (Duration, usize) },
     Failed { case: usize, message: String },
 }
 
@@ -81,6 +81,8 @@ fn run<C: 'static>(target: Target<C>) {
         let mut rng = ChaCha8Rng::seed_from_u64(target.rng_seed);
         let start = Instant::now();
         let mut cases = 0;
+        let mut checking = Duration::ZERO;
+        let mut slowest = (Duration::ZERO, 0);
         while cases < CASES && start.elapsed() < TIME_BOX {
             let input = generate(&mut rng, &target.seeds, &target.dictionary);
             if let Ok(mut slot) = shared.lock() {
@@ -89,6 +91,8 @@ fn run<C: 'static>(target: Target<C>) {
             let t0 = Instant::now();
             let outcome = catch_unwind(AssertUnwindSafe(|| (target.check)(&context, &input)));
             let took = t0.elapsed();
+            checking += took;
+            slowest = slowest.max((took, input.len()));
             let failure = match outcome {
                 Err(panic) => Some(format!("panicked: {}", panic_text(&panic))),
                 Ok(Err(message)) => Some(message),
@@ -102,15 +106,19 @@ fn run<C: 'static>(target: Target<C>) {
             cases += 1;
             let _ = tx.send(Report::Tick);
         }
-        let _ = tx.send(Report::Done { cases, elapsed: start.elapsed() });
+        let _ = tx.send(Report::Done { cases, elapsed: start.elapsed(), checking, slowest });
     });
     loop {
         match rx.recv_timeout(HANG) {
             Ok(Report::Tick) => {}
-            Ok(Report::Done { cases, elapsed }) => {
+            Ok(Report::Done { cases, elapsed, checking, slowest }) => {
                 println!(
-                    "fuzz {name}: {cases} inputs in {:.2} s, all Ok or one-line input errors",
-                    elapsed.as_secs_f64()
+                    "fuzz {name}: {cases} inputs in {:.2} s ({:.2} s parsing, slowest {:.1} ms for {} bytes), \
+                     all Ok or one-line input errors",
+                    elapsed.as_secs_f64(),
+                    checking.as_secs_f64(),
+                    slowest.0.as_secs_f64() * 1e3,
+                    slowest.1
                 );
                 assert!(cases > 0, "fuzz {name}: no input ran");
                 return;
@@ -461,6 +469,14 @@ fn seeds(texts: &[&str]) -> Vec<Vec<u8>> {
 // ---------------------------------------------------------------------------
 // Fixtures.
 
+/// Write `input` to `path` as a new file. Removing the old one first spares
+/// ext4 the flush it does when a file is truncated and rewritten (which
+/// costs milliseconds per case).
+fn put(path: &Path, input: &[u8]) -> Result<(), String> {
+    let _ = fs::remove_file(path);
+    fs::write(path, input).map_err(|e| format!("writing the input to {}: {e}", path.display()))
+}
+
 /// A folder under the temp dir for one target, emptied first.
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("pipetrack-fuzz-{}-{name}", std::process::id()));
@@ -516,7 +532,7 @@ impl SeqFixture {
     /// Write `input` over `file`, open the folder, and restore nothing: each
     /// target fuzzes one file and leaves the others good.
     fn open_with(&self, file: &Path, input: &[u8]) -> Result<(), String> {
-        fs::write(file, input).map_err(|e| format!("writing the input: {e}"))?;
+        put(file, input)?;
         let files = [self.camera.as_path(), self.model.as_path(), self.init.as_path(), self.frame.as_path()];
         check_result(Sequence::open(&self.dir, false), &files)
     }
@@ -615,7 +631,7 @@ fn fuzz_truth_jsonl() {
             TruthFixture { truth: seq.truth_path(), model: f.model, seq }
         },
         check: |f, input| {
-            fs::write(&f.truth, input).map_err(|e| format!("writing the input: {e}"))?;
+            put(&f.truth, input)?;
             check_result(f.seq.read_truth(), &[&f.truth, &f.model])
         },
     });
@@ -645,7 +661,7 @@ fn fuzz_predictions_jsonl() {
             PredictionFixture { truth, path: f.dir.join("pred.jsonl") }
         },
         check: |f, input| {
-            fs::write(&f.path, input).map_err(|e| format!("writing the input: {e}"))?;
+            put(&f.path, input)?;
             check_result(read_predictions(&f.path), &[&f.path])?;
             check_result(score_file(&f.truth, &f.path), &[&f.path])
         },
@@ -716,7 +732,7 @@ fn fuzz_cao() {
             CaoFixture { path: dir.join("model.cao"), dir }
         },
         check: |f, input| {
-            fs::write(&f.path, input).map_err(|e| format!("writing the input: {e}"))?;
+            put(&f.path, input)?;
             let included = [f.dir.join("part.cao"), f.dir.join("sub/part.cao"), f.dir.join("missing.cao")];
             let mut files = vec![f.path.as_path()];
             files.extend(included.iter().map(PathBuf::as_path));
@@ -867,7 +883,7 @@ fn fuzz_config_motion_edge() {
         dictionary: dict(TOML_WORDS),
         setup: config_fixture,
         check: |f, input| {
-            fs::write(&f.path, input).map_err(|e| format!("writing the input: {e}"))?;
+            put(&f.path, input)?;
             check_result(make_tracker("motion-edge", &f.seq, Some(&f.path)), &[&f.path])
         },
     });
@@ -885,8 +901,92 @@ fn fuzz_config_blue() {
         dictionary: dict(TOML_WORDS),
         setup: config_fixture,
         check: |f, input| {
-            fs::write(&f.path, input).map_err(|e| format!("writing the input: {e}"))?;
+            put(&f.path, input)?;
             check_result(make_tracker("blue", &f.seq, Some(&f.path)), &[&f.path])
         },
     });
+}
+
+// ---------------------------------------------------------------------------
+// Regression tests: inputs the property tests above found, and large inputs
+// of the shapes they hinted at.
+
+/// Time `Sequence::open` on the fixture with `model` as `model.json`.
+fn time_model(f: &SeqFixture, model: &str) -> (Duration, Result<(), String>) {
+    let t0 = Instant::now();
+    let result = f.open_with(&f.model, model.as_bytes());
+    (t0.elapsed(), result)
+}
+
+#[test]
+fn large_models_are_checked_in_about_linear_time() {
+    let f = sequence_fixture("large-models");
+    let n = 30_000;
+    let list = |item: &dyn Fn(usize) -> String| (0..n).map(item).collect::<Vec<_>>().join(",");
+    let cases = [
+        (
+            "one point repeated",
+            format!(r#"{{"name":"a","vertices":[{}],"edges":[[0,1]]}}"#, list(&|_| "[0,0,0]".into())),
+        ),
+        (
+            "points on one x",
+            format!(r#"{{"name":"a","vertices":[{}],"edges":[[0,1]]}}"#, list(&|i| format!("[0,{i},0]"))),
+        ),
+        (
+            "a face of every vertex",
+            format!(
+                r#"{{"name":"a","vertices":[{}],"edges":[[0,1]],"faces":[[{}]]}}"#,
+                list(&|i| format!("[{},{i},0]", i % 2)),
+                list(&|i| i.to_string())
+            ),
+        ),
+        (
+            "a joint moving every vertex",
+            format!(
+                r#"{{"name":"a","vertices":[{}],"edges":[[0,1]],"joints":[{{"name":"j","origin":[0,0,0],"axis":[1,0,0],"min":0,"max":1,"vertices":[{}]}}]}}"#,
+                list(&|i| format!("[{i},{i},0]")),
+                list(&|i| i.to_string())
+            ),
+        ),
+    ];
+    for (what, model) in cases {
+        let (took, result) = time_model(&f, &model);
+        println!("{what}: {took:?}, {result:?}");
+        assert!(took < SLOW_CASE, "{what}: {took:?}");
+    }
+}
+
+/// The message of the input error `result` must be, naming `path`; panics
+/// (with `what`) on a panic, `Ok`, or an error breaking [`check_result`].
+fn input_message<T>(what: &str, path: &Path, run: impl FnOnce() -> pipetrack::Result<T>) -> String {
+    match catch_unwind(AssertUnwindSafe(run)) {
+        Err(panic) => panic!("{what:?} panicked: {}", panic_text(&panic)),
+        Ok(Ok(_)) => panic!("{what:?} was accepted"),
+        Ok(Err(e)) => {
+            let message = e.to_string();
+            if let Err(problem) = check_result::<()>(Err(e), &[path]) {
+                panic!("{what:?}: {problem}");
+            }
+            message
+        }
+    }
+}
+
+#[test]
+fn cao_counts_beyond_memory_are_errors() {
+    let dir = scratch("cao-counts");
+    let path = dir.join("model.cao");
+    for count in ["18446744073709551615", "4611686018427387904", "1000000000000"] {
+        for text in [
+            format!("V1\n{count}\n0 0 0\n"),
+            format!("V1\n3\n0 0 0\n1 0 0\n0 1 0\n{count}\n0 1\n"),
+            format!("V1\n3\n0 0 0\n1 0 0\n0 1 0\n0\n{count}\n"),
+            format!("V1\n3\n0 0 0\n1 0 0\n0 1 0\n0\n0\n{count}\n3 0 1 2\n"),
+            format!("V1\n3\n0 0 0\n1 0 0\n0 1 0\n0\n0\n1\n{count} 0 1 2\n"),
+        ] {
+            put(&path, text.as_bytes()).expect("write");
+            let message = input_message(&text, &path, || read_cao(&path));
+            assert!(message.contains("file ends where") || message.contains("expected"), "{text:?}: {message}");
+        }
+    }
 }
