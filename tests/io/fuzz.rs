@@ -78,12 +78,13 @@ fn run<C: 'static>(target: Target<C>) {
     // test from failing.
     std::thread::spawn(move || {
         let context = (target.setup)(target.name);
-        let mut rng = ChaCha8Rng::seed_from_u64(target.rng_seed);
+        let (seed, cases_wanted, time_box) = budget(target.rng_seed);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let start = Instant::now();
         let mut cases = 0;
         let mut checking = Duration::ZERO;
         let mut slowest = (Duration::ZERO, 0);
-        while cases < CASES && start.elapsed() < TIME_BOX {
+        while cases < cases_wanted && start.elapsed() < time_box {
             let input = generate(&mut rng, &target.seeds, &target.dictionary);
             if let Ok(mut slot) = shared.lock() {
                 *slot = (cases, input.clone());
@@ -100,7 +101,7 @@ fn run<C: 'static>(target: Target<C>) {
                 Ok(Ok(())) => None,
             };
             if let Some(message) = failure {
-                let _ = tx.send(Report::Failed { case: cases, message });
+                let _ = tx.send(Report::Failed { case: cases, message: format!("(seed {seed:#x}) {message}") });
                 return;
             }
             cases += 1;
@@ -132,6 +133,19 @@ fn run<C: 'static>(target: Target<C>) {
                 fail(name, case, &input, &format!("no answer within {HANG:?}: a hang"));
             }
         }
+    }
+}
+
+/// The RNG seed, the number of inputs and the time box of a run: the
+/// target's seed, [`CASES`] and [`TIME_BOX`], unless `PIPETRACK_FUZZ_SEED`
+/// (mixed into every target's seed) or `PIPETRACK_FUZZ_CASES` (the time box
+/// then grows in proportion) ask for a longer or another run.
+fn budget(target_seed: u64) -> (u64, usize, Duration) {
+    let var = |name: &str| std::env::var(name).ok().and_then(|v| v.parse::<u64>().ok());
+    let seed = var("PIPETRACK_FUZZ_SEED").map_or(target_seed, |s| target_seed ^ s.rotate_left(17));
+    match var("PIPETRACK_FUZZ_CASES").and_then(|c| usize::try_from(c).ok()) {
+        Some(cases) => (seed, cases, TIME_BOX.mul_f64(cases as f64 / CASES as f64).max(TIME_BOX)),
+        None => (seed, CASES, TIME_BOX),
     }
 }
 
@@ -226,6 +240,26 @@ const INTERESTING: &[&str] = &[
     "[0,0]",
     "[0,0,0,0]",
     "[1,2,3,4,5,6,7,8,9]",
+];
+
+/// The numbers of [`INTERESTING`].
+const NUMBERS: &[&str] = &[
+    "0",
+    "-0",
+    "-1",
+    "1.5",
+    "1e308",
+    "-1e308",
+    "1e999",
+    "4.9e-324",
+    "NaN",
+    "inf",
+    "65536",
+    "4294967296",
+    "9223372036854775807",
+    "18446744073709551615",
+    "18446744073709551616",
+    "1000000000000",
 ];
 
 /// Text that is not plain ASCII, including escapes JSON turns into control
@@ -387,9 +421,21 @@ fn mutate(rng: &mut ChaCha8Rng, data: &mut Vec<u8>, seeds: &[Vec<u8>], dictionar
             }
         }
         // Replace a word (a number, a key, a keyword) with a value.
-        8 | 9 => {
+        8 => {
             if let Some(&(s, e)) = words(data).choose(rng) {
                 let v = value(rng, dictionary);
+                data.splice(s..e, v);
+            }
+        }
+        // Replace a number (a count, an index, a coordinate, a size) with
+        // an interesting number.
+        9 => {
+            let numbers: Vec<(usize, usize)> = words(data)
+                .into_iter()
+                .filter(|&(s, e)| data[s..e].iter().find(|&&b| b != b'-').is_some_and(u8::is_ascii_digit))
+                .collect();
+            if let Some(&(s, e)) = numbers.choose(rng) {
+                let v = NUMBERS.choose(rng).map_or(b"0".to_vec(), |n| n.as_bytes().to_vec());
                 data.splice(s..e, v);
             }
         }
@@ -963,7 +1009,10 @@ fn input_message<T>(what: &str, path: &Path, run: impl FnOnce() -> pipetrack::Re
         Err(panic) => panic!("{what:?} panicked: {}", panic_text(&panic)),
         Ok(Ok(_)) => panic!("{what:?} was accepted"),
         Ok(Err(e)) => {
-            let message = e.to_string();
+            let message = match &e {
+                Error::Input { message, .. } => message.clone(),
+                _ => String::new(),
+            };
             if let Err(problem) = check_result::<()>(Err(e), &[path]) {
                 panic!("{what:?}: {problem}");
             }
@@ -989,4 +1038,46 @@ fn cao_counts_beyond_memory_are_errors() {
             assert!(message.contains("file ends where") || message.contains("expected"), "{text:?}: {message}");
         }
     }
+}
+
+#[test]
+fn messages_quoting_the_file_stay_one_short_line() {
+    let long = "a.".repeat(1000);
+    // Found by fuzz_predictions_jsonl: serde quotes an unknown variant raw,
+    // so the escaped newline in it became a real one.
+    let dir = scratch("messages");
+    let pred = dir.join("pred.jsonl");
+    put(&pred, b"{\"frame\":0,\"status\":\"los\\nt\",\"corners\":[],\"ms\":0}\n").expect("write");
+    let message = input_message("status with a newline", &pred, || read_predictions(&pred));
+    assert!(message.contains(r"unknown variant `los\nt`"), "{message}");
+
+    // Found by fuzz_model_json: a long string where the object belongs was
+    // quoted whole.
+    let f = sequence_fixture("messages-model");
+    put(&f.model, format!(" \"edges{long}\"").as_bytes()).expect("write");
+    let message = input_message("a long string for a model", &f.model, || Sequence::open(&f.dir, false));
+    assert!(message.starts_with("wrong content at line 1 column 2008: invalid type: string \"edgesa.a."), "{message}");
+    assert!(message.contains("…\""), "{message}");
+
+    // The same for a name the model checks quote (a joint's).
+    let joint = LID_BOX.replace("\"lid\"", &format!("\"lid\\n{long}\""));
+    put(&f.model, joint.replace("\"min\":-1.5", "\"min\":2").as_bytes()).expect("write");
+    let message = input_message("a joint name with a newline", &f.model, || Sequence::open(&f.dir, false));
+    assert!(message.starts_with(r#"joint "lid\na.a."#) && message.contains("min <= max"), "{message}");
+
+    // Found by fuzz_cao: a 3-D point's coordinate of 40 kB was quoted whole.
+    let cao = dir.join("model.cao");
+    put(&cao, CUBE_CAO.replacen("0.1 0.1 0.1", &format!("0.1 0.1 0.{long}"), 1).as_bytes()).expect("write");
+    let message = input_message("a long coordinate", &cao, || read_cao(&cao));
+    assert!(message.starts_with("line 11: 3-D point 6: \"0.a.a."), "{message}");
+
+    // Found by fuzz_config_motion_edge: a long unknown variant of an enum
+    // parameter was quoted whole.
+    let f = config_fixture("messages-config");
+    put(&f.path, format!("missing = \"last-measureme{}\"", "[".repeat(2000)).as_bytes()).expect("write");
+    let message = input_message("a long variant", &f.path, || make_tracker("motion-edge", &f.seq, Some(&f.path)));
+    assert!(
+        message.starts_with("unknown variant `last-measureme[[[") && message.ends_with("in `missing`"),
+        "{message}"
+    );
 }
