@@ -219,6 +219,17 @@ mod tests {
     }
 
     #[test]
+    fn messages_are_one_short_line_whatever_they_quote() {
+        assert_eq!(one_short_line("unknown variant `los\nt`"), r"unknown variant `los\nt`");
+        assert_eq!(one_short_line("name \"a\u{2028}b\""), r#"name "a\u{2028}b""#);
+        let long = format!("invalid type: string \"{}\", expected f64", "x".repeat(5000));
+        assert_eq!(one_short_line(&long), format!("invalid type: string \"{}…\", expected f64", "x".repeat(31)));
+        let many = "ab ".repeat(1000);
+        assert_eq!(one_short_line(&many).chars().count(), MAX_MESSAGE_CHARS + 1);
+        assert_eq!(one_short_line("fx = -1e308 is not > 0"), "fx = -1e308 is not > 0");
+    }
+
+    #[test]
     fn a_list_too_long_is_named_not_trailing_characters() {
         #[derive(Debug, serde::Deserialize)]
         #[allow(dead_code)]

@@ -617,7 +617,7 @@ const JSON_WORDS: &[&str] = &[
 fn fuzz_camera_json() {
     run(Target {
         name: "camera_json",
-        rng_seed: 0xC0FFEE_01,
+        rng_seed: 0xC0FF_EE01,
         seeds: seeds(&[CAMERA, r#"{"width":640,"height":480,"fx":500,"fy":500,"cx":319.5,"cy":239.5}"#]),
         dictionary: dict(JSON_WORDS),
         setup: sequence_fixture,
@@ -629,7 +629,7 @@ fn fuzz_camera_json() {
 fn fuzz_model_json() {
     run(Target {
         name: "model_json",
-        rng_seed: 0xC0FFEE_02,
+        rng_seed: 0xC0FF_EE02,
         seeds: seeds(&[SQUARE, LID_BOX]),
         dictionary: dict(JSON_WORDS),
         setup: sequence_fixture,
@@ -641,7 +641,7 @@ fn fuzz_model_json() {
 fn fuzz_init_json() {
     run(Target {
         name: "init_json",
-        rng_seed: 0xC0FFEE_03,
+        rng_seed: 0xC0FF_EE03,
         seeds: seeds(&[
             INIT,
             r#"{"corners":[[1,1],[2,1],[2,2],[1,2]]}"#,
@@ -668,7 +668,7 @@ struct TruthFixture {
 fn fuzz_truth_jsonl() {
     run(Target {
         name: "truth_jsonl",
-        rng_seed: 0xC0FFEE_04,
+        rng_seed: 0xC0FF_EE04,
         seeds: seeds(&[TRUTH, "{\"frame\":0,\"visible\":false}\n\n{\"frame\":1}\n"]),
         dictionary: dict(JSON_WORDS),
         setup: |name| {
@@ -697,7 +697,7 @@ struct PredictionFixture {
 fn fuzz_predictions_jsonl() {
     run(Target {
         name: "predictions_jsonl",
-        rng_seed: 0xC0FFEE_05,
+        rng_seed: 0xC0FF_EE05,
         seeds: seeds(&[PREDICTIONS, "{\"frame\":0,\"status\":\"lost\",\"corners\":[],\"ms\":0}\n"]),
         dictionary: dict(JSON_WORDS),
         setup: |name| {
@@ -754,7 +754,7 @@ struct CaoFixture {
 fn fuzz_cao() {
     run(Target {
         name: "cao",
-        rng_seed: 0xC0FFEE_06,
+        rng_seed: 0xC0FF_EE06,
         seeds: seeds(&[CUBE_CAO, SQUARE_FROM_LINES_CAO, CAO_WITH_LOAD]),
         dictionary: dict(&[
             "V1",
@@ -833,7 +833,7 @@ const Y4M_WORDS: &[&str] = &[
 fn fuzz_y4m_header() {
     run(Target {
         name: "y4m_header",
-        rng_seed: 0xC0FFEE_07,
+        rng_seed: 0xC0FF_EE07,
         seeds: y4m_seeds(),
         dictionary: dict(Y4M_WORDS),
         setup: |_| PathBuf::from("fuzz.y4m"),
@@ -845,7 +845,7 @@ fn fuzz_y4m_header() {
 fn fuzz_y4m_frames() {
     run(Target {
         name: "y4m_frames",
-        rng_seed: 0xC0FFEE_08,
+        rng_seed: 0xC0FF_EE08,
         seeds: y4m_seeds(),
         dictionary: dict(Y4M_WORDS),
         setup: |_| PathBuf::from("fuzz.y4m"),
@@ -921,7 +921,7 @@ const TOML_WORDS: &[&str] = &[
 fn fuzz_config_motion_edge() {
     run(Target {
         name: "config_motion_edge",
-        rng_seed: 0xC0FFEE_09,
+        rng_seed: 0xC0FF_EE09,
         seeds: config_seeds::<pipetrack::MotionEdgeParams>(
             "motion-edge",
             "delta = 0.3\nsigma = 1.5\nmissing = \"last-measurement\"\nline_fit = \"across\"\nrefine_iterations = 0",
@@ -939,7 +939,7 @@ fn fuzz_config_motion_edge() {
 fn fuzz_config_blue() {
     run(Target {
         name: "config_blue",
-        rng_seed: 0xC0FFEE_0A,
+        rng_seed: 0xC0FF_EE0A,
         seeds: config_seeds::<pipetrack::BlueParams>(
             "blue",
             "lambda = 0.7\nnominal_range = 2.5\nmax_edge_points = 10\ncorner_covariance = \"line-location\"",
