@@ -34,6 +34,7 @@ use std::collections::HashSet;
 use std::path::Path;
 
 use crate::io::formats::Model;
+use crate::io::json::one_short_line;
 use crate::{Error, Result};
 
 /// Read and convert a `.cao` file.
@@ -49,11 +50,10 @@ pub fn read_cao(path: &Path) -> Result<Model> {
 /// Convert the text of a `.cao` file; `path` names it in errors and gives
 /// the model its name (the file stem).
 pub fn parse_cao(text: &str, path: &Path) -> Result<Model> {
-    let records = tokenize(text).map_err(|(line, msg)| Error::input(path, format!("line {line}: {msg}")))?;
+    let fail = |(line, msg): Failure| Error::input(path, one_short_line(&format!("line {line}: {msg}")));
+    let records = tokenize(text).map_err(fail)?;
     let name = path.file_stem().map_or_else(|| "model".to_string(), |s| s.to_string_lossy().into_owned());
-    let model = Parser { records, next: 0 }
-        .model(name)
-        .map_err(|(line, msg)| Error::input(path, format!("line {line}: {msg}")))?;
+    let model = Parser { records, next: 0 }.model(name).map_err(fail)?;
     model.validate(path)?;
     Ok(model)
 }
@@ -129,6 +129,13 @@ impl Parser {
         Ok(r)
     }
 
+    /// Room for `count` records: no more than the records left, whatever
+    /// the file claims, so a huge count fails when the file ends rather
+    /// than when the memory does.
+    fn capacity(&self, count: usize) -> usize {
+        count.min(self.records.len().saturating_sub(self.next))
+    }
+
     /// A line holding only a count.
     fn count(&mut self, what: &str) -> std::result::Result<(usize, usize), Failure> {
         let r = self.record(&format!("the number of {what}"))?;
@@ -176,7 +183,7 @@ impl Parser {
         }
 
         let (_, n_points) = self.count("3-D points")?;
-        let mut vertices = Vec::with_capacity(n_points);
+        let mut vertices = Vec::with_capacity(self.capacity(n_points));
         for p in 0..n_points {
             let r = self.record(&format!("3-D point {p}"))?;
             let what = format!("3-D point {p}");
@@ -201,7 +208,7 @@ impl Parser {
         };
 
         let (_, n_lines) = self.count("3-D lines")?;
-        let mut lines = Vec::with_capacity(n_lines);
+        let mut lines = Vec::with_capacity(self.capacity(n_lines));
         for l in 0..n_lines {
             let what = format!("3-D line {l}");
             let r = self.record(&what)?;
@@ -216,7 +223,7 @@ impl Parser {
         }
 
         let (_, n_line_faces) = self.count("faces from lines")?;
-        let mut line_faces = Vec::with_capacity(n_line_faces);
+        let mut line_faces = Vec::with_capacity(self.capacity(n_line_faces));
         for f in 0..n_line_faces {
             let what = format!("face from lines {f}");
             let r = self.record(&what)?;
@@ -229,7 +236,7 @@ impl Parser {
         }
 
         let (_, n_point_faces) = self.count("faces from points")?;
-        let mut faces = Vec::with_capacity(n_point_faces + n_line_faces);
+        let mut faces = Vec::with_capacity(self.capacity(n_point_faces).saturating_add(line_faces.len()));
         for f in 0..n_point_faces {
             let what = format!("face from points {f}");
             let r = self.record(&what)?;
@@ -266,7 +273,7 @@ impl Parser {
         if n < 3 {
             return Err((r.line, format!("{what} has {n} {of}s: a face needs at least 3")));
         }
-        let f = Self::fields(r, n + 1, what)?;
+        let f = Self::fields(r, n.saturating_add(1), what)?;
         let mut ids = Vec::with_capacity(n);
         for t in &f[1..] {
             let i = Self::index(r, t, limit, what, of)?;

@@ -226,7 +226,14 @@ pub struct FrameResult {
 
 use std::path::Path;
 
+use super::json::one_short_line;
 use crate::{Error, Result};
+
+/// An input error naming `path`, its message made one short line
+/// ([`one_short_line`]): messages quote names and values from the file.
+fn input_error(path: &Path, message: impl AsRef<str>) -> Error {
+    Error::input(path, one_short_line(message.as_ref()))
+}
 
 fn all_finite(values: &[f64]) -> bool {
     values.iter().all(|v| v.is_finite())
@@ -295,7 +302,7 @@ impl Camera {
     /// `camera.json` in the error.
     pub fn validate(&self, path: &Path) -> Result<()> {
         match self.intrinsics_problem() {
-            Some(problem) => Err(Error::input(path, problem)),
+            Some(problem) => Err(input_error(path, problem)),
             None => Ok(()),
         }
     }
@@ -333,7 +340,7 @@ impl Model {
     /// finite non-zero axis, `min <= max`, distinct names and no vertex
     /// listed twice. `path` names the model file in the error.
     pub fn validate(&self, path: &Path) -> Result<()> {
-        let fail = |msg: String| Err(Error::input(path, msg));
+        let fail = |msg: String| Err(input_error(path, msg));
         if !MODEL_UNITS.contains(&self.units.as_str()) {
             return fail(format!(
                 "units {:?} is not one pipetrack reads: use one of {}",
@@ -367,15 +374,19 @@ impl Model {
                 return fail(format!("edge {e} [{a}, {b}] repeats edge {first}"));
             }
         }
+        // Sets, not list scans, so a face or joint of many vertices costs
+        // time linear in their number.
+        let mut listed = std::collections::HashSet::new();
         for (f, face) in self.faces.iter().enumerate() {
             if face.len() < 3 {
                 return fail(format!("face {f} has {} vertices: a face needs at least 3", face.len()));
             }
-            for (k, &v) in face.iter().enumerate() {
+            listed.clear();
+            for &v in face {
                 if v >= n {
                     return fail(format!("face {f} refers to vertex {v}, beyond the last one ({})", n - 1));
                 }
-                if face[..k].contains(&v) {
+                if !listed.insert(v) {
                     return fail(format!("face {f} lists vertex {v} twice"));
                 }
             }
@@ -383,9 +394,10 @@ impl Model {
                 return fail(msg);
             }
         }
+        let mut names = std::collections::HashSet::new();
         for (j, joint) in self.joints.iter().enumerate() {
             let name = &joint.name;
-            if self.joints[..j].iter().any(|other| &other.name == name) {
+            if !names.insert(name.as_str()) {
                 return fail(format!("joint {j} \"{name}\": another joint has the same name"));
             }
             if !all_finite(&joint.origin) || !all_finite(&joint.axis) {
@@ -400,11 +412,12 @@ impl Model {
                     joint.min, joint.max
                 ));
             }
-            for (k, &v) in joint.vertices.iter().enumerate() {
+            listed.clear();
+            for &v in &joint.vertices {
                 if v >= n {
                     return fail(format!("joint \"{name}\" moves vertex {v}, beyond the last one ({})", n - 1));
                 }
-                if joint.vertices[..k].contains(&v) {
+                if !listed.insert(v) {
                     return fail(format!("joint \"{name}\" lists vertex {v} twice"));
                 }
             }
@@ -429,26 +442,56 @@ impl Model {
         if d2.is_finite() { d2.sqrt() } else { 0.0 }
     }
 
-    /// The first pair `(i, j)`, `i < j`, of vertices within `tolerance` of
-    /// each other. Sweeps the vertices in x order, so only neighbours in x
-    /// are compared.
+    /// The first vertex `j` within `tolerance` of an earlier vertex, as
+    /// `(i, j)` with `i` the earliest such vertex. Vertices go into a grid of
+    /// cells `tolerance` wide (for a zero tolerance, one cell per distinct
+    /// point), and each is compared only with those in its own and the 26
+    /// neighbouring cells: as the search stops at the first repeat, a cell
+    /// holds only a few vertices, so the time is linear in their number.
     fn duplicate_vertex(&self, tolerance: f64) -> Option<(usize, usize)> {
         let v = &self.vertices;
-        let mut order: Vec<usize> = (0..v.len()).collect();
-        order.sort_by(|&a, &b| v[a][0].total_cmp(&v[b][0]));
-        let mut found: Option<(usize, usize)> = None;
-        for (k, &a) in order.iter().enumerate() {
-            for &b in order[k + 1..].iter().take_while(|&&b| v[b][0] - v[a][0] <= tolerance) {
-                let d2: f64 = (0..3).map(|c| (v[a][c] - v[b][c]).powi(2)).sum();
-                if d2.sqrt() <= tolerance {
-                    let pair = (a.min(b), a.max(b));
-                    if found.is_none_or(|f| pair < f) {
-                        found = Some(pair);
+        let mut lo = [f64::INFINITY; 3];
+        for p in v {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+            }
+        }
+        // Within the bounding box, (p - lo) / tolerance is at most
+        // 1 / DUPLICATE_VERTEX_TOLERANCE, far inside i64.
+        let cell = |p: &[f64; 3]| -> [i64; 3] {
+            std::array::from_fn(|k| {
+                if tolerance > 0.0 {
+                    ((p[k] - lo[k]) / tolerance).floor() as i64
+                } else {
+                    // Adding 0.0 makes -0.0 the same point as 0.0.
+                    (p[k] + 0.0).to_bits() as i64
+                }
+            })
+        };
+        let reach: i64 = if tolerance > 0.0 { 1 } else { 0 };
+        let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = std::collections::HashMap::new();
+        for (j, p) in v.iter().enumerate() {
+            let c = cell(p);
+            let mut earliest: Option<usize> = None;
+            for dx in -reach..=reach {
+                for dy in -reach..=reach {
+                    for dz in -reach..=reach {
+                        let Some(near) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else { continue };
+                        for &i in near {
+                            let d2: f64 = (0..3).map(|k| (v[i][k] - p[k]).powi(2)).sum();
+                            if d2.sqrt() <= tolerance && earliest.is_none_or(|e| i < e) {
+                                earliest = Some(i);
+                            }
+                        }
                     }
                 }
             }
+            if let Some(i) = earliest {
+                return Some((i, j));
+            }
+            grid.entry(c).or_default().push(j);
         }
-        found
+        None
     }
 
     /// `Err(message)` when face `f` (indices in range) encloses no area or
@@ -502,7 +545,7 @@ fn validate_state(
     model_path: &Path,
 ) -> Result<()> {
     let what = line.map_or_else(String::new, |l| format!("line {l}: "));
-    let fail = |msg: String| Err(Error::input(path, format!("{what}{msg}")));
+    let fail = |msg: String| Err(input_error(path, format!("{what}{msg}")));
     if pose.is_some_and(|p| !p.is_finite()) {
         return fail("the pose has a value that is not a finite number".to_string());
     }
@@ -524,7 +567,7 @@ fn validate_state(
         // The model is the likelier culprit: name it, and the file with the corners.
         let file = path.file_name().map_or_else(|| path.display().to_string(), |f| f.to_string_lossy().into_owned());
         let at = line.map_or_else(String::new, |l| format!(" line {l}"));
-        return Err(Error::input(
+        return Err(input_error(
             model_path,
             format!("the model has {n} vertices, fewer than the {} corners in {file}{at}", corners.len()),
         ));
@@ -544,7 +587,7 @@ impl InitState {
     /// pose or corners. More corners than vertices names the model file.
     pub fn validate(&self, path: &Path, model: &Model, model_path: &Path) -> Result<()> {
         if self.pose.is_none() && self.corners.is_empty() {
-            return Err(Error::input(path, "neither a pose nor corners: a tracker needs one of them"));
+            return Err(input_error(path, "neither a pose nor corners: a tracker needs one of them"));
         }
         validate_state(path, None, self.pose.as_ref(), &self.params, &self.corners, model, model_path)
     }
@@ -559,7 +602,7 @@ impl TruthFrame {
         if let Visibility::Vertices(seen) = &self.visible {
             let n = model.vertices.len();
             if seen.len() != n {
-                return Err(Error::input(
+                return Err(input_error(
                     path,
                     format!(
                         "line {line}: \"visible\" has {} flags but the model has {n} vertices \
@@ -578,7 +621,7 @@ impl FrameResult {
     /// number finite (corners, pose, params, covariance, ms), and corners
     /// present while tracking.
     pub fn validate(&self, path: &Path, line: usize) -> Result<()> {
-        let fail = |msg: &str| Err(Error::input(path, format!("line {line}: {msg}")));
+        let fail = |msg: &str| Err(input_error(path, format!("line {line}: {msg}")));
         if self.status == Status::Tracking && self.corners.is_empty() {
             return fail("status is tracking but there are no corners");
         }

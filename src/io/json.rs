@@ -7,6 +7,7 @@ use std::path::Path;
 use serde::de::DeserializeOwned;
 
 use super::frames::*;
+use crate::bounds::shorten_digit_runs;
 use crate::{Error, Result};
 
 pub(crate) const MISSING: &str = "missing";
@@ -32,7 +33,7 @@ pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
     if let Some(msg) = not_an_object(&text) {
         return Err(Error::input(path, msg));
     }
-    serde_json::from_str(&text).map_err(|e| Error::input(path, describe_json_error(&text, &e, None)))
+    serde_json::from_str(&text).map_err(|e| Error::input(path, one_short_line(&describe_json_error(&text, &e, None))))
 }
 
 /// The complaint about a JSON text whose top level is an array: every file
@@ -62,14 +63,64 @@ pub fn read_jsonl<T: DeserializeOwned>(path: &Path) -> Result<Vec<(usize, T)>> {
         if let Some(msg) = not_an_object(&line) {
             return Err(Error::input(path, format!("line {n}: {msg}")));
         }
-        let value = serde_json::from_str(&line)
-            .map_err(|e| Error::input(path, format!("line {n}: {}", describe_json_error(&line, &e, Some(n)))))?;
+        let value = serde_json::from_str(&line).map_err(|e| {
+            Error::input(path, one_short_line(&format!("line {n}: {}", describe_json_error(&line, &e, Some(n)))))
+        })?;
         out.push((n, value));
     }
     if out.is_empty() {
         return Err(Error::input(path, "empty file: expected one JSON object per line"));
     }
     Ok(out)
+}
+
+/// Longest run of non-blank characters a message keeps whole: a longer run
+/// is user text echoed back (a string value, a token) and is cut.
+const MAX_ECHO_CHARS: usize = 40;
+/// Characters of a cut run that are kept before the `…`.
+const ECHO_KEPT_CHARS: usize = 32;
+/// Longest message, in characters; the rest is cut.
+const MAX_MESSAGE_CHARS: usize = 300;
+
+/// Characters that would break a message's one line or its display:
+/// controls, line and paragraph separators, and bidirectional overrides.
+fn breaks_line(c: char) -> bool {
+    c.is_control()
+        || matches!(c, '\u{2028}' | '\u{2029}' | '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}' | '\u{FEFF}')
+}
+
+/// `message` as one short line for an [`Error::Input`], whatever user text
+/// it quotes: characters that break a line escaped (`\n`, `\u{2028}`),
+/// long digit runs shortened ([`shorten_digit_runs`]), a run of non-blank
+/// characters longer than [`MAX_ECHO_CHARS`] cut to its start, `…` and its
+/// closing quote or punctuation, and the whole at most
+/// [`MAX_MESSAGE_CHARS`] characters.
+pub(crate) fn one_short_line(message: &str) -> String {
+    let escaped: String =
+        message.chars().map(|c| if breaks_line(c) { c.escape_default().collect() } else { c.to_string() }).collect();
+    let short = shorten_digit_runs(&escaped);
+    let words: Vec<String> = short
+        .split(' ')
+        .map(|word| {
+            if word.chars().count() <= MAX_ECHO_CHARS {
+                return word.to_string();
+            }
+            let mut closing: Vec<char> = word
+                .chars()
+                .rev()
+                .take_while(|c| matches!(c, '"' | '`' | '\'' | ',' | ')' | ']' | ':'))
+                .take(3)
+                .collect();
+            closing.reverse();
+            let closing: String = closing.into_iter().collect();
+            format!("{}…{closing}", word.chars().take(ECHO_KEPT_CHARS).collect::<String>())
+        })
+        .collect();
+    let line = words.join(" ");
+    match line.char_indices().nth(MAX_MESSAGE_CHARS) {
+        Some((end, _)) => format!("{}…", &line[..end]),
+        None => line,
+    }
 }
 
 /// One-line description of a serde_json error in `text`. With `line`
@@ -165,6 +216,17 @@ mod tests {
         assert!(!msg.contains('\n'));
         let msg = describe_json_error(r#"{"fx": nan}"#, &e, Some(3));
         assert_eq!(msg, "nan at column 8: JSON has no NaN or Infinity, every number must be finite");
+    }
+
+    #[test]
+    fn messages_are_one_short_line_whatever_they_quote() {
+        assert_eq!(one_short_line("unknown variant `los\nt`"), r"unknown variant `los\nt`");
+        assert_eq!(one_short_line("name \"a\u{2028}b\""), r#"name "a\u{2028}b""#);
+        let long = format!("invalid type: string \"{}\", expected f64", "x".repeat(5000));
+        assert_eq!(one_short_line(&long), format!("invalid type: string \"{}…\", expected f64", "x".repeat(31)));
+        let many = "ab ".repeat(1000);
+        assert_eq!(one_short_line(&many).chars().count(), MAX_MESSAGE_CHARS + 1);
+        assert_eq!(one_short_line("fx = -1e308 is not > 0"), "fx = -1e308 is not > 0");
     }
 
     #[test]

@@ -11,10 +11,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::backend::{BackendKind, EarlyVision, make_backend};
-use crate::bounds::shorten_digit_runs;
 use crate::geometry::ModelGeometry;
 use crate::image::GrayImage;
 use crate::io::formats::{FrameResult, Status};
+use crate::io::json::one_short_line;
 use crate::io::sequence::CAMERA_FILE;
 use crate::io::{AtomicFile, Sequence, StagedDir};
 use crate::track::{BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
@@ -28,8 +28,8 @@ pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
 
 /// Read tracker parameters of type `P` from a TOML file: the table named after
 /// the tracker (`[motion-edge]`) when there is one, else the whole file.
-/// Errors name the file, in one line, with long numbers shortened
-/// ([`crate::bounds::shorten_digit_runs`]).
+/// Errors name the file, in one short line, with long numbers and long
+/// quoted text shortened ([`crate::io::json::one_short_line`]).
 pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>, tracker: &str) -> Result<P> {
     let Some(path) = path else { return Ok(P::default()) };
     let cannot_read = |e: std::io::Error| Error::input(path, format!("cannot read: {e}"));
@@ -50,7 +50,8 @@ pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>
 }
 
 /// A TOML error as one line naming `path`: `line L, column C: message` when
-/// the error points into `text`, with long numbers shortened.
+/// the error points into `text`, with what it quotes of the file shortened
+/// ([`crate::io::json::one_short_line`]).
 fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> Error {
     let message = match e.span().and_then(|span| text.get(..span.start)) {
         Some(before) => {
@@ -60,7 +61,7 @@ fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> Error {
         }
         None => one_line(&e.to_string()),
     };
-    Error::input(path, shorten_digit_runs(&message))
+    Error::input(path, one_short_line(&message))
 }
 
 /// A parameter error blamed on the config file when there is one.

@@ -3,6 +3,7 @@
 
 mod bounds;
 mod cli;
+mod fuzz;
 mod score;
 mod sequence_io;
 mod synth;

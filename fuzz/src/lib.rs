@@ -1,0 +1,173 @@
+//! What each fuzz target does with its bytes: write them where the parser
+//! reads them (a file in a good sequence folder, a `.cao` next to the files
+//! it may `load`, a config file) or hand them over as a stream, and call the
+//! library's public entry point. A target asserts only that the call
+//! returns, `Ok` or `Err`: a panic, an abort or a hang is what libFuzzer
+//! reports. The stable twin of these targets, with checks of the error
+//! messages too, is `tests/io/fuzz.rs`.
+
+use std::fs;
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use pipetrack::cli::score::{read_predictions, score_file};
+use pipetrack::io::cao::read_cao;
+use pipetrack::io::formats::TruthFrame;
+use pipetrack::io::y4m::Y4mReader;
+use pipetrack::track::make_tracker;
+use pipetrack::{GrayImage, Sequence};
+
+const CAMERA: &str = r#"{"width":4,"height":3,"fx":100.0,"fy":100.0,"cx":1.5,"cy":1.0}"#;
+const SQUARE: &str = r#"{"name":"square","units":"m",
+ "vertices":[[0,0,0],[0.1,0,0],[0.1,0.1,0],[0,0.1,0]],
+ "edges":[[0,1],[1,2],[2,3],[3,0]],
+ "faces":[[0,1,2,3]]}"#;
+const INIT: &str = r#"{"pose":{"rotation":[0,0,0],"translation":[0,0,1]},"corners":[[1,1],[2,1],[2,2],[1,2]]}"#;
+const TRUTH: &str = "{\"frame\":0,\"corners\":[[1,1],[2,1],[2,2],[1,2]]}\n{\"frame\":1,\"visible\":false}\n";
+const SQUARE_CAO: &str = "V1\n4\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0\n0\n1\n4 0 1 2 3\n0\n0\n";
+
+/// Write `data` to `path` as a new file (removing the old one first spares
+/// ext4 a flush per run).
+fn put(path: &Path, data: &[u8]) {
+    let _ = fs::remove_file(path);
+    fs::write(path, data).expect("the fuzz folder is writable");
+}
+
+/// A folder of this process under the temp dir, named `name`, emptied.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pipetrack-fuzz-{}-{name}", std::process::id()));
+    let _ = fs::remove_dir_all(&dir);
+    fs::create_dir_all(dir.join("frames")).expect("the temp dir is writable");
+    dir
+}
+
+/// A good 4×3 sequence folder (square model, two frames), made once per
+/// `name`; each target overwrites only its own file in it.
+fn sequence_dir(cell: &'static OnceLock<PathBuf>, name: &str) -> &'static Path {
+    cell.get_or_init(|| {
+        let dir = scratch(name);
+        put(&dir.join("camera.json"), CAMERA.as_bytes());
+        put(&dir.join("model.json"), SQUARE.as_bytes());
+        put(&dir.join("init.json"), INIT.as_bytes());
+        put(&dir.join("truth.jsonl"), TRUTH.as_bytes());
+        for k in 0..2u8 {
+            let pixels: Vec<u8> = (0..12).map(|i| 10 * k + i).collect();
+            let frame = dir.join(format!("frames/00000{k}.png"));
+            image::save_buffer(frame, &pixels, 4, 3, image::ExtendedColorType::L8).expect("frame written");
+        }
+        dir
+    })
+}
+
+/// `camera.json` of a sequence folder: [`Sequence::open`].
+pub fn camera_json(data: &[u8]) {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    let dir = sequence_dir(&DIR, "camera");
+    put(&dir.join("camera.json"), data);
+    let _ = Sequence::open(dir, false);
+}
+
+/// `model.json` of a sequence folder: [`Sequence::open`].
+pub fn model_json(data: &[u8]) {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    let dir = sequence_dir(&DIR, "model");
+    put(&dir.join("model.json"), data);
+    let _ = Sequence::open(dir, false);
+}
+
+/// `init.json` of a sequence folder: [`Sequence::open`].
+pub fn init_json(data: &[u8]) {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    let dir = sequence_dir(&DIR, "init");
+    put(&dir.join("init.json"), data);
+    let _ = Sequence::open(dir, false);
+}
+
+/// `truth.jsonl` of a good sequence: [`Sequence::read_truth`].
+pub fn truth_jsonl(data: &[u8]) {
+    static SEQ: OnceLock<Sequence> = OnceLock::new();
+    let seq = SEQ.get_or_init(|| {
+        static DIR: OnceLock<PathBuf> = OnceLock::new();
+        Sequence::open(sequence_dir(&DIR, "truth"), false).expect("the fixture is a good sequence")
+    });
+    put(&seq.truth_path(), data);
+    let _ = seq.read_truth();
+}
+
+/// A tracker output file: [`read_predictions`], and [`score_file`] against
+/// a good `truth.jsonl`.
+pub fn predictions_jsonl(data: &[u8]) {
+    static FIXTURE: OnceLock<(Vec<TruthFrame>, PathBuf)> = OnceLock::new();
+    let (truth, path) = FIXTURE.get_or_init(|| {
+        static DIR: OnceLock<PathBuf> = OnceLock::new();
+        let dir = sequence_dir(&DIR, "predictions");
+        let truth = Sequence::open(dir, false).and_then(|s| s.read_truth()).expect("good truth");
+        (truth, dir.join("pred.jsonl"))
+    });
+    put(path, data);
+    let _ = read_predictions(path);
+    let _ = score_file(truth, path);
+}
+
+/// A `.cao` model next to files it may include (`part.cao`,
+/// `sub/part.cao`, which includes `../part.cao`): [`read_cao`].
+pub fn cao(data: &[u8]) {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    let dir = DIR.get_or_init(|| {
+        let dir = scratch("cao");
+        fs::create_dir_all(dir.join("sub")).expect("the temp dir is writable");
+        put(&dir.join("part.cao"), SQUARE_CAO.as_bytes());
+        put(&dir.join("sub/part.cao"), b"V1\nload(\"../part.cao\")\n0\n0\n0\n0\n");
+        dir
+    });
+    let path = dir.join("model.cao");
+    put(&path, data);
+    let _ = read_cao(&path);
+}
+
+/// A Y4M stream's header: [`Y4mReader::with_name`].
+pub fn y4m_header(data: &[u8]) {
+    let _ = Y4mReader::with_name(data, Path::new("fuzz.y4m"));
+}
+
+/// A whole Y4M stream, every frame read, alternately into a reused image
+/// and as a new one.
+pub fn y4m_frames(data: &[u8]) {
+    let Ok(mut reader) = Y4mReader::with_name(Cursor::new(data), Path::new("fuzz.y4m")) else { return };
+    let mut image = GrayImage::new(0, 0);
+    for k in 0.. {
+        let next =
+            if k % 2 == 0 { reader.read_frame_into(&mut image) } else { reader.next_frame().map(|f| f.is_some()) };
+        if !matches!(next, Ok(true)) {
+            return;
+        }
+        // Every frame consumes at least its FRAME line.
+        assert!(k <= data.len(), "{k} frames from {} bytes", data.len());
+    }
+}
+
+/// A config file for `tracker`: [`make_tracker`] on a good sequence, which
+/// reads the file (`read_config`), checks the parameters and builds the
+/// tracker.
+fn config(cell: &'static OnceLock<(Sequence, PathBuf)>, tracker: &str, data: &[u8]) {
+    let (seq, path) = cell.get_or_init(|| {
+        static DIR: OnceLock<PathBuf> = OnceLock::new();
+        let dir = sequence_dir(&DIR, "config");
+        (Sequence::open(dir, false).expect("the fixture is a good sequence"), dir.join("config.toml"))
+    });
+    put(path, data);
+    let _ = make_tracker(tracker, seq, Some(path));
+}
+
+/// A motion-edge config file.
+pub fn config_motion_edge(data: &[u8]) {
+    static FIXTURE: OnceLock<(Sequence, PathBuf)> = OnceLock::new();
+    config(&FIXTURE, "motion-edge", data);
+}
+
+/// A blue config file.
+pub fn config_blue(data: &[u8]) {
+    static FIXTURE: OnceLock<(Sequence, PathBuf)> = OnceLock::new();
+    config(&FIXTURE, "blue", data);
+}
