@@ -64,7 +64,7 @@ pub const EPSILONS: [f64; 3] = [20.0, 26.0, 32.0];
 /// Frames per data set, as in the paper.
 pub const FRAMES: usize = 200;
 /// Seeds of the default run.
-pub const SEEDS: [u64; 3] = [1, 2, 3];
+pub const SEEDS: [u64; 5] = [1, 2, 3, 4, 5];
 /// Clearance between the distractor hexagon's circumcircle and the
 /// rectangle's top edge at the bottom of the swing, px.
 pub const DISTRACTOR_GAP_PX: f64 = 8.0;
