@@ -101,6 +101,9 @@ enum Command {
         /// `default` (pipetrack's parameters), `paper` (the method as printed), or `both`.
         #[arg(long, default_value = "both")]
         config: String,
+        /// Seeds, comma-separated: each renders its own sequence per velocity.
+        #[arg(long, value_delimiter = ',', default_values_t = pipetrack::cli::reproduce::SEEDS)]
+        seeds: Vec<u64>,
     },
     /// Compare every early-vision stage and the whole chain on the CPU and the GPU.
     Bench {
@@ -268,25 +271,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             pipetrack::cli::demo::run_demo(&pipetrack::cli::demo::default_root(), &mut std::io::stdout().lock())?;
             Ok(())
         }
-        Command::Reproduce { tracker, config } => {
+        Command::Reproduce { tracker, config, seeds } => {
+            use pipetrack::cli::reproduce::{Config, Setup, markdown, run_tables};
             if tracker != "motion-edge" {
                 return Err(pipetrack::Error::Parameter(format!(
                     "no tables to reproduce for tracker {tracker:?} (motion-edge)"
                 ))
                 .into());
             }
-            let configs: Vec<&str> = match config.as_str() {
-                "both" => vec!["default", "paper"],
-                c => vec![c],
-            };
-            for c in configs {
-                let tables = pipetrack::cli::reproduce::run_tables(c, |done, total| {
-                    let _ = write!(std::io::stderr(), "\r{c}: {done}/{total} runs");
-                })?;
-                note(format_args!(""));
-                say(format_args!("{}", pipetrack::cli::reproduce::markdown(c, &tables)))?;
-            }
-            Ok(())
+            let setup = Setup::tables(Config::parse_list(&config)?, seeds);
+            let tables = run_tables(&setup, &|done, total| {
+                let _ = write!(std::io::stderr(), "\rreproduce: {done}/{total} runs");
+            })?;
+            note(format_args!(""));
+            say(format_args!("{}", markdown(&tables)))
         }
         Command::Bench { sizes, json, stages, seconds } => bench(&sizes.0, json, &stages, seconds),
     }

@@ -91,7 +91,8 @@ pub const TARGET_GREY: f32 = 215.0;
 pub const DISTRACTOR_GREY: f32 = 35.0;
 /// Circumradius of the distractor (a turning hexagon), pixels.
 pub const DISTRACTOR_RADIUS_PX: f64 = 13.0;
-/// Row of the distractor's centre: above every position of the rectangle.
+/// Default row of the distractor's centre: above every position of the
+/// rectangle.
 pub const DISTRACTOR_Y: f64 = 30.0;
 /// Turning rate of the distractor, radians per frame.
 pub const DISTRACTOR_SPIN: f64 = 0.04;
@@ -143,9 +144,13 @@ pub struct PendulumOptions {
     pub noise_sigma: f64,
     /// Static backdrop (default textured).
     pub background: Background,
-    /// Add a dark turning hexagon that crosses the top of the frame once
-    /// (default false).
+    /// Add a dark turning hexagon that crosses the frame once, left to right,
+    /// behind the rectangle (default false).
     pub distractor: bool,
+    /// Row of the distractor's centre, px (default [`DISTRACTOR_Y`], above
+    /// every position of the rectangle; a row nearer the rectangle brings the
+    /// hexagon's edges near the model lines). `0 ..= HEIGHT`.
+    pub distractor_y: f64,
     /// From this frame on, the object is [`JUMP_OFFSET_PX`] away and swings
     /// there (the tracker should report `lost`). `1 ..frames`.
     pub jump_at: Option<usize>,
@@ -162,6 +167,7 @@ impl Default for PendulumOptions {
             noise_sigma: 2.0,
             background: Background::Textured,
             distractor: false,
+            distractor_y: DISTRACTOR_Y,
             jump_at: None,
             motion: PendulumMotion::Rotating,
         }
@@ -170,11 +176,12 @@ impl Default for PendulumOptions {
 
 impl PendulumOptions {
     /// Keys [`PendulumOptions::set`] accepts.
-    pub const KEYS: [&'static str; 6] = ["speed", "noise", "background", "distractor", "jump_at", "motion"];
+    pub const KEYS: [&'static str; 7] =
+        ["speed", "noise", "background", "distractor", "distractor_y", "jump_at", "motion"];
 
     /// Set one option from strings (for the command line): `speed` (px/frame),
     /// `noise` (σ, grey levels), `background` (flat|textured|cluttered),
-    /// `distractor` (true|false), `jump_at` (frame), `motion`
+    /// `distractor` (true|false), `distractor_y` (row, px), `jump_at` (frame), `motion`
     /// (rotating|translating). Range checks happen in [`render_pendulum`].
     pub fn set(&mut self, key: &str, value: &str) -> Result<()> {
         let number = "a number";
@@ -183,6 +190,7 @@ impl PendulumOptions {
             "noise" | "noise_sigma" => self.noise_sigma = parse_option("pendulum", key, value, number)?,
             "background" => self.background = value.parse()?,
             "distractor" => self.distractor = parse_option("pendulum", key, value, "true or false")?,
+            "distractor_y" => self.distractor_y = parse_option("pendulum", key, value, number)?,
             "jump_at" => self.jump_at = Some(parse_option("pendulum", key, value, "a frame index")?),
             "motion" => self.motion = value.parse()?,
             _ => {
@@ -200,6 +208,7 @@ impl PendulumOptions {
         check_frames(self.frames, MAX_FRAMES)?;
         check_range("speed", self.speed, MAX_SPEED, " px/frame")?;
         check_range("noise sigma", self.noise_sigma, MAX_NOISE_SIGMA, "")?;
+        check_range("distractor_y", self.distractor_y, HEIGHT as f64, " px")?;
         if let Some(j) = self.jump_at
             && !(1..self.frames).contains(&j)
         {
@@ -320,14 +329,15 @@ pub fn model() -> Model {
     }
 }
 
-/// Where the distractor hexagon is at frame `frame` of `frames`: it enters at
-/// the left edge at frame 0 and leaves at the right edge on the last frame.
-fn distractor_polygon(frame: usize, frames: usize) -> Vec<[f64; 2]> {
+/// Where the distractor hexagon centred on row `y` is at frame `frame` of
+/// `frames`: it enters at the left edge at frame 0 and leaves at the right
+/// edge on the last frame.
+fn distractor_polygon(y: f64, frame: usize, frames: usize) -> Vec<[f64; 2]> {
     let r = DISTRACTOR_RADIUS_PX;
     let travel = WIDTH as f64 + 2.0 * r + 4.0;
     let x = -r - 2.0 + travel * frame as f64 / (frames.max(2) - 1) as f64;
     let spin = DISTRACTOR_SPIN * frame as f64;
-    super::ellipse_points([x, DISTRACTOR_Y], [r, r], spin, 6)
+    super::ellipse_points([x, y], [r, r], spin, 6)
 }
 
 /// Render the `pendulum` scene in memory (nothing touches the disk).
@@ -343,7 +353,7 @@ pub fn render_pendulum(opts: &PendulumOptions) -> Result<SyntheticSequence> {
             || (background.clone(), FloatImage::new(WIDTH, HEIGHT)),
             |(canvas, smooth), k| -> Result<GrayImage> {
                 let target = swing.corners(k);
-                let distractor = opts.distractor.then(|| distractor_polygon(k, opts.frames));
+                let distractor = opts.distractor.then(|| distractor_polygon(opts.distractor_y, k, opts.frames));
                 // Only the pixels the moving shapes touch differ from the background.
                 let moving = target.iter().chain(distractor.iter().flatten());
                 let window = canvas.window_around(moving);
@@ -379,6 +389,7 @@ pub fn render_pendulum(opts: &PendulumOptions) -> Result<SyntheticSequence> {
         "noise_sigma": opts.noise_sigma,
         "background": opts.background.name(),
         "distractor": opts.distractor,
+        "distractor_y": opts.distractor_y,
         "jump_at": opts.jump_at,
         "jump_offset_px": JUMP_OFFSET_PX,
         "motion": opts.motion.name(),

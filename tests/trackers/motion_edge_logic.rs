@@ -269,3 +269,64 @@ fn paper_literal_configuration_tracks_the_paper_speeds() {
         assert!(mean <= 0.5, "speed {speed}: mean corner error {mean:.3} px");
     }
 }
+
+/// `pipetrack reproduce motion-edge` on a tiny grid: deterministic, one
+/// table per ε with the paper's row and both metrics per configuration.
+#[test]
+fn reproduce_tables_on_a_tiny_grid_are_deterministic() {
+    use pipetrack::cli::reproduce::{Config, Setup, markdown, run_one, run_tables, scene};
+    use pipetrack::synth::pendulum::render_pendulum;
+
+    let setup = Setup {
+        speeds: vec![3.9],
+        zetas: vec![5.0],
+        epsilons: vec![20.0, 32.0],
+        seeds: vec![1, 2],
+        frames: 24,
+        configs: vec![Config::Paper, Config::Default],
+    };
+    let first = run_tables(&setup, &|_, _| {}).expect("tables");
+    let second = run_tables(&setup, &|_, _| {}).expect("tables");
+    assert_eq!(first, second, "same setup, same runs");
+    let md = markdown(&first);
+    assert_eq!(md, markdown(&second));
+    println!("{md}");
+    assert!(md.contains("#### Table 1 — corner error (px), ε = 20"), "{md}");
+    assert!(md.contains("#### Table 3 — corner error (px), ε = 32"), "{md}");
+    // The paper's Table 1 figure for 3.9 px/frame, ζ = 5.
+    assert!(md.contains("| 3.9 | paper's table | 0.096 |"), "{md}");
+    for name in ["paper", "default"] {
+        assert!(md.contains(&format!("| 3.9 | `{name}` predicted − extracted |")), "{md}");
+        assert!(md.contains(&format!("| 3.9 | `{name}` reported − truth |")), "{md}");
+    }
+
+    // Each cell is the run of its own seed's sequence: seed 2, ε = 32, default.
+    let seq = render_pendulum(&scene(3.9, 2, 24)).expect("scene");
+    let params = MotionEdgeParams { zeta: 5.0, epsilon: 32.0, ..MotionEdgeParams::default() };
+    let run = run_one(&seq, &params).expect("run");
+    assert_eq!(first.cell(1, 1, 0, 0)[1], run);
+    // 24 frames of the start of the swing: tracked throughout, measured on most.
+    assert_eq!(run.tracked, 24);
+    assert!(run.measured_frames >= 12 && run.measured_frames < 24, "{run:?}");
+    assert!(run.truth_error < 1.0 && run.paper_error < 1.0, "{run:?}");
+    // The `paper` configuration (no lag correction) gives numbers too.
+    let paper = first.cell(0, 0, 0, 0)[0];
+    assert!(paper.paper_error.is_finite() && paper.truth_error.is_finite(), "{paper:?}");
+
+    let empty = Setup { seeds: Vec::new(), ..setup };
+    assert!(run_tables(&empty, &|_, _| {}).is_err());
+}
+
+#[test]
+fn paper_configuration_has_every_switchable_extension_off() {
+    let p = MotionEdgeParams::paper();
+    p.validate().expect("valid");
+    assert_eq!(p.line_fit, LineFitMethod::Regression);
+    assert_eq!(p.refine_iterations, 0);
+    assert!(!p.band_tolerance && !p.lag_correction);
+    assert_eq!(p.prediction, Prediction::Smoothed);
+    assert_eq!(p.missing, MissingMeasurement::LastMeasurement);
+    assert_eq!(p.lost_evidence, pipetrack::track::motion_edge::MAX_COUNT);
+    assert_eq!(p.vanished_motion, f64::INFINITY);
+    assert_eq!((p.zeta, p.epsilon, p.alpha), (5.0, 20.0, 0.2));
+}

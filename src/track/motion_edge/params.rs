@@ -189,6 +189,35 @@ impl Default for MotionEdgeParams {
 }
 
 impl MotionEdgeParams {
+    /// The method as paper 000 prints it, every switchable extension off:
+    /// eq. 5–8 regression fits, one labelling pass with the fixed ζ of eq. 4,
+    /// eq. 12 predictions throughout, corners reported where the lines fitted
+    /// to the motion band put them (no half-frame lag correction), loss by
+    /// eq. 9 only (no contradicted-line or vanished-motion loss). A corner
+    /// without motion pixels feeds its last measurement to eq. 10–11, so its
+    /// predictions slow down (paper §2, Fig. 2).
+    ///
+    /// Kept, because no parameter switches them off: a line without motion
+    /// pixels is held at its last fit and turned by the fitted lines' mean
+    /// turn, and the fitted pixels are trimmed a frame's motion inside the
+    /// segment's ends (module doc of [`super`]). δ, σ, the motion threshold,
+    /// `min_points_per_line`, `min_magnitude` and the acquisition tolerance,
+    /// which the paper does not give, keep their defaults.
+    #[must_use]
+    pub fn paper() -> Self {
+        Self {
+            lag_correction: false,
+            band_tolerance: false,
+            missing: MissingMeasurement::LastMeasurement,
+            lost_evidence: MAX_COUNT,
+            vanished_motion: f64::INFINITY,
+            line_fit: LineFitMethod::Regression,
+            refine_iterations: 0,
+            prediction: Prediction::Smoothed,
+            ..Self::default()
+        }
+    }
+
     /// Check every parameter against its documented range
     /// ([`crate::Error::Parameter`] naming the first bad one and its range).
     pub fn validate(&self) -> Result<()> {
