@@ -91,6 +91,9 @@ enum Command {
         seq_dir: PathBuf,
         /// The tracker's JSON Lines.
         pred: PathBuf,
+        /// Corner error (px) above which a frame reported `tracking` counts as false tracking.
+        #[arg(long = "false-tracking-px", default_value_t = pipetrack::cli::score::DEFAULT_FALSE_TRACKING_PX)]
+        false_tracking_px: f64,
     },
     /// Synthesise a short sequence, track it, write overlays to a temp folder, print the score.
     Demo,
@@ -261,10 +264,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             note(format_args!("pipetrack: wrote {} frames of '{}' to {}", seq.frames.len(), scene, out_dir.display()));
             Ok(())
         }
-        Command::Score { seq_dir, pred } => {
+        Command::Score { seq_dir, pred, false_tracking_px } => {
             let seq = Sequence::open(&seq_dir, false)?;
             let truth = seq.read_truth()?;
-            let score = pipetrack::cli::score::score_file(&truth, &pred)?;
+            let score = pipetrack::cli::score::score_file_with(&truth, &pred, false_tracking_px)?;
             say(format_args!("{score}"))
         }
         Command::Demo => {

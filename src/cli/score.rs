@@ -10,6 +10,13 @@
 //! middle values for an even count), p95 (nearest rank: the ⌈0.95·n⌉-th
 //! smallest) and max.
 //!
+//! **False tracking**: a frame reported `tracking` whose corner error
+//! exceeds a threshold ([`DEFAULT_FALSE_TRACKING_PX`] = 5 px unless
+//! `--false-tracking-px` says otherwise), or that is reported `tracking`
+//! while truth shows no vertex of the object at all: the tracker claims the
+//! object where it is not. Counted over the whole run and reported with its
+//! fraction of the tracking frames and of all frames.
+//!
 //! **Frame agreement.** The tracker writes one line per frame, so the
 //! predictions must list exactly the truth's frames, in the same order:
 //! a different count (a run that stopped early, a truth file for another
@@ -23,6 +30,10 @@ use std::path::Path;
 use crate::io::formats::{FrameResult, Status, TruthFrame, Visibility};
 use crate::io::read_jsonl;
 use crate::{Error, Result};
+
+/// Corner error above which a tracking frame is false tracking, px
+/// (module doc).
+pub const DEFAULT_FALSE_TRACKING_PX: f64 = 5.0;
 
 /// Error figures over the scored frames, in pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -72,23 +83,71 @@ pub struct Score {
     pub corner_errors: Vec<Option<f64>>,
     /// Figures over `frame_errors`; `None` when no frame was scored.
     pub stats: Option<ErrorStats>,
+    /// The threshold of false tracking, px (module doc).
+    pub false_tracking_px: f64,
+    /// Frames reported `tracking` whose corner error exceeds
+    /// `false_tracking_px`, or whose truth shows no vertex (module doc), in
+    /// frame order.
+    pub false_tracking: Vec<usize>,
+}
+
+impl Score {
+    /// Fraction of the tracking frames that are false tracking; 0 when no
+    /// frame is tracking.
+    #[must_use]
+    pub fn false_tracking_fraction_of_tracked(&self) -> f64 {
+        if self.tracked == 0 { 0.0 } else { self.false_tracking.len() as f64 / self.tracked as f64 }
+    }
+
+    /// Fraction of all frames that are false tracking; 0 for an empty run.
+    #[must_use]
+    pub fn false_tracking_fraction(&self) -> f64 {
+        if self.frames == 0 { 0.0 } else { self.false_tracking.len() as f64 / self.frames as f64 }
+    }
 }
 
 /// Score `predictions` against `truth` (see the module docs for the rules).
 /// A disagreement between the two is an [`Error::Parameter`]; use
 /// [`score_file`] to get an error naming the predictions file.
+/// False tracking is judged at [`DEFAULT_FALSE_TRACKING_PX`].
 pub fn score(truth: &[TruthFrame], predictions: &[FrameResult]) -> Result<Score> {
-    score_impl(truth, predictions).map_err(Error::Parameter)
+    score_with(truth, predictions, DEFAULT_FALSE_TRACKING_PX)
+}
+
+/// [`score`] with false tracking judged at `false_tracking_px` (finite and
+/// not negative, else an [`Error::Parameter`]).
+pub fn score_with(truth: &[TruthFrame], predictions: &[FrameResult], false_tracking_px: f64) -> Result<Score> {
+    check_threshold(false_tracking_px)?;
+    score_impl(truth, predictions, false_tracking_px).map_err(Error::Parameter)
+}
+
+fn check_threshold(px: f64) -> Result<()> {
+    if px.is_finite() && px >= 0.0 {
+        Ok(())
+    } else {
+        Err(Error::Parameter(format!("false-tracking threshold {px} px is not a finite number ≥ 0")))
+    }
 }
 
 /// Read the tracker output at `pred_path` and score it against `truth`;
 /// errors name `pred_path`.
+/// False tracking is judged at [`DEFAULT_FALSE_TRACKING_PX`].
 pub fn score_file(truth: &[TruthFrame], pred_path: &Path) -> Result<Score> {
-    let predictions = read_predictions(pred_path)?;
-    score_impl(truth, &predictions).map_err(|msg| Error::input(pred_path, msg))
+    score_file_with(truth, pred_path, DEFAULT_FALSE_TRACKING_PX)
 }
 
-fn score_impl(truth: &[TruthFrame], predictions: &[FrameResult]) -> std::result::Result<Score, String> {
+/// [`score_file`] with false tracking judged at `false_tracking_px`.
+pub fn score_file_with(truth: &[TruthFrame], pred_path: &Path, false_tracking_px: f64) -> Result<Score> {
+    check_threshold(false_tracking_px)?;
+    let predictions = read_predictions(pred_path)?;
+    score_impl(truth, &predictions, false_tracking_px).map_err(|msg| Error::input(pred_path, msg))
+}
+
+fn score_impl(
+    truth: &[TruthFrame],
+    predictions: &[FrameResult],
+    false_tracking_px: f64,
+) -> std::result::Result<Score, String> {
     if predictions.len() != truth.len() {
         let range = |first: Option<usize>, last: Option<usize>| match (first, last) {
             (Some(a), Some(b)) => format!(" (frames {a} to {b})"),
@@ -103,6 +162,7 @@ fn score_impl(truth: &[TruthFrame], predictions: &[FrameResult]) -> std::result:
         ));
     }
     let mut frame_errors = Vec::new();
+    let mut false_tracking = Vec::new();
     let mut corner_sums: Vec<(f64, usize)> = Vec::new();
     for (p, t) in predictions.iter().zip(truth) {
         if p.frame != t.frame {
@@ -118,7 +178,11 @@ fn score_impl(truth: &[TruthFrame], predictions: &[FrameResult]) -> std::result:
                 ));
             }
         }
-        if !(t.visible.any() && p.status == Status::Tracking) {
+        if p.status != Status::Tracking {
+            continue;
+        }
+        if !t.visible.any() {
+            false_tracking.push(p.frame);
             continue;
         }
         if t.corners.is_empty() {
@@ -152,7 +216,11 @@ fn score_impl(truth: &[TruthFrame], predictions: &[FrameResult]) -> std::result:
                 visible += 1;
             }
         }
-        frame_errors.push((p.frame, sum / visible as f64));
+        let error = sum / visible as f64;
+        if !(error <= false_tracking_px) {
+            false_tracking.push(p.frame);
+        }
+        frame_errors.push((p.frame, error));
     }
     let errors: Vec<f64> = frame_errors.iter().map(|&(_, e)| e).collect();
     Ok(Score {
@@ -162,6 +230,8 @@ fn score_impl(truth: &[TruthFrame], predictions: &[FrameResult]) -> std::result:
         stats: ErrorStats::of(&errors),
         corner_errors: corner_sums.into_iter().map(|(sum, n)| (n > 0).then(|| sum / n as f64)).collect(),
         frame_errors,
+        false_tracking_px,
+        false_tracking,
     })
 }
 
@@ -198,6 +268,14 @@ impl fmt::Display for Score {
         }
         writeln!(f, "frames scored:       {} (truth visible and tracking)", self.frame_errors.len())?;
         writeln!(f, "frames tracked:      {} of {}", self.tracked, self.frames)?;
+        writeln!(
+            f,
+            "false tracking:      {} ({:.1} % of tracked, {:.1} % of all frames; tracking with error > {} px or nothing visible)",
+            self.false_tracking.len(),
+            100.0 * self.false_tracking_fraction_of_tracked(),
+            100.0 * self.false_tracking_fraction(),
+            self.false_tracking_px
+        )?;
         match self.first_lost {
             Some(frame) => write!(f, "first lost frame:    {frame}"),
             None => write!(f, "first lost frame:    none"),

@@ -5,7 +5,7 @@ use std::fs;
 use std::path::PathBuf;
 
 use pipetrack::Error;
-use pipetrack::cli::score::{ErrorStats, read_predictions, score, score_file};
+use pipetrack::cli::score::{ErrorStats, read_predictions, score, score_file, score_file_with, score_with};
 use pipetrack::io::formats::{FrameResult, Status, TruthFrame};
 
 const SQUARE: [[f64; 2]; 4] = [[10.0, 10.0], [20.0, 10.0], [20.0, 20.0], [10.0, 20.0]];
@@ -54,6 +54,34 @@ fn score_hand_worked_run() {
     assert!(text.contains("p95 corner error:    5.000 px"), "{text}");
     assert!(text.contains("frames tracked:      5 of 6"), "{text}");
     assert!(text.ends_with("first lost frame:    3"), "{text}");
+}
+
+/// The run of [`run`]: errors 5, 0, 1, 2 on the scored frames, and frame 4
+/// tracking while truth shows nothing. At 5 px only frame 4 is false
+/// tracking (5 is not above 5); at 1.5 px frames 0, 4 and 5; at 0.5 px also 2.
+#[test]
+fn false_tracking_counts_tracking_frames_off_by_more_than_the_threshold() {
+    let (truth, preds) = run();
+    let s = score(&truth, &preds).unwrap();
+    assert_eq!(s.false_tracking_px, 5.0);
+    assert_eq!(s.false_tracking, vec![4]);
+    assert_eq!(s.false_tracking_fraction_of_tracked(), 1.0 / 5.0);
+    assert_eq!(s.false_tracking_fraction(), 1.0 / 6.0);
+    let text = s.to_string();
+    assert!(
+        text.contains("false tracking:      1 (20.0 % of tracked, 16.7 % of all frames; tracking with error > 5 px"),
+        "{text}"
+    );
+    assert_eq!(score_with(&truth, &preds, 1.5).unwrap().false_tracking, vec![0, 4, 5]);
+    assert_eq!(score_with(&truth, &preds, 0.5).unwrap().false_tracking, vec![0, 2, 4, 5]);
+    // A lost frame is never false tracking, however far off (frame 3: 70 px).
+    assert!(!score_with(&truth, &preds, 0.0).unwrap().false_tracking.contains(&3));
+    for bad in [-1.0, f64::NAN, f64::INFINITY] {
+        assert!(matches!(score_with(&truth, &preds, bad), Err(Error::Parameter(_))), "{bad}");
+    }
+    let text: String = preds.iter().map(|p| serde_json::to_string(p).unwrap() + "\n").collect();
+    let file = TempFile::new("false.jsonl", &text);
+    assert_eq!(score_file_with(&truth, &file.0, 1.5).unwrap().false_tracking, vec![0, 4, 5]);
 }
 
 #[test]
