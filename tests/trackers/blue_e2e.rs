@@ -68,6 +68,13 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) {
     );
     assert_eq!(s.frame_errors.len(), 300, "{label}: every frame is scored");
     assert!(
+        s.false_tracking_fraction() <= 0.01,
+        "{label}: {} frames reported tracking more than {} px off: {:?}",
+        s.false_tracking.len(),
+        s.false_tracking_px,
+        s.false_tracking
+    );
+    assert!(
         stats.mean <= 1.0,
         "{label}: mean vertex error {:.3} px > 1 px; worst frames {}",
         stats.mean,

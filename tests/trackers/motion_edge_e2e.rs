@@ -68,6 +68,13 @@ fn check(label: &str, speed: f64, results: &[FrameResult], s: &Score, mean_limit
         stats.mean
     );
     assert!(stats.max <= max_limit, "{label} {speed} px/frame: worst frame {:.3} px > {max_limit}", stats.max);
+    assert!(
+        s.false_tracking_fraction() <= 0.01,
+        "{label} {speed} px/frame: {} frames reported tracking more than {} px off: {:?}",
+        s.false_tracking.len(),
+        s.false_tracking_px,
+        s.false_tracking
+    );
 }
 
 #[test]
