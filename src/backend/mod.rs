@@ -209,7 +209,7 @@ pub trait EarlyVision {
     /// Like [`process`](Self::process) for a frame held in a wgpu texture
     /// (formats: [`crate::early::ingest::TEXTURE_FORMATS`]). Only a backend on
     /// the texture's device can read it; the default is
-    /// [`Error::TextureOnCpu`](crate::Error::TextureOnCpu).
+    /// [`crate::Error::TextureOnCpu`].
     fn process_texture(&mut self, texture: &wgpu::Texture, request: &FrameRequest) -> Result<FrameFeatures> {
         let _ = (texture, request);
         Err(crate::Error::TextureOnCpu { backend: self.name() })

@@ -71,7 +71,7 @@ pub const DISTRACTOR_GAP_PX: f64 = 8.0;
 
 /// The paper's velocities, in the row order of [`PAPER`].
 pub const PAPER_SPEEDS: [f64; 3] = [1.1, 3.9, 4.5];
-/// The paper's Tables 1–3 (mean data error, px), [table][velocity][ζ].
+/// The paper's Tables 1–3 (mean data error, px), indexed `[table][velocity][ζ]`.
 pub const PAPER: [[[f64; 4]; 3]; 3] = [
     [[0.302, 0.338, 0.335, 0.407], [0.045, 0.096, 0.096, 1.151], [0.009, 0.024, 1.174, 1.368]],
     [[0.301, 0.313, 0.357, 0.407], [0.110, 0.108, 0.052, 0.052], [0.009, 0.005, 1.177, 1.368]],

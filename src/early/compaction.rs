@@ -22,7 +22,7 @@
 //! arithmetic, so their lists are identical element for element.
 //!
 //! GPU: four passes over blocks of [`BLOCK`] window pixels (a scan, since
-//! atomic append gives an unspecified order), see [`encode`]; only the header
+//! atomic append gives an unspecified order), see `encode`; only the header
 //! and the final list are read back.
 
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
@@ -182,7 +182,7 @@ fn list_row(
 
 /// CPU twin: the features of `params.window` into `out` (cleared first; the
 /// list allocates only when it grows, plus two tables of one entry per band
-/// of [`BAND_ROWS`] rows). The window is listed by the GPU's own scheme:
+/// of `BAND_ROWS` rows). The window is listed by the GPU's own scheme:
 /// count per band of rows, prefix-sum, fill each band's slice of the list;
 /// large windows run their bands on several threads.
 pub fn compaction_cpu(
@@ -366,7 +366,7 @@ impl CompactionGpu {
         self.prefetched.store(count as u32, Ordering::Relaxed);
     }
 
-    /// After the submission holding [`CompactionGpu::encode_readback`] is
+    /// After the submission holding `CompactionGpu::encode_readback` is
     /// done: map the staging buffer and return the list. When it is longer
     /// than what was prefetched, one more copy of the remainder is submitted
     /// and mapped, so only `16 + 16·count` bytes ever cross the bus.

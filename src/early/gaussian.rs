@@ -31,7 +31,7 @@ pub const SHADER: ShaderDef = ShaderDef {
 
 /// Most half-kernel weights the shader's uniform block holds.
 const MAX_TAPS: usize = 60;
-/// Largest σ accepted (radius `ceil(3σ)` must stay below [`MAX_TAPS`], so
+/// Largest σ accepted (radius `ceil(3σ)` must stay below `MAX_TAPS`, so
 /// the uniform block fits the recorder's 256-byte slot).
 pub const MAX_SIGMA: f32 = 19.5;
 

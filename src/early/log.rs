@@ -47,7 +47,7 @@ pub const SHADER: ShaderDef = ShaderDef {
 /// Most half-kernel weights the shader's uniform block holds per kernel
 /// (7 `vec4`s each: the whole block must fit the recorder's 256-byte stride).
 const MAX_TAPS: usize = 28;
-/// Largest σ accepted (radius `ceil(3σ)` must stay below [`MAX_TAPS`]).
+/// Largest σ accepted (radius `ceil(3σ)` must stay below `MAX_TAPS`).
 pub const MAX_SIGMA: f32 = 9.0;
 /// Lanes of the column pass's stack accumulator.
 const COL_BLOCK: usize = 256;

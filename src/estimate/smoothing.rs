@@ -1,6 +1,6 @@
 //! Double exponential smoothing (Brown's linear exponential smoothing) and
 //! its forecast, paper 000 eq. 10–12 after Montgomery, Johnson & Gardiner
-//! [17]. One smoother per tracked quantity; `N` coordinates are smoothed
+//! \[17\]. One smoother per tracked quantity; `N` coordinates are smoothed
 //! independently (000 filters "each corner independently of the others").
 //!
 //! With smoothing constant 0 < α < 1 and β = 1 − α:

@@ -6,7 +6,7 @@
 //! The polynomial is kept in time relative to the latest sample,
 //! c(n) = Σ_k a_k·(n − t)^k, which is the polynomial of eq. 13 re-parametrised
 //! (no conditioning problem for large t). Moving t to t + d multiplies the
-//! coefficient vector by the binomial shift Φ_d (Φ_d[i][j] = C(j, i)·d^{j−i});
+//! coefficient vector by the binomial shift Φ_d (`Φ_d[i][j] = C(j, i)·d^(j−i)`);
 //! the square-root information equation R·a = z becomes R·Φ_{−d}·a' = z, and
 //! the exponential decay of eq. 14 multiplies (R, z) by λ^{d/2}. A sample c
 //! with variance C adds the row (1/√C)·[1, 0, …, 0] | c/√C, folded into R by

@@ -4,7 +4,7 @@
 //!
 //! Every stage module in [`crate::early`] owns a [`ShaderDef`] pointing at its
 //! `shaders/<stage>.wgsl` file and declaring the bindings and workgroup size
-//! of each entry point, and records its passes through a [`Recorder`].
+//! of each entry point, and records its passes through a `Recorder`.
 
 mod context;
 mod recorder;

@@ -29,11 +29,11 @@
 //! [`FillRule::EvenOdd`] unless they say otherwise.
 //!
 //! A sequence is made by rendering its static background once
-//! ([`render_background`]) and box-filtering it down once; then for every frame
+//! ([`super::render_background`]) and box-filtering it down once; then for every frame
 //! only the window the moving things touch ([`Canvas::window_around`]) is
 //! restored from the background, drawn, and box-filtered into a copy of the
 //! downsampled background, before Gaussian noise is added and values are
-//! rounded to `u8` ([`add_noise_and_quantise`]). Frames are independent (the noise of frame `k`
+//! rounded to `u8` ([`super::add_noise_and_quantise`]). Frames are independent (the noise of frame `k`
 //! comes from its own ChaCha stream), so they render in parallel and the same
 //! seed always gives the same bytes.
 

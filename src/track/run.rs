@@ -29,7 +29,7 @@ pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
 /// Read tracker parameters of type `P` from a TOML file: the table named after
 /// the tracker (`[motion-edge]`) when there is one, else the whole file.
 /// Errors name the file, in one short line, with long numbers and long
-/// quoted text shortened ([`crate::io::json::one_short_line`]).
+/// quoted text shortened (`io::json::one_short_line`).
 pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>, tracker: &str) -> Result<P> {
     let Some(path) = path else { return Ok(P::default()) };
     let cannot_read = |e: std::io::Error| Error::input(path, format!("cannot read: {e}"));

@@ -30,7 +30,7 @@
 //!    acceleration" below)
 //!    ([`crate::estimate::smoothing`]; form used: x̂_{t+1} = a_t + b_t =
 //!    (2 + α/β)·S1_t − (1 + α/β)·S2_t, Brown's double exponential smoothing
-//!    of Montgomery et al. [17], which matches the legible coefficients of
+//!    of Montgomery et al. \[17\], which matches the legible coefficients of
 //!    the garbled eq. 12). Predictions are made every cycle, with or without
 //!    data (paper Fig. 2).
 //!
