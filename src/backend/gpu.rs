@@ -438,20 +438,10 @@ impl EarlyVision for GpuBackend {
     }
 
     /// A list may hold every pixel of the frame (a window of the whole
-    /// frame, uncapped), and an f32 image takes `4·w·h` bytes; both must fit
-    /// one storage binding of the device.
+    /// frame, uncapped) and must fit one storage binding of the device; every
+    /// f32 image of the frame is smaller than such a list.
     fn check_frame_size(&self, width: usize, height: usize) -> Result<()> {
-        let pixels = width.saturating_mul(height);
-        let limits = self.ctx.device.limits();
-        crate::early::compaction::check_list_fits(&limits, pixels)?;
-        let image_bytes = (pixels as u64).saturating_mul(4);
-        if image_bytes > limits.max_storage_buffer_binding_size {
-            return Err(Error::Parameter(format!(
-                "a {width}x{height} image takes {image_bytes} bytes, more than the device's buffer limit of {} bytes",
-                limits.max_storage_buffer_binding_size
-            )));
-        }
-        Ok(())
+        crate::early::compaction::check_list_fits(&self.ctx.device.limits(), width.saturating_mul(height))
     }
 
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {

@@ -238,8 +238,6 @@ pub struct PreviousFrame {
 /// image for the next one.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FramePlan {
-    width: usize,
-    height: usize,
     steps: Vec<Step>,
     next_previous: Option<PreviousFrame>,
 }
@@ -312,19 +310,13 @@ impl FramePlan {
             });
         }
 
-        Self { width, height, steps, next_previous: smooths.then_some(this) }
+        Self { steps, next_previous: smooths.then_some(this) }
     }
 
     /// The steps, in the order they run.
     #[must_use]
     pub fn steps(&self) -> &[Step] {
         &self.steps
-    }
-
-    /// Frame size the plan was made for.
-    #[must_use]
-    pub fn size(&self) -> (usize, usize) {
-        (self.width, self.height)
     }
 
     /// What this frame leaves for the next frame's motion step: its smoothed
@@ -337,7 +329,7 @@ impl FramePlan {
     /// Whether the plan reads the previous frame's smoothed image.
     #[must_use]
     pub fn reads_previous(&self) -> bool {
-        self.steps.iter().any(|s| s.reads().contains(&Source::Plane(Plane::Previous)))
+        self.steps.iter().any(|s| matches!(s, Step::DiffAndSum(_)))
     }
 
     /// The stages the plan runs, by shader name, each once, in order of first use.

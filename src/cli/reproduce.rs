@@ -219,11 +219,7 @@ pub fn run_one(seq: &SyntheticSequence, params: &MotionEdgeParams) -> Result<Run
         let was_tracking = tracker.phase() == Phase::Tracking;
         let request = Tracker::request(&tracker, w, h);
         let features = backend.process(frame, &request)?;
-        let obs = Observations {
-            motion: features.motion.as_deref(),
-            edges: features.edges.as_deref(),
-            zero_crossings: features.zero_crossings.as_deref(),
-        };
+        let obs = Observations::from(&features);
         let outcome = tracker.track(i, &obs);
         let extracted = match twin.as_mut() {
             Some(t) => {

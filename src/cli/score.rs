@@ -28,7 +28,7 @@ use std::fmt;
 use std::path::Path;
 
 use crate::io::formats::{FrameResult, Status, TruthFrame, Visibility};
-use crate::io::read_jsonl;
+use crate::io::json::read_frame_lines;
 use crate::{Error, Result};
 
 /// Corner error above which a tracking frame is false tracking, px
@@ -239,19 +239,7 @@ fn score_impl(
 /// pass [`FrameResult::validate`], and frame numbers must strictly increase.
 /// Errors name the file and the line.
 pub fn read_predictions(path: &Path) -> Result<Vec<FrameResult>> {
-    let lines: Vec<(usize, FrameResult)> = read_jsonl(path)?;
-    let mut previous: Option<usize> = None;
-    for (line, p) in &lines {
-        p.validate(path, *line)?;
-        if let Some(prev) = previous.filter(|&prev| p.frame <= prev) {
-            return Err(Error::input(
-                path,
-                format!("line {line}: frame {} after frame {prev}: frames must be in increasing order", p.frame),
-            ));
-        }
-        previous = Some(p.frame);
-    }
-    Ok(lines.into_iter().map(|(_, p)| p).collect())
+    read_frame_lines(path, |p: &FrameResult| p.frame, |p, line| p.validate(path, line))
 }
 
 impl fmt::Display for Score {

@@ -30,7 +30,7 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::rows::for_each_row;
+use super::rows::{PARALLEL_PIXELS, for_each_row};
 use super::{Feature, Window};
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
@@ -181,10 +181,10 @@ fn list_row(
 }
 
 /// CPU twin: the features of `params.window` into `out` (cleared first; the
-/// list allocates only when it grows, plus two tables of one entry per band
-/// of `BAND_ROWS` rows). The window is listed by the GPU's own scheme:
-/// count per band of rows, prefix-sum, fill each band's slice of the list;
-/// large windows run their bands on several threads.
+/// list allocates only when it grows). A small window is listed row by row;
+/// a large one by the GPU's own scheme — count per band of `BAND_ROWS` rows,
+/// prefix-sum, fill each band's slice of the list — with its bands on
+/// several threads. Both give the same list.
 pub fn compaction_cpu(
     select: &FloatImage,
     theta: &FloatImage,
@@ -207,29 +207,38 @@ pub fn compaction_cpu(
     }
 
     let area = win.area();
-    let bands = (y1 - y0).div_ceil(BAND_ROWS);
-    let rows_of = |band: usize| y0 + band * BAND_ROWS..(y0 + (band + 1) * BAND_ROWS).min(y1);
-    let mut counts = vec![0usize; bands];
-    for_each_row(area, counts.par_iter_mut().enumerate(), |(band, count)| {
-        *count = rows_of(band).map(|y| span(select, y, x0, x1).iter().filter(|&&s| s > th).count()).sum();
-    });
-    out.resize(counts.iter().sum(), Feature::default());
-    let mut slices = Vec::with_capacity(bands);
-    let mut rest = out.as_mut_slice();
-    for &c in &counts {
-        let (head, tail) = rest.split_at_mut(c);
-        slices.push(head);
-        rest = tail;
-    }
-    for_each_row(area, slices.into_par_iter().enumerate(), |(band, dst)| {
-        let mut k = 0;
-        for y in rows_of(band) {
+    if area < PARALLEL_PIXELS {
+        // One thread: rows straight into the list, in the same order.
+        for y in y0..y1 {
             list_row(span(select, y, x0, x1), span(theta, y, x0, x1), span(magnitude, y, x0, x1), x0, y, th, |f| {
-                dst[k] = f;
-                k += 1;
+                out.push(f)
             });
         }
-    });
+    } else {
+        let bands = (y1 - y0).div_ceil(BAND_ROWS);
+        let rows_of = |band: usize| y0 + band * BAND_ROWS..(y0 + (band + 1) * BAND_ROWS).min(y1);
+        let mut counts = vec![0usize; bands];
+        for_each_row(area, counts.par_iter_mut().enumerate(), |(band, count)| {
+            *count = rows_of(band).map(|y| span(select, y, x0, x1).iter().filter(|&&s| s > th).count()).sum();
+        });
+        out.resize(counts.iter().sum(), Feature::default());
+        let mut slices = Vec::with_capacity(bands);
+        let mut rest = out.as_mut_slice();
+        for &c in &counts {
+            let (head, tail) = rest.split_at_mut(c);
+            slices.push(head);
+            rest = tail;
+        }
+        for_each_row(area, slices.into_par_iter().enumerate(), |(band, dst)| {
+            let mut k = 0;
+            for y in rows_of(band) {
+                list_row(span(select, y, x0, x1), span(theta, y, x0, x1), span(magnitude, y, x0, x1), x0, y, th, |f| {
+                    dst[k] = f;
+                    k += 1;
+                });
+            }
+        });
+    }
 
     if let Some(cap) = params.cap {
         let n = out.len() as u32; // ≤ window area ≤ u32::MAX, checked above

@@ -7,6 +7,8 @@
 //!   its Jacobian.
 //! - [`pose`]: rigid camera-from-object poses X_cam = R·X_obj + t on glam
 //!   (f64), with R to and from axis-angle (Rodrigues) vectors.
+//! - [`polygon`]: whether image corners trace a model's edges as a simple
+//!   polygon.
 //! - [`model`]: the model's vertices under joint values (SPEC §4's joint
 //!   rule), Newell face normals, back-face visibility and visible edges.
 //!
@@ -15,8 +17,10 @@
 
 pub mod camera;
 pub mod model;
+pub mod polygon;
 pub mod pose;
 
 pub use camera::Camera;
 pub use model::{ModelGeometry, faces_camera, newell_normal};
+pub use polygon::check_simple_polygon;
 pub use pose::{Pose, axis_angle_from_rotation, rotation_from_axis_angle};

@@ -143,13 +143,13 @@ impl GpuContext {
     /// cached. Its bind-group layout is built from the entry point's declared
     /// [`super::Binding`]s; an entry point `shader` does not declare is an error.
     pub(crate) fn pipeline(&self, shader: &ShaderDef, entry: &'static str) -> Result<wgpu::ComputePipeline> {
-        let declared = shader
-            .entry_point(entry)
-            .ok_or_else(|| Error::Gpu(format!("{}: entry point `{entry}` is not declared", shader.path())))?;
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|p| p.into_inner());
         if let Some(p) = pipelines.get(&(shader.name, entry)) {
             return Ok(p.clone());
         }
+        let declared = shader
+            .entry_point(entry)
+            .ok_or_else(|| Error::Gpu(format!("{}: entry point `{entry}` is not declared", shader.path())))?;
         let module = {
             let mut modules = self.modules.lock().unwrap_or_else(|p| p.into_inner());
             modules

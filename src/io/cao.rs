@@ -39,12 +39,7 @@ use crate::{Error, Result};
 
 /// Read and convert a `.cao` file.
 pub fn read_cao(path: &Path) -> Result<Model> {
-    let text = std::fs::read_to_string(path).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound => Error::input(path, "missing"),
-        std::io::ErrorKind::InvalidData => Error::input(path, "not a text file (invalid UTF-8)"),
-        _ => Error::input(path, format!("cannot read: {e}")),
-    })?;
-    parse_cao(&text, path)
+    parse_cao(&super::json::read_text(path)?, path)
 }
 
 /// Convert the text of a `.cao` file; `path` names it in errors and gives

@@ -12,12 +12,39 @@ use crate::{Error, Result};
 
 pub(crate) const MISSING: &str = "missing";
 
-fn read_text(path: &Path) -> Result<String> {
+/// A whole text file; missing, non-UTF-8 and unreadable files are input
+/// errors naming it.
+pub(crate) fn read_text(path: &Path) -> Result<String> {
     fs::read_to_string(path).map_err(|e| match e.kind() {
         io::ErrorKind::NotFound => Error::input(path, MISSING),
         io::ErrorKind::InvalidData => Error::input(path, "not a text file (invalid UTF-8)"),
         _ => Error::input(path, format!("cannot read: {e}")),
     })
+}
+
+/// A JSON Lines file of per-frame records (`truth.jsonl`, a tracker's
+/// output): every line parsed into `T` and passed to `check` with its line
+/// number, and the frame numbers (`frame_of`) strictly increasing. Errors
+/// name the file and the line.
+pub fn read_frame_lines<T: DeserializeOwned>(
+    path: &Path,
+    frame_of: impl Fn(&T) -> usize,
+    mut check: impl FnMut(&T, usize) -> Result<()>,
+) -> Result<Vec<T>> {
+    let lines: Vec<(usize, T)> = read_jsonl(path)?;
+    let mut previous: Option<usize> = None;
+    for (line, record) in &lines {
+        check(record, *line)?;
+        let frame = frame_of(record);
+        if let Some(p) = previous.filter(|&p| frame <= p) {
+            return Err(Error::input(
+                path,
+                format!("line {line}: frame {frame} after frame {p}: frames must be in increasing order"),
+            ));
+        }
+        previous = Some(frame);
+    }
+    Ok(lines.into_iter().map(|(_, record)| record).collect())
 }
 
 /// Read a whole JSON file holding one object into `T`. A missing file, an

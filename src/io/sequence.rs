@@ -207,20 +207,17 @@ fn read_model(dir: &Path) -> Result<(Model, PathBuf)> {
 }
 
 fn read_truth(path: &Path, model: &Model, model_path: &Path, frame_count: Option<usize>) -> Result<Vec<TruthFrame>> {
-    let lines: Vec<(usize, TruthFrame)> = read_jsonl(path)?;
-    let mut previous: Option<usize> = None;
-    for (line, t) in &lines {
-        t.validate(path, *line, model, model_path)?;
-        if let Some(p) = previous.filter(|&p| t.frame <= p) {
-            return Err(Error::input(
-                path,
-                format!("line {line}: frame {} after frame {p}: frames must be in increasing order", t.frame),
-            ));
-        }
-        if let Some(n) = frame_count.filter(|&n| t.frame >= n) {
-            return Err(Error::input(path, format!("line {line}: frame {} but the sequence has {n} frames", t.frame)));
-        }
-        previous = Some(t.frame);
-    }
-    Ok(lines.into_iter().map(|(_, t)| t).collect())
+    read_frame_lines(
+        path,
+        |t: &TruthFrame| t.frame,
+        |t, line| {
+            t.validate(path, line, model, model_path)?;
+            match frame_count.filter(|&n| t.frame >= n) {
+                Some(n) => {
+                    Err(Error::input(path, format!("line {line}: frame {} but the sequence has {n} frames", t.frame)))
+                }
+                None => Ok(()),
+            }
+        },
+    )
 }

@@ -20,7 +20,7 @@ pub use run::{
     track_to_stdout,
 };
 
-use crate::backend::FrameRequest;
+use crate::backend::{FrameFeatures, FrameRequest};
 use crate::early::{Feature, Window};
 use crate::io::formats::{FrameResult, Pose, Status};
 
@@ -34,6 +34,42 @@ pub struct Observations<'a> {
     pub edges: Option<&'a [Feature]>,
     /// Zero crossings of the LoG (001).
     pub zero_crossings: Option<&'a [Feature]>,
+}
+
+impl<'a> From<&'a FrameFeatures> for Observations<'a> {
+    /// The lists a backend handed back for one frame.
+    fn from(features: &'a FrameFeatures) -> Self {
+        Self {
+            motion: features.motion.as_deref(),
+            edges: features.edges.as_deref(),
+            zero_crossings: features.zero_crossings.as_deref(),
+        }
+    }
+}
+
+/// Hold reported corners finite (SPEC §4): each corner of `corners` that is
+/// not finite is replaced by its `last` reported position, and each finite
+/// one becomes the new `last`. Returns the index of the first corner that
+/// was not finite.
+pub(crate) fn hold_finite_corners(corners: &mut [[f64; 2]], last: &mut [[f64; 2]]) -> Option<usize> {
+    let mut first = None;
+    for (i, (corner, last)) in corners.iter_mut().zip(last.iter_mut()).enumerate() {
+        if corner[0].is_finite() && corner[1].is_finite() {
+            *last = *corner;
+        } else {
+            first.get_or_insert(i);
+            *corner = *last;
+        }
+    }
+    first
+}
+
+/// `reason` appended to a frame's lost reason, if it has one.
+pub(crate) fn add_lost_reason(lost_reason: Option<String>, reason: String) -> String {
+    match lost_reason {
+        Some(first) => format!("{first}; {reason}"),
+        None => reason,
+    }
 }
 
 /// Where a tracker is in its cycle.

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::backend::{BackendKind, EarlyVision, make_backend};
-use crate::geometry::ModelGeometry;
+use crate::geometry::{ModelGeometry, check_simple_polygon};
 use crate::image::GrayImage;
 use crate::io::formats::{FrameResult, Status};
 use crate::io::json::one_short_line;
@@ -86,7 +86,7 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             if seq.init.corners.is_empty() {
                 return Err(Error::input(init_path, "motion-edge needs \"corners\" (the operator's points)"));
             }
-            check_polygon_corners(&seq.init.corners, &seq.model.edges).map_err(|msg| Error::input(&init_path, msg))?;
+            check_simple_polygon(&seq.init.corners, &seq.model.edges).map_err(|msg| Error::input(&init_path, msg))?;
             let tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), params)
                 .map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
             Ok(Box::new(tracker))
@@ -100,80 +100,6 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
         }
         other => Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", ")))),
     }
-}
-
-/// Two corners closer than this (pixels) are the same point.
-const MIN_CORNER_SEPARATION_PX: f64 = 1e-6;
-/// Two edges at a corner whose directions' sine is below this are on one line.
-const MIN_CORNER_SINE: f64 = 1e-9;
-
-/// Check that `corners` (one per model vertex, from `init.json`) trace the
-/// model's polygon as a simple polygon: the two corners of an edge apart,
-/// the two edges at a corner not on one line, and edges that share no
-/// corner not touching (a bow-tie). `Err` is the message, to be blamed on
-/// `init.json`. A model that is not a polygon (a corner on other than two
-/// edges, an index out of range) passes: the tracker blames the model.
-fn check_polygon_corners(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> std::result::Result<(), String> {
-    let n = corners.len();
-    if n < 3 || edges.iter().flatten().any(|&i| i >= n) {
-        return Ok(());
-    }
-    let mut degree = vec![0usize; n];
-    for &i in edges.iter().flatten() {
-        degree[i] += 1;
-    }
-    if degree.iter().any(|&d| d != 2) {
-        return Ok(());
-    }
-    let sub = |a: [f64; 2], b: [f64; 2]| [a[0] - b[0], a[1] - b[1]];
-    let cross = |a: [f64; 2], b: [f64; 2]| a[0] * b[1] - a[1] * b[0];
-    let norm = |a: [f64; 2]| a[0].hypot(a[1]);
-    for (k, &[i, j]) in edges.iter().enumerate() {
-        if norm(sub(corners[i], corners[j])) < MIN_CORNER_SEPARATION_PX {
-            return Err(format!(
-                "corners {i} and {j} (edge {k}) are both at {:?}: the corners must trace the model's polygon",
-                corners[i]
-            ));
-        }
-    }
-    // Orientation of c relative to the line a→b: +1, −1, or 0 on the line.
-    let orient = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
-        let v = cross(sub(b, a), sub(c, a));
-        let scale = norm(sub(b, a)) * norm(sub(c, a));
-        if v.abs() <= MIN_CORNER_SINE * scale { 0 } else { v.signum() as i32 }
-    };
-    let within = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
-        c[0] >= a[0].min(b[0]) && c[0] <= a[0].max(b[0]) && c[1] >= a[1].min(b[1]) && c[1] <= a[1].max(b[1])
-    };
-    for (k, &[a, b]) in edges.iter().enumerate() {
-        for (m, &[c, d]) in edges.iter().enumerate().skip(k + 1) {
-            let (pa, pb, pc, pd) = (corners[a], corners[b], corners[c], corners[d]);
-            let shared = [a, b].into_iter().find(|v| *v == c || *v == d);
-            if let Some(v) = shared {
-                let (u, w) = (if v == a { pb } else { pa }, if v == c { pd } else { pc });
-                let (du, dw) = (sub(u, corners[v]), sub(w, corners[v]));
-                if cross(du, dw).abs() <= MIN_CORNER_SINE * norm(du) * norm(dw) {
-                    return Err(format!(
-                        "edges {k} and {m} are on one line at corner {v}: the corners must trace the model's polygon"
-                    ));
-                }
-                continue;
-            }
-            let (o1, o2, o3, o4) = (orient(pa, pb, pc), orient(pa, pb, pd), orient(pc, pd, pa), orient(pc, pd, pb));
-            let crossing = (o1 * o2 < 0 && o3 * o4 < 0)
-                || (o1 == 0 && within(pa, pb, pc))
-                || (o2 == 0 && within(pa, pb, pd))
-                || (o3 == 0 && within(pc, pd, pa))
-                || (o4 == 0 && within(pc, pd, pb));
-            if crossing {
-                return Err(format!(
-                    "edges {k} [{a}, {b}] and {m} [{c}, {d}] cross: the corners must trace the model's polygon \
-                     without crossing itself (check the corner order)"
-                ));
-            }
-        }
-    }
-    Ok(())
 }
 
 /// Options of one tracking run.
@@ -247,7 +173,7 @@ fn track_named(
         Error::input(seq.dir().join(CAMERA_FILE), format!("{message}; try --backend cpu"))
     })?;
     // Overlays of a tracker with a pose draw only the edges visible at that pose.
-    let model_geometry = ModelGeometry::new(&seq.model).ok();
+    let model_geometry = overlay.as_ref().and_then(|_| ModelGeometry::new(&seq.model).ok());
     let frames = seq.frames();
     let bar = progress_bar(opts.progress, frames.len_hint());
     let start = Instant::now();
@@ -263,9 +189,9 @@ fn track_named(
                 }
                 _ => None,
             };
-            let edges: Vec<[usize; 2]> = match visible {
+            let edges: std::borrow::Cow<'_, [[usize; 2]]> = match visible {
                 Some(v) => seq.model.edges.iter().zip(v).filter(|(_, on)| *on).map(|(e, _)| *e).collect(),
-                None => seq.model.edges.clone(),
+                None => (&seq.model.edges[..]).into(),
             };
             let img = crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
             let path = dir.path().join(format!("{:06}.png", outcome.frame));
@@ -375,11 +301,7 @@ pub fn track_step(
         Frame::Gray(g) => backend.process(g, &request)?,
         Frame::Texture(t) => backend.process_texture(t, &request)?,
     };
-    let obs = Observations {
-        motion: features.motion.as_deref(),
-        edges: features.edges.as_deref(),
-        zero_crossings: features.zero_crossings.as_deref(),
-    };
+    let obs = Observations::from(&features);
     let outcome = tracker.track(index, &obs);
     backend.recycle(features);
     let result = outcome.to_result(t0.elapsed().as_secs_f64() * 1e3);
@@ -443,10 +365,8 @@ pub fn track_to_file(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Re
                 .write(true)
                 .open(out_path)
                 .map_err(|e| Error::input(out_path, format!("cannot open for writing: {e}")))?;
-            let mut out = BufWriter::new(file);
-            let summary = track_named(seq, opts, &mut out, out_path, |_| {})?;
-            out.flush().map_err(|e| Error::io(out_path, e))?;
-            Ok(summary)
+            // `track_named` flushes what it wrote.
+            track_named(seq, opts, &mut BufWriter::new(file), out_path, |_| {})
         }
         _ => {
             let mut file = AtomicFile::create(out_path)?;
@@ -464,10 +384,8 @@ pub fn track_to_file(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Re
 pub fn track_to_stdout(seq: &Sequence, opts: &TrackOptions) -> Result<RunSummary> {
     let name = Path::new("stdout");
     let stdout = std::io::stdout();
-    let mut out = BufWriter::new(stdout.lock());
-    let summary = track_named(seq, opts, &mut out, name, |_| {})?;
-    out.flush().map_err(|e| Error::io(name, e))?;
-    Ok(summary)
+    // `track_named` flushes what it wrote.
+    track_named(seq, opts, &mut BufWriter::new(stdout.lock()), name, |_| {})
 }
 
 /// Check `--out` before a run: it must not be a folder, one of the

@@ -221,3 +221,44 @@ pub fn texture(ctx: &GpuContext, w: usize, h: usize, format: wgpu::TextureFormat
     write_texture(ctx, &t, bytes);
     t
 }
+
+/// A fresh, empty scratch folder for one test: `pipetrack-<prefix>-<pid>-<name>`
+/// under the system temp folder (removed first if a previous run left it).
+pub fn scratch(prefix: &str, name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pipetrack-{prefix}-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}
+
+/// A 0.2 × 0.15 × 0.1 m box centred on its origin; vertex i has coordinate
+/// signs from its bits (x: bit 0, y: bit 1, z: bit 2).
+pub fn box_model() -> pipetrack::io::formats::Model {
+    let half = [0.1, 0.075, 0.05];
+    let vertices: Vec<[f64; 3]> =
+        (0..8).map(|i| std::array::from_fn(|a| if (i >> a) & 1 == 1 { half[a] } else { -half[a] })).collect();
+    let mut edges = Vec::new();
+    for i in 0..8usize {
+        for a in 0..3 {
+            let j = i | (1 << a);
+            if j != i {
+                edges.push([i, j]);
+            }
+        }
+    }
+    // Faces: fixed axis a, side bit s; loop over the other two bits, oriented outward.
+    let mut faces = Vec::new();
+    for a in 0..3 {
+        for s in 0..2usize {
+            let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+            let corner = |u: usize, v: usize| (s << a) | (u << b) | (v << c);
+            let mut face = vec![corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)];
+            // (b, c, a) is a right-handed cycle: this loop's normal is +a; flip for the −a side.
+            if s == 0 {
+                face.reverse();
+            }
+            faces.push(face);
+        }
+    }
+    pipetrack::io::formats::Model { name: "box".into(), units: "m".into(), vertices, edges, faces, joints: Vec::new() }
+}

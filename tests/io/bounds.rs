@@ -28,10 +28,7 @@ fn pipetrack(args: &[&str], stdin: &[u8]) -> Output {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pipetrack-bounds-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
+    crate::common::scratch("bounds", name)
 }
 
 /// A rendered sequence `root/seq` of `scene` with two frames.
@@ -353,16 +350,11 @@ fn an_image_too_large_is_called_too_large() {
 
 #[test]
 fn a_frame_size_the_gpu_cannot_list_names_the_camera_file() {
-    let ctx = match pipetrack::GpuContext::new() {
-        Ok(ctx) => ctx,
-        Err(e) if std::env::var("PIPETRACK_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("no GPU: {e}"),
-        Err(e) => {
-            eprintln!("skipped: no GPU ({e})");
-            return;
-        }
+    let Some((ctx, _g)) = crate::common::gpu("a_frame_size_the_gpu_cannot_list_names_the_camera_file") else {
+        return;
     };
     let limits = ctx.device().limits();
-    let backend = pipetrack::GpuBackend::new(ctx);
+    let backend = pipetrack::GpuBackend::new(ctx.clone());
     assert!(backend.check_frame_size(640, 480).is_ok());
     let (w, h) = (16_384usize, 2048usize);
     let list_bytes = (w * h * std::mem::size_of::<pipetrack::early::Feature>()) as u64;

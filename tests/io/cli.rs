@@ -17,10 +17,7 @@ fn track_motion_edge_cpu(seq: &Path, extra: &[&str]) -> Output {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pipetrack-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    crate::common::scratch("cli", name)
 }
 
 /// A good 6-frame pendulum sequence in `root/seq`.

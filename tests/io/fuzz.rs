@@ -525,10 +525,7 @@ fn put(path: &Path, input: &[u8]) -> Result<(), String> {
 
 /// A folder under the temp dir for one target, emptied first.
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pipetrack-fuzz-{}-{name}", std::process::id()));
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).expect("scratch folder");
-    dir
+    crate::common::scratch("fuzz", name)
 }
 
 const CAMERA: &str = r#"{"width":4,"height":3,"fx":100.0,"fy":100.0,"cx":1.5,"cy":1.0}"#;
@@ -965,7 +962,7 @@ fn time_model(f: &SeqFixture, model: &str) -> (Duration, Result<(), String>) {
 }
 
 #[test]
-fn large_models_are_checked_in_about_linear_time() {
+fn large_models_of_30000_vertices_are_checked_quickly() {
     let f = sequence_fixture("large-models");
     let n = 30_000;
     let list = |item: &dyn Fn(usize) -> String| (0..n).map(item).collect::<Vec<_>>().join(",");

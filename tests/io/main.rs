@@ -1,6 +1,9 @@
 //! Files and commands: sequence folders and their errors, scoring, the
 //! synthetic scenes, and the `pipetrack` binary on good and bad input.
 
+#[path = "../common/mod.rs"]
+mod common;
+
 mod bounds;
 mod cli;
 mod fuzz;

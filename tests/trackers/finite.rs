@@ -15,27 +15,7 @@ use pipetrack::geometry::Pose as RigidPose;
 use pipetrack::io::formats::{Camera, FrameResult, InitState, Model, Pose, Status, TruthFrame};
 use pipetrack::track::{BlueParams, BlueTracker, Diagnostics, FrameOutcome, Phase};
 
-/// A 0.2 × 0.15 × 0.1 m box centred on its origin (vertex i: coordinate
-/// signs from bits 0–2 of i), with its six outward faces.
-fn box_model() -> Model {
-    let half = [0.1, 0.075, 0.05];
-    let vertices: Vec<[f64; 3]> =
-        (0..8).map(|i| std::array::from_fn(|a| if (i >> a) & 1 == 1 { half[a] } else { -half[a] })).collect();
-    let edges = (0..8usize).flat_map(|i| (0..3).map(move |a| [i, i | (1 << a)])).filter(|&[i, j]| i != j).collect();
-    let mut faces = Vec::new();
-    for a in 0..3 {
-        for s in 0..2usize {
-            let (b, c) = ((a + 1) % 3, (a + 2) % 3);
-            let corner = |u: usize, v: usize| (s << a) | (u << b) | (v << c);
-            let mut face = vec![corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)];
-            if s == 0 {
-                face.reverse();
-            }
-            faces.push(face);
-        }
-    }
-    Model { name: "box".into(), units: "m".into(), vertices, edges, faces, joints: Vec::new() }
-}
+use crate::common::box_model;
 
 fn camera() -> Camera {
     Camera { width: 640, height: 480, fx: 500.0, fy: 500.0, cx: 319.5, cy: 239.5 }
@@ -66,10 +46,7 @@ fn assert_all_finite(value: &serde_json::Value, at: &str) {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pipetrack-finite-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
+    crate::common::scratch("finite", name)
 }
 
 /// Write `results` as the tracker does (one `serde_json` line each), check

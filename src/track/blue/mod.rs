@@ -384,13 +384,9 @@ impl BlueTracker {
     /// with a vertex that cannot be projected at its last reported position;
     /// remembers the reported positions.
     fn report_corners(&mut self, location: &TargetLocation) -> Vec<[f64; 2]> {
-        let projected = self.vertices_at(location);
-        for (last, p) in self.last_corners.iter_mut().zip(&projected) {
-            if p[0].is_finite() && p[1].is_finite() {
-                *last = *p;
-            }
-        }
-        self.last_corners.clone()
+        let mut corners = self.vertices_at(location);
+        super::hold_finite_corners(&mut corners, &mut self.last_corners);
+        corners
     }
 
     /// The pose at `location`: init rotation, translation t = X − R·c.
@@ -485,11 +481,7 @@ impl BlueTracker {
         };
         if !tracked {
             if let Some(reason) = self.unprojectable_vertex(&location) {
-                let reason = format!("{reason}; reported at its last position");
-                failure = Some(match failure {
-                    Some(first) => format!("{first}; {reason}"),
-                    None => reason,
-                });
+                failure = Some(super::add_lost_reason(failure, format!("{reason}; reported at its last position")));
             }
         }
         let corners = self.report_corners(&location);

@@ -752,20 +752,10 @@ impl MotionEdgeTracker {
         m: Measurement,
         mut lost_reason: Option<String>,
     ) -> FrameOutcome {
-        if let Some(i) = corners.iter().position(|c| !(c[0].is_finite() && c[1].is_finite())) {
+        if let Some(i) = super::hold_finite_corners(&mut corners, &mut self.last_reported) {
             status = Status::Lost;
             let reason = format!("corner {i} is not a finite number; reported at its last position");
-            lost_reason = Some(match lost_reason {
-                Some(first) => format!("{first}; {reason}"),
-                None => reason,
-            });
-        }
-        for (corner, last) in corners.iter_mut().zip(&mut self.last_reported) {
-            if corner[0].is_finite() && corner[1].is_finite() {
-                *last = *corner;
-            } else {
-                *corner = *last;
-            }
+            lost_reason = Some(super::add_lost_reason(lost_reason, reason));
         }
         let diagnostics = Diagnostics {
             points_per_line: m.labelling.sums.iter().map(LineSums::count).collect(),
