@@ -12,6 +12,7 @@
 pub mod blue;
 pub mod motion_edge;
 pub mod run;
+pub mod support;
 
 pub use blue::{BlueParams, BlueTracker, TargetLocation, TargetPrediction};
 pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker, Prediction};
@@ -98,6 +99,9 @@ pub struct Diagnostics {
     /// Features that matched a model line's orientation but lay near no
     /// model line (evidence of the object elsewhere).
     pub unexplained_points: usize,
+    /// Fraction of the reported contour's samples with edge support in the
+    /// image ([`support`]), where the tracker checked it.
+    pub contour_support: Option<f64>,
     /// Why the frame is lost, when it is.
     pub lost_reason: Option<String>,
 }

@@ -10,3 +10,4 @@ mod embed;
 mod finite;
 mod motion_edge_e2e;
 mod motion_edge_logic;
+mod status;

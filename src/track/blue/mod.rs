@@ -158,6 +158,9 @@ use crate::backend::{EdgeRequest, FrameRequest, ListSpec};
 use crate::early::compaction::MAX_CAP;
 use crate::early::{Feature, Window};
 use crate::estimate::PolynomialSrif;
+use crate::estimate::line_fit::wrap_orientation;
+use std::f64::consts::FRAC_PI_2;
+use crate::track::support::{self, EdgeMap};
 use crate::geometry::{self, Camera, ModelGeometry};
 use crate::io::formats::{InitState, Model, Pose, Status};
 use crate::{Error, Result};
@@ -405,6 +408,39 @@ impl BlueTracker {
         self.geometry.visible_edges(&facing)
     }
 
+    /// The verification's figures at `location` (module doc,
+    /// "Verification"): the supported fraction of the visible contour and
+    /// the larger supported fraction of that contour shifted by ±(2·d + 1)
+    /// px across itself (d = [`BlueParams::support_distance`]), i.e. the
+    /// support the edge density around the target gives any outline there;
+    /// `None` when no contour is visible.
+    fn contour_support(&self, edges: &[Feature], location: &TargetLocation) -> Option<(f64, f64)> {
+        let p = &self.params;
+        let map = EdgeMap::new(edges, p.edge_threshold, |f| wrap_orientation(f64::from(f.theta) + FRAC_PI_2));
+        let vertices = self.vertices_at(location);
+        let segments: Vec<([f64; 2], [f64; 2])> = self
+            .geometry
+            .edges()
+            .iter()
+            .zip(self.visible_edges(location))
+            .filter(|&(_, v)| v)
+            .map(|(&[i, j], _)| (vertices[i], vertices[j]))
+            .collect();
+        let counts = map.support(&segments, p.support_distance, p.angle_tolerance);
+        if counts.1 == 0 {
+            return None;
+        }
+        let shift = 2.0 * p.support_distance + 1.0;
+        let shifted = |offset: f64| {
+            support::fraction(map.support(
+                &support::offset_segments(&segments, offset),
+                p.support_distance,
+                p.angle_tolerance,
+            ))
+        };
+        Some((support::fraction(counts), shifted(shift).max(shifted(-shift))))
+    }
+
     /// Association distance of the next frame.
     fn association_distance(&self) -> f64 {
         if self.phase == Phase::Tracking && self.filters[0].samples() >= 3 {
@@ -457,6 +493,23 @@ impl BlueTracker {
         if failure.is_none() {
             failure = self.unprojectable_vertex(&pass.location);
         }
+        // Verification: the estimate's outline must stand out on the image's edges.
+        let support = if pass.estimated && failure.is_none() { self.contour_support(edges, &pass.location) } else { None };
+        if failure.is_none() && self.params.verify {
+            let excess = support.map_or(0.0, |(on, off)| on - off);
+            if !(excess >= self.params.min_support) {
+                failure = Some(match support {
+                    Some((on, off)) => format!(
+                        "contour support {:.0} % on the outline against {:.0} % beside it: excess {:.0} % < min_support {:.0} %",
+                        100.0 * on,
+                        100.0 * off,
+                        100.0 * excess,
+                        100.0 * self.params.min_support
+                    ),
+                    None => "no visible contour to verify".to_string(),
+                });
+            }
+        }
         let tracked = failure.is_none();
         let (location, covariance) = if tracked {
             self.feed_motion_models(time, &pass);
@@ -484,6 +537,7 @@ impl BlueTracker {
                 failure = Some(super::add_lost_reason(failure, format!("{reason}; reported at its last position")));
             }
         }
+        let contour_support = support.map(|(on, _)| on);
         let corners = self.report_corners(&location);
         FrameOutcome {
             frame,
@@ -500,6 +554,7 @@ impl BlueTracker {
                 corner_measured: pass.corner_measured,
                 max_corner_deviation: pass.max_corner_deviation,
                 unexplained_points: pass.unexplained,
+                contour_support,
                 lost_reason: failure,
             },
         }

@@ -202,7 +202,9 @@ use crate::backend::{FrameRequest, ListSpec, MotionRequest};
 use crate::early::gaussian::GaussianParams;
 use crate::early::temporal_diff::TemporalDiffParams;
 use crate::early::{Feature, Window};
-use crate::estimate::line_fit::{Line, LineFit, LineSums};
+use crate::backend::EdgeRequest;
+use crate::estimate::line_fit::{Line, LineFit, LineSums, wrap_orientation};
+use super::support::{self, EdgeMap};
 use crate::estimate::smoothing::DoubleExponentialSmoother;
 use crate::io::formats::Status;
 use crate::{Error, Result};
@@ -245,6 +247,8 @@ pub struct MotionEdgeTracker {
     /// Per corner, its last reported position (finite; initially the
     /// operator's): what a corner that is not finite is reported as.
     last_reported: Vec<[f64; 2]>,
+    /// This frame's edge pixels for the verification, when given.
+    support_map: Option<EdgeMap>,
 }
 
 /// One frame's measurement (steps 1–5).
@@ -290,6 +294,7 @@ impl MotionEdgeTracker {
             measured_speed: None,
             earlier_measured_speed: None,
             held_lines,
+            support_map: None,
         })
     }
 
@@ -349,9 +354,24 @@ impl MotionEdgeTracker {
         Window::around(corners, margin, width, height).unwrap_or(full)
     }
 
-    /// Process frame `frame` given its motion pixels; every call returns an
-    /// outcome (also when lost).
+    /// Process frame `frame` given its motion pixels, without verification
+    /// (no edge pixels to check against); every call returns an outcome
+    /// (also when lost).
     pub fn update(&mut self, frame: usize, motion: &[Feature]) -> FrameOutcome {
+        self.update_with_edges(frame, motion, None)
+    }
+
+    /// Process frame `frame` given its motion pixels and, for the
+    /// verification (module doc), its edge pixels (Sobel on the smoothed
+    /// frame, as [`Tracker::request`] asks for them); `None` skips the
+    /// verification. Every call returns an outcome (also when lost).
+    pub fn update_with_edges(&mut self, frame: usize, motion: &[Feature], edges: Option<&[Feature]>) -> FrameOutcome {
+        self.support_map = match edges {
+            Some(edges) if self.params.verify => Some(EdgeMap::new(edges, self.params.support_edge_threshold, |f| {
+                wrap_orientation(f64::from(f.theta) + std::f64::consts::FRAC_PI_2)
+            })),
+            _ => None,
+        };
         match self.phase {
             Phase::Acquiring => self.acquire(frame, motion),
             Phase::Tracking => self.track_frame(frame, motion),
@@ -757,12 +777,31 @@ impl MotionEdgeTracker {
             let reason = format!("corner {i} is not a finite number; reported at its last position");
             lost_reason = Some(super::add_lost_reason(lost_reason, reason));
         }
+        // Verification: the contour about to be reported must have edge support.
+        let contour_support = self.support_map.as_ref().map(|map| {
+            let segments: Vec<([f64; 2], [f64; 2])> = self.edges.iter().map(|&[i, j]| (corners[i], corners[j])).collect();
+            support::fraction(map.support(&segments, self.params.support_distance, self.params.delta))
+        });
+        if status == Status::Tracking
+            && let Some(support) = contour_support.filter(|&f| !(f >= self.params.min_support))
+        {
+            status = Status::Lost;
+            if self.phase == Phase::Tracking {
+                self.phase = Phase::Lost;
+            }
+            lost_reason = Some(format!(
+                "contour support {:.0} % < min_support {:.0} %: the reported outline is not on image edges",
+                100.0 * support,
+                100.0 * self.params.min_support
+            ));
+        }
         let diagnostics = Diagnostics {
             points_per_line: m.labelling.sums.iter().map(LineSums::count).collect(),
             line_fitted: m.fitted.iter().map(Option::is_some).collect(),
             corner_measured: m.measured,
             max_corner_deviation: m.deviation,
             unexplained_points: m.labelling.unexplained_total,
+            contour_support,
             lost_reason,
         };
         FrameOutcome {
@@ -790,7 +829,8 @@ impl Tracker for MotionEdgeTracker {
 
     /// Smoothing σ and the motion threshold of eq. 1 from the parameters;
     /// motion pixels inside the window of interest, uncapped (000 labels
-    /// every motion pixel it gets).
+    /// every motion pixel it gets); with `verify`, the edge pixels of the
+    /// smoothed frame in the same window for the verification.
     fn request(&self, width: usize, height: usize) -> FrameRequest {
         FrameRequest {
             smoothing: GaussianParams { sigma: self.params.sigma },
@@ -802,12 +842,17 @@ impl Tracker for MotionEdgeTracker {
                     seed: 0,
                 },
             }),
+            edges: self.params.verify.then(|| EdgeRequest {
+                threshold: self.params.support_edge_threshold,
+                smoothed: true,
+                list: ListSpec { window: MotionEdgeTracker::window_of_interest(self, width, height), cap: None, seed: 0 },
+            }),
             ..FrameRequest::default()
         }
     }
 
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {
-        self.update(frame, observations.motion.unwrap_or(&[]))
+        self.update_with_edges(frame, observations.motion.unwrap_or(&[]), observations.edges)
     }
 }
 

@@ -130,6 +130,28 @@ pub struct MotionEdgeParams {
     /// Prediction of the next frame's corners (module doc, "Prediction under
     /// acceleration"). Range: any.
     pub prediction: Prediction,
+    /// Check every frame about to be reported `tracking` against the image
+    /// (module doc, "Verification"): the reported contour must have static
+    /// edge support. Off: the paper's method, where only eq. 9 (and the
+    /// extensions' contradiction and vanished-motion checks) lose the track.
+    /// Range: either.
+    pub verify: bool,
+    /// Smallest fraction of the reported contour's samples with edge support
+    /// (module doc, "Verification"). A contour on the object has 0.9–1.0; one
+    /// a few px off the object has almost none, as the object's edge pixels
+    /// lie outside `support_distance` and the background's mostly have
+    /// other orientations. Range: [0, 1].
+    pub min_support: f64,
+    /// Largest distance across the contour of an edge pixel that supports a
+    /// contour sample, px. 3: the Sobel response of a blurred step is ~2 px
+    /// wide, so a contour within ~1–2 px of its edge is fully supported and
+    /// one 5 px off is not. Range: (0, [`MAX_DISTANCE_PX`]].
+    pub support_distance: f64,
+    /// Sobel magnitude threshold of the edge pixels of the support check,
+    /// on the σ-smoothed frame (Sobel units: ≈ 4·σ-blurred contrast; a
+    /// 115-grey-level step gives ≳ 300, smooth texture and noise of σ = 2
+    /// stay well under 80). Range: (0, [`MAX_MIN_MAGNITUDE`]].
+    pub support_edge_threshold: f32,
 }
 
 /// Upper bound of the distances, tolerances and margins, px: the window of
@@ -184,6 +206,10 @@ impl Default for MotionEdgeParams {
             refine_iterations: 3,
             line_fit: LineFitMethod::Across,
             prediction: Prediction::MeasuredVelocity,
+            verify: true,
+            min_support: 0.6,
+            support_distance: 3.0,
+            support_edge_threshold: 80.0,
         }
     }
 }
@@ -237,6 +263,14 @@ impl MotionEdgeParams {
             ("window_margin", self.window_margin, MARGIN_PX, " px"),
             ("init_tolerance", self.init_tolerance, POSITIVE_PX, " px"),
             ("min_magnitude", f64::from(self.min_magnitude), Interval::closed(0.0, f64::from(MAX_MIN_MAGNITUDE)), ""),
+            ("min_support", self.min_support, Interval::closed(0.0, 1.0), ""),
+            ("support_distance", self.support_distance, POSITIVE_PX, " px"),
+            (
+                "support_edge_threshold",
+                f64::from(self.support_edge_threshold),
+                Interval::open_closed(0.0, f64::from(MAX_MIN_MAGNITUDE)),
+                "",
+            ),
         ];
         for (name, v, range, unit) in reals {
             range.check(WHO, name, v, unit)?;

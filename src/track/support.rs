@@ -1,0 +1,164 @@
+//! Image support of a predicted model contour: the check a tracker makes
+//! before it reports `tracking` (STYLE: "`tracking` is a claim the tracker
+//! checks").
+//!
+//! The contour is sampled every [`SAMPLE_STEP_PX`] along each visible model
+//! segment (less [`END_MARGIN_PX`] at each end, where two edges blur into each
+//! other). A sample is *supported* when an edge pixel lies within `distance`
+//! of it, perpendicular to the segment, no further than half a sample step
+//! along it, with its edge orientation within `angle` of the segment's
+//! (modulo π). The support is the supported fraction of all samples; a
+//! segment outside the image has no edge pixels and counts as unsupported,
+//! so an object panned out of view loses its support with the part it
+//! takes out.
+
+use crate::early::Feature;
+use crate::estimate::line_fit::orientation_difference;
+
+/// Distance between contour samples, px.
+pub const SAMPLE_STEP_PX: f64 = 1.0;
+/// Samples closer than this to a segment's end points are not taken, px.
+pub const END_MARGIN_PX: f64 = 2.0;
+
+/// Edge pixels indexed by position: the strongest pixel's edge orientation
+/// per cell (NaN where there is none).
+#[derive(Clone, Debug, Default)]
+pub struct EdgeMap {
+    x0: i64,
+    y0: i64,
+    width: usize,
+    height: usize,
+    orientation: Vec<f32>,
+    magnitude: Vec<f32>,
+}
+
+impl EdgeMap {
+    /// The map of `features` whose magnitude is at least `min_magnitude`;
+    /// `orientation_of` gives a feature's edge orientation (radians, mod π).
+    #[must_use]
+    pub fn new(features: &[Feature], min_magnitude: f32, orientation_of: impl Fn(&Feature) -> f64) -> Self {
+        let strong = || features.iter().filter(|f| f.magnitude >= min_magnitude && f.theta.is_finite());
+        let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0u32, 0u32);
+        for f in strong() {
+            x0 = x0.min(f.x);
+            y0 = y0.min(f.y);
+            x1 = x1.max(f.x);
+            y1 = y1.max(f.y);
+        }
+        if x0 > x1 {
+            return Self::default();
+        }
+        let (width, height) = ((x1 - x0) as usize + 1, (y1 - y0) as usize + 1);
+        let mut map = Self {
+            x0: i64::from(x0),
+            y0: i64::from(y0),
+            width,
+            height,
+            orientation: vec![f32::NAN; width * height],
+            magnitude: vec![f32::NEG_INFINITY; width * height],
+        };
+        for f in strong() {
+            let i = (f.y - y0) as usize * width + (f.x - x0) as usize;
+            if f.magnitude > map.magnitude[i] {
+                map.magnitude[i] = f.magnitude;
+                map.orientation[i] = orientation_of(f) as f32;
+            }
+        }
+        map
+    }
+
+    /// Edge orientation at pixel (x, y), if an edge pixel is there.
+    fn at(&self, x: i64, y: i64) -> Option<f64> {
+        let (cx, cy) = (x - self.x0, y - self.y0);
+        if cx < 0 || cy < 0 || cx >= self.width as i64 || cy >= self.height as i64 {
+            return None;
+        }
+        let o = self.orientation[cy as usize * self.width + cx as usize];
+        o.is_finite().then_some(f64::from(o))
+    }
+
+    /// Support of the segments `segments` (module doc): `(supported, samples)`.
+    #[must_use]
+    pub fn support(&self, segments: &[([f64; 2], [f64; 2])], distance: f64, angle: f64) -> (usize, usize) {
+        let (mut supported, mut samples) = (0, 0);
+        let reach = distance.ceil() as i64 + 1;
+        for &(p, q) in segments {
+            let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+            let length = dx.hypot(dy);
+            if !(length.is_finite() && length > 2.0 * END_MARGIN_PX) {
+                continue;
+            }
+            let (ux, uy) = (dx / length, dy / length);
+            let orientation = dy.atan2(dx).rem_euclid(std::f64::consts::PI);
+            let mut s = END_MARGIN_PX;
+            while s <= length - END_MARGIN_PX {
+                samples += 1;
+                let c = [p[0] + s * ux, p[1] + s * uy];
+                let (cx, cy) = (c[0].round() as i64, c[1].round() as i64);
+                let hit = (-reach..=reach).any(|j| {
+                    (-reach..=reach).any(|i| {
+                        let (x, y) = (cx + i, cy + j);
+                        let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
+                        let along = rx * ux + ry * uy;
+                        let across = rx * uy - ry * ux;
+                        across.abs() <= distance
+                            && along.abs() <= 0.5 * SAMPLE_STEP_PX + 0.5
+                            && self.at(x, y).is_some_and(|o| orientation_difference(o, orientation) < angle)
+                    })
+                });
+                if hit {
+                    supported += 1;
+                }
+                s += SAMPLE_STEP_PX;
+            }
+        }
+        (supported, samples)
+    }
+}
+
+/// The segments moved by `offset` px along their left normal.
+#[must_use]
+pub fn offset_segments(segments: &[([f64; 2], [f64; 2])], offset: f64) -> Vec<([f64; 2], [f64; 2])> {
+    segments
+        .iter()
+        .map(|&(p, q)| {
+            let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+            let l = dx.hypot(dy).max(f64::MIN_POSITIVE);
+            let (nx, ny) = (-dy / l * offset, dx / l * offset);
+            ([p[0] + nx, p[1] + ny], [q[0] + nx, q[1] + ny])
+        })
+        .collect()
+}
+
+/// Supported fraction of `(supported, samples)`; 0 without samples.
+#[must_use]
+pub fn fraction((supported, samples): (usize, usize)) -> f64 {
+    if samples == 0 { 0.0 } else { supported as f64 / samples as f64 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn horizontal_edge(y: u32, xs: std::ops::Range<u32>) -> Vec<Feature> {
+        xs.map(|x| Feature { x, y, theta: 0.0, magnitude: 100.0 }).collect()
+    }
+
+    #[test]
+    fn support_counts_samples_with_a_matching_edge_nearby() {
+        // Edge pixels along y = 10 for x in 0..20 (orientation 0).
+        let map = EdgeMap::new(&horizontal_edge(10, 0..20), 50.0, |f| f64::from(f.theta));
+        // A segment from x = 0 to 40 at y = 11: samples at 2, 3, ..., 38 (37),
+        // those at x ≤ 19 supported (18).
+        assert_eq!(map.support(&[([0.0, 11.0], [40.0, 11.0])], 2.0, 0.2), (18, 37));
+        // 4 px away: nothing within 2 px.
+        assert_eq!(map.support(&[([0.0, 14.0], [40.0, 14.0])], 2.0, 0.2).0, 0);
+        // A vertical segment through the edge pixels: wrong orientation.
+        assert_eq!(map.support(&[([5.0, 0.0], [5.0, 20.0])], 2.0, 0.2).0, 0);
+        assert_eq!(fraction((18, 36)), 0.5);
+        assert_eq!(fraction((0, 0)), 0.0);
+        // Weak pixels are not edges.
+        let weak = EdgeMap::new(&horizontal_edge(10, 0..20), 200.0, |f| f64::from(f.theta));
+        assert_eq!(weak.support(&[([0.0, 10.0], [20.0, 10.0])], 2.0, 0.2).0, 0);
+    }
+}
