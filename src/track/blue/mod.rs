@@ -159,11 +159,11 @@ use crate::early::compaction::MAX_CAP;
 use crate::early::{Feature, Window};
 use crate::estimate::PolynomialSrif;
 use crate::estimate::line_fit::wrap_orientation;
-use std::f64::consts::FRAC_PI_2;
-use crate::track::support::{self, EdgeMap};
 use crate::geometry::{self, Camera, ModelGeometry};
 use crate::io::formats::{InitState, Model, Pose, Status};
+use crate::track::support::{self, EdgeMap};
 use crate::{Error, Result};
+use std::f64::consts::FRAC_PI_2;
 
 /// The paper's target location: image position of the tracked point
 /// (the model's vertex centroid) and its range (module doc).
@@ -494,7 +494,8 @@ impl BlueTracker {
             failure = self.unprojectable_vertex(&pass.location);
         }
         // Verification: the estimate's outline must stand out on the image's edges.
-        let support = if pass.estimated && failure.is_none() { self.contour_support(edges, &pass.location) } else { None };
+        let support =
+            if pass.estimated && failure.is_none() { self.contour_support(edges, &pass.location) } else { None };
         if failure.is_none() && self.params.verify {
             let excess = support.map_or(0.0, |(on, off)| on - off);
             if !(excess >= self.params.min_support) {

@@ -197,14 +197,14 @@ pub use steps::{
     model_lines,
 };
 
+use super::support::{self, EdgeMap};
 use super::{Diagnostics, FrameOutcome, Observations, Phase, Tracker};
+use crate::backend::EdgeRequest;
 use crate::backend::{FrameRequest, ListSpec, MotionRequest};
 use crate::early::gaussian::GaussianParams;
 use crate::early::temporal_diff::TemporalDiffParams;
 use crate::early::{Feature, Window};
-use crate::backend::EdgeRequest;
 use crate::estimate::line_fit::{Line, LineFit, LineSums, wrap_orientation};
-use super::support::{self, EdgeMap};
 use crate::estimate::smoothing::DoubleExponentialSmoother;
 use crate::io::formats::Status;
 use crate::{Error, Result};
@@ -779,7 +779,8 @@ impl MotionEdgeTracker {
         }
         // Verification: the contour about to be reported must have edge support.
         let contour_support = self.support_map.as_ref().map(|map| {
-            let segments: Vec<([f64; 2], [f64; 2])> = self.edges.iter().map(|&[i, j]| (corners[i], corners[j])).collect();
+            let segments: Vec<([f64; 2], [f64; 2])> =
+                self.edges.iter().map(|&[i, j]| (corners[i], corners[j])).collect();
             support::fraction(map.support(&segments, self.params.support_distance, self.params.delta))
         });
         if status == Status::Tracking
@@ -845,7 +846,11 @@ impl Tracker for MotionEdgeTracker {
             edges: self.params.verify.then(|| EdgeRequest {
                 threshold: self.params.support_edge_threshold,
                 smoothed: true,
-                list: ListSpec { window: MotionEdgeTracker::window_of_interest(self, width, height), cap: None, seed: 0 },
+                list: ListSpec {
+                    window: MotionEdgeTracker::window_of_interest(self, width, height),
+                    cap: None,
+                    seed: 0,
+                },
             }),
             ..FrameRequest::default()
         }
