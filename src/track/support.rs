@@ -148,9 +148,10 @@ mod tests {
     fn support_counts_samples_with_a_matching_edge_nearby() {
         // Edge pixels along y = 10 for x in 0..20 (orientation 0).
         let map = EdgeMap::new(&horizontal_edge(10, 0..20), 50.0, |f| f64::from(f.theta));
-        // A segment from x = 0 to 40 at y = 11: samples at 2, 3, ..., 38 (37),
-        // those at x ≤ 19 supported (18).
-        assert_eq!(map.support(&[([0.0, 11.0], [40.0, 11.0])], 2.0, 0.2), (18, 37));
+        // A segment from x = 0 to 40 at y = 11: samples at 2, 3, ..., 38 (37);
+        // a pixel supports samples up to 1 px along (half a step plus half a
+        // pixel), so those at x ≤ 20 are supported (19).
+        assert_eq!(map.support(&[([0.0, 11.0], [40.0, 11.0])], 2.0, 0.2), (19, 37));
         // 4 px away: nothing within 2 px.
         assert_eq!(map.support(&[([0.0, 14.0], [40.0, 14.0])], 2.0, 0.2).0, 0);
         // A vertical segment through the edge pixels: wrong orientation.
