@@ -5,7 +5,7 @@
 //! The contour is sampled every [`SAMPLE_STEP_PX`] along each visible model
 //! segment (less [`END_MARGIN_PX`] at each end, where two edges blur into each
 //! other). A sample is *supported* when an edge pixel lies within `distance`
-//! of it, perpendicular to the segment, no further than half a sample step
+//! of it, perpendicular to the segment, no further than half a sample step plus half a pixel
 //! along it, with its edge orientation within `angle` of the segment's
 //! (modulo π). The support is the supported fraction of all samples; a
 //! segment outside the image has no edge pixels and counts as unsupported,
