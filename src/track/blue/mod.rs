@@ -124,6 +124,17 @@
 //! at the last tracked location at rest: a parabola extrapolated for long
 //! runs away from where the target was.
 //!
+//! **Verification** (extension, [`BlueParams::verify`]; off: the paper's
+//! method). An estimate that passed the checks above is reported `tracking`
+//! only if its visible outline stands out on the frame's edge pixels: the
+//! fraction of its 1-px samples with an edge pixel within
+//! [`BlueParams::support_distance`] across it at the line's orientation
+//! (± the angle tolerance) ([`crate::track::support`]), less the same
+//! fraction for the outline shifted ±(2·d + 1) px across itself (the
+//! support any outline gets from the edge density there, which the random
+//! subsample of the edge list scales alike), must reach
+//! [`BlueParams::min_support`]. Otherwise the frame is lost as above.
+//!
 //! Reported per frame: the projection of every model vertex (model-vertex
 //! order, hidden ones too) at the frame's BLUE (the prediction when lost),
 //! the pose, and as covariance C_l of (c_x, c_y, 1/c_z) row-major (eq. 12; when

@@ -180,6 +180,22 @@
 //! pendulum whose rectangle jumps 80 px mid-swing this is what reports the
 //! loss; an object slower than `vanished_motion` that vanishes looks like
 //! one coming to rest, and is not reported.
+//!
+//! # Verification (extension, `verify`; off: the paper's method)
+//! Before a frame is reported `tracking` — also while acquiring at rest —
+//! the reported outline is checked against the image: the backend also lists
+//! the edge pixels of the σ-smoothed frame in the window
+//! (`support_edge_threshold`), and at least `min_support` (60 %) of the
+//! outline's 1-px samples must have an edge pixel within `support_distance`
+//! (3 px) across it at the line's orientation (±δ)
+//! ([`crate::track::support`]). Otherwise the frame is `lost` with the
+//! support in the reason, and a tracking phase turns to lost (predict on,
+//! re-acquire from motion). Measured on the pendulum: 99–100 % on every
+//! frame at 1.1–16 px/frame, 0 % after a jump or with the operator's
+//! corners 40 px off. Support cannot see a corner that slides along its
+//! own edge. Without an edge list ([`MotionEdgeTracker::update`]) the check
+//! is skipped.
+//!
 //! When lost, the tracker keeps predicting (fed as for a missing
 //! measurement) and writes an outcome every frame with status `lost`; it
 //! re-acquires like the initial acquisition, around the predicted corners,
