@@ -102,6 +102,9 @@ pub struct Diagnostics {
     /// Fraction of the reported contour's samples with edge support in the
     /// image ([`support`]), where the tracker checked it.
     pub contour_support: Option<f64>,
+    /// The smallest supported fraction of one side of the reported contour,
+    /// where the tracker checked it.
+    pub side_support: Option<f64>,
     /// Why the frame is lost, when it is.
     pub lost_reason: Option<String>,
 }

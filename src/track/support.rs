@@ -80,39 +80,57 @@ impl EdgeMap {
     /// Support of the segments `segments` (module doc): `(supported, samples)`.
     #[must_use]
     pub fn support(&self, segments: &[([f64; 2], [f64; 2])], distance: f64, angle: f64) -> (usize, usize) {
-        let (mut supported, mut samples) = (0, 0);
+        self.support_by_segment(segments, distance, angle)
+            .into_iter()
+            .fold((0, 0), |(s, n), (si, ni)| (s + si, n + ni))
+    }
+
+    /// Support of each segment of `segments` (module doc): `(supported,
+    /// samples)` per segment, in order; `(0, 0)` for a segment too short to
+    /// sample.
+    #[must_use]
+    pub fn support_by_segment(
+        &self,
+        segments: &[([f64; 2], [f64; 2])],
+        distance: f64,
+        angle: f64,
+    ) -> Vec<(usize, usize)> {
         let reach = distance.ceil() as i64 + 1;
-        for &(p, q) in segments {
-            let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
-            let length = dx.hypot(dy);
-            if !(length.is_finite() && length > 2.0 * END_MARGIN_PX) {
-                continue;
-            }
-            let (ux, uy) = (dx / length, dy / length);
-            let orientation = dy.atan2(dx).rem_euclid(std::f64::consts::PI);
-            let mut s = END_MARGIN_PX;
-            while s <= length - END_MARGIN_PX {
-                samples += 1;
-                let c = [p[0] + s * ux, p[1] + s * uy];
-                let (cx, cy) = (c[0].round() as i64, c[1].round() as i64);
-                let hit = (-reach..=reach).any(|j| {
-                    (-reach..=reach).any(|i| {
-                        let (x, y) = (cx + i, cy + j);
-                        let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
-                        let along = rx * ux + ry * uy;
-                        let across = rx * uy - ry * ux;
-                        across.abs() <= distance
-                            && along.abs() <= 0.5 * SAMPLE_STEP_PX + 0.5
-                            && self.at(x, y).is_some_and(|o| orientation_difference(o, orientation) < angle)
-                    })
-                });
-                if hit {
-                    supported += 1;
+        segments
+            .iter()
+            .map(|&(p, q)| {
+                let (mut supported, mut samples) = (0, 0);
+                let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+                let length = dx.hypot(dy);
+                if !(length.is_finite() && length > 2.0 * END_MARGIN_PX) {
+                    return (0, 0);
                 }
-                s += SAMPLE_STEP_PX;
-            }
-        }
-        (supported, samples)
+                let (ux, uy) = (dx / length, dy / length);
+                let orientation = dy.atan2(dx).rem_euclid(std::f64::consts::PI);
+                let mut s = END_MARGIN_PX;
+                while s <= length - END_MARGIN_PX {
+                    samples += 1;
+                    let c = [p[0] + s * ux, p[1] + s * uy];
+                    let (cx, cy) = (c[0].round() as i64, c[1].round() as i64);
+                    let hit = (-reach..=reach).any(|j| {
+                        (-reach..=reach).any(|i| {
+                            let (x, y) = (cx + i, cy + j);
+                            let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
+                            let along = rx * ux + ry * uy;
+                            let across = rx * uy - ry * ux;
+                            across.abs() <= distance
+                                && along.abs() <= 0.5 * SAMPLE_STEP_PX + 0.5
+                                && self.at(x, y).is_some_and(|o| orientation_difference(o, orientation) < angle)
+                        })
+                    });
+                    if hit {
+                        supported += 1;
+                    }
+                    s += SAMPLE_STEP_PX;
+                }
+                (supported, samples)
+            })
+            .collect()
     }
 }
 

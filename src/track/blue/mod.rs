@@ -567,6 +567,7 @@ impl BlueTracker {
                 max_corner_deviation: pass.max_corner_deviation,
                 unexplained_points: pass.unexplained,
                 contour_support,
+                side_support: None,
                 lost_reason: failure,
             },
         }

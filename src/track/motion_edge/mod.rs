@@ -265,6 +265,14 @@ pub struct MotionEdgeTracker {
     last_reported: Vec<[f64; 2]>,
     /// This frame's edge pixels for the verification, when given.
     support_map: Option<EdgeMap>,
+    /// While lost: the band-time corners of the previous frame's
+    /// re-acquisition measurement, awaiting confirmation by this frame's.
+    reacquisition_candidate: Option<Vec<[f64; 2]>>,
+    /// The corners of the last tracking frame (initially the operator's):
+    /// the shape searched for once lost for `search_after` frames.
+    last_tracked: Vec<[f64; 2]>,
+    /// Lost frames in a row.
+    lost_run: usize,
 }
 
 /// One frame's measurement (steps 1–5).
@@ -305,12 +313,15 @@ impl MotionEdgeTracker {
             predicted: corners.clone(),
             trend: vec![[0.0; 2]; n],
             last_reported: corners.clone(),
-            last_measured: corners,
+            last_measured: corners.clone(),
             previous_measured: vec![None; n],
             measured_speed: None,
             earlier_measured_speed: None,
             held_lines,
             support_map: None,
+            reacquisition_candidate: None,
+            last_tracked: corners,
+            lost_run: 0,
         })
     }
 
@@ -361,13 +372,20 @@ impl MotionEdgeTracker {
                 Phase::Acquiring => self.params.init_tolerance,
                 Phase::Lost => self.params.init_tolerance + max_motion,
             };
-        // A corner that is not finite (a diverged prediction) opens the whole image.
+        // A corner that is not finite (a diverged prediction), or a search
+        // after a long loss, opens the whole image.
         let corners = self.predicted_corners();
         let full = Window::full(width, height);
-        if !(margin.is_finite() && corners.iter().flatten().all(|v| v.is_finite())) {
+        if !(margin.is_finite() && corners.iter().flatten().all(|v| v.is_finite())) || self.searching() {
             return full;
         }
         Window::around(corners, margin, width, height).unwrap_or(full)
+    }
+
+    /// Whether the tracker has been lost long enough to search the whole
+    /// image (module doc, "Verification").
+    fn searching(&self) -> bool {
+        self.phase == Phase::Lost && self.params.verify && self.lost_run >= self.params.search_after
     }
 
     /// Process frame `frame` given its motion pixels, without verification
@@ -575,20 +593,102 @@ impl MotionEdgeTracker {
     }
 
     /// Re-acquisition while lost: like acquisition, around the predicted
-    /// corners, keeping the smoothers' trend; otherwise coast.
+    /// corners (or the previous frame's candidate), in two frames. A frame
+    /// whose motion matches the model makes a candidate and stays lost; the
+    /// next frame's measurement around the candidate confirms it when every
+    /// corner moved less than `init_tolerance`, and tracking restarts with
+    /// the displacement between the two as the corners' velocity, refined
+    /// with the tracking strips that motion implies. One frame of motion can
+    /// match the model by chance (the object's band elsewhere, a passing
+    /// distractor); two consistent ones rarely do. Otherwise coast.
     fn reacquire(&mut self, frame: usize, motion: &[Feature]) -> FrameOutcome {
         let tolerance = self.params.init_tolerance;
         let tolerances = vec![LineTolerance::uniform(tolerance); self.edges.len()];
-        let model = self.predicted.clone();
-        let m = self.measure(motion, &model, &tolerances, Some(tolerance * ACQUISITION_SPREAD_FRACTION));
-        let any_fitted = m.fitted.iter().any(Option::is_some);
-        let failure = self.acquisition_failure(&m, tolerance);
-        if any_fitted && failure.is_none() {
-            let trend = self.trend.clone();
-            return self.start_tracking(frame, m, &trend);
+        let candidate = self.reacquisition_candidate.take();
+        let models = match &candidate {
+            Some(candidate) => vec![candidate.clone()],
+            None if self.searching() => self.search_models(motion),
+            None => vec![self.predicted.clone()],
+        };
+        let mut best: Option<Measurement> = None;
+        let mut failure = Some("lost: searching the image for motion".to_string());
+        for model in &models {
+            let m = self.measure(motion, model, &tolerances, Some(tolerance * ACQUISITION_SPREAD_FRACTION));
+            let all_measured = m.measured.iter().all(|&b| b);
+            let why = self.acquisition_failure(&m, tolerance).or_else(|| {
+                (!all_measured).then(|| "lost: no motion matches every corner of the predicted model".to_string())
+            });
+            if why.is_none() {
+                best = Some(m);
+                failure = None;
+                break;
+            }
+            failure = why;
+            if models.len() == 1 {
+                best = Some(m);
+            }
         }
-        let reason = failure.unwrap_or_else(|| "lost: no motion matches the predicted model".into());
-        self.coast(frame, m, reason)
+        let m = match (best, failure) {
+            (Some(m), None) => m,
+            (best, failure) => {
+                let m = best.unwrap_or_else(|| self.measure(&[], &self.predicted.clone(), &tolerances, None));
+                return self.coast(frame, m, failure.unwrap_or_default());
+            }
+        };
+        let Some(previous) = candidate else {
+            self.reacquisition_candidate = Some(m.corners.clone());
+            return self.coast(frame, m, "re-acquiring: motion matches the model, to be confirmed by the next frame".into());
+        };
+        let trend: Vec<[f64; 2]> =
+            m.corners.iter().zip(&previous).map(|(c, p)| [c[0] - p[0], c[1] - p[1]]).collect();
+        if trend.iter().any(|v| !(v[0].hypot(v[1]) < tolerance)) {
+            self.reacquisition_candidate = Some(m.corners.clone());
+            return self.coast(frame, m, "re-acquiring: the candidate moved too far to be confirmed".into());
+        }
+        let fine_tolerances = self.tracking_tolerances(&m.corners, &trend);
+        let fine = self.measure_refined(motion, &m.corners, &fine_tolerances, &m.corners);
+        let fine_ok =
+            fine.contradicted.is_none() && fine.measured == m.measured && fine.deviation.is_some_and(|d| d < tolerance);
+        let m = if fine_ok { fine } else { m };
+        self.start_tracking(frame, m, &trend)
+    }
+
+    /// The shapes a search tries (module doc, "Verification"): the last
+    /// tracked shape moved so that its centroid lies on the centroid of
+    /// `motion` (the moving object's band, when it is the only thing moving),
+    /// turned about it by every multiple of δ within ±45°, the smaller turns
+    /// first (a symmetric shape turned further could match with its corners
+    /// exchanged). None with fewer motion pixels than `min_points_per_line`
+    /// per model line.
+    fn search_models(&self, motion: &[Feature]) -> Vec<Vec<[f64; 2]>> {
+        if motion.len() < self.params.min_points_per_line * self.edges.len() {
+            return Vec::new();
+        }
+        let mean = |points: &mut dyn Iterator<Item = [f64; 2]>| {
+            let (mut sx, mut sy, mut n) = (0.0, 0.0, 0.0);
+            for [x, y] in points {
+                (sx, sy, n) = (sx + x, sy + y, n + 1.0);
+            }
+            [sx / n, sy / n]
+        };
+        let target = mean(&mut motion.iter().map(|f| [f64::from(f.x), f64::from(f.y)]));
+        let centre = mean(&mut self.last_tracked.iter().copied());
+        let turns = (std::f64::consts::FRAC_PI_4 / self.params.delta).floor() as i64;
+        let mut steps: Vec<i64> = (-turns..=turns).collect();
+        steps.sort_by_key(|k| k.abs());
+        steps
+            .into_iter()
+            .map(|k| {
+                let (sin, cos) = (k as f64 * self.params.delta).sin_cos();
+                self.last_tracked
+                    .iter()
+                    .map(|c| {
+                        let (dx, dy) = (c[0] - centre[0], c[1] - centre[1]);
+                        [target[0] + cos * dx - sin * dy, target[1] + sin * dx + cos * dy]
+                    })
+                    .collect()
+            })
+            .collect()
     }
 
     /// Why an acquisition measurement is refused, if it is.
@@ -793,24 +893,40 @@ impl MotionEdgeTracker {
             let reason = format!("corner {i} is not a finite number; reported at its last position");
             lost_reason = Some(super::add_lost_reason(lost_reason, reason));
         }
-        // Verification: the contour about to be reported must have edge support.
-        let contour_support = self.support_map.as_ref().map(|map| {
+        // Verification: the contour about to be reported must have edge support,
+        // on the whole and on every side.
+        let support = self.support_map.as_ref().map(|map| {
             let segments: Vec<([f64; 2], [f64; 2])> =
                 self.edges.iter().map(|&[i, j]| (corners[i], corners[j])).collect();
-            support::fraction(map.support(&segments, self.params.support_distance, self.params.delta))
+            let sides = map.support_by_segment(&segments, self.params.support_distance, self.params.delta);
+            let total = sides.iter().fold((0, 0), |(s, n), &(si, ni)| (s + si, n + ni));
+            // A side too short to sample has no support: the outline collapsed.
+            let weakest = sides.iter().map(|&side| support::fraction(side)).fold(1.0, f64::min);
+            (support::fraction(total), weakest)
         });
+        let contour_support = support.map(|(total, _)| total);
+        let side_support = support.map(|(_, weakest)| weakest);
         if status == Status::Tracking
-            && let Some(support) = contour_support.filter(|&f| !(f >= self.params.min_support))
+            && let Some((total, weakest)) = support
+            && !(total >= self.params.min_support && weakest >= self.params.min_side_support)
         {
             status = Status::Lost;
             if self.phase == Phase::Tracking {
                 self.phase = Phase::Lost;
             }
             lost_reason = Some(format!(
-                "contour support {:.0} % < min_support {:.0} %: the reported outline is not on image edges",
-                100.0 * support,
-                100.0 * self.params.min_support
+                "contour support {:.0} % (min_support {:.0} %), weakest side {:.0} % (min_side_support {:.0} %): the reported outline is not on image edges",
+                100.0 * total,
+                100.0 * self.params.min_support,
+                100.0 * weakest,
+                100.0 * self.params.min_side_support
             ));
+        }
+        if status == Status::Tracking {
+            self.last_tracked.clone_from(&corners);
+            self.lost_run = 0;
+        } else {
+            self.lost_run += 1;
         }
         let diagnostics = Diagnostics {
             points_per_line: m.labelling.sums.iter().map(LineSums::count).collect(),
@@ -819,6 +935,7 @@ impl MotionEdgeTracker {
             max_corner_deviation: m.deviation,
             unexplained_points: m.labelling.unexplained_total,
             contour_support,
+            side_support,
             lost_reason,
         };
         FrameOutcome {

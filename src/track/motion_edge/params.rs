@@ -142,6 +142,16 @@ pub struct MotionEdgeParams {
     /// lie outside `support_distance` and the background's mostly have
     /// other orientations. Range: [0, 1].
     pub min_support: f64,
+    /// Smallest fraction of each side of the reported contour with edge
+    /// support (module doc, "Verification"): a contour shifted along one of
+    /// its sides keeps that side's support but loses that of the sides
+    /// across it. Range: [0, 1].
+    pub min_side_support: f64,
+    /// With `verify`, lost frames in a row after which re-acquisition
+    /// searches the whole image: the window of interest opens to the full
+    /// frame and the last tracked shape is placed on the centroid of the
+    /// motion pixels (module doc, "Verification"). Range: 1 ..= [`MAX_SEARCH_AFTER`].
+    pub search_after: usize,
     /// Largest distance across the contour of an edge pixel that supports a
     /// contour sample, px. 3: the Sobel response of a blurred step is ~2 px
     /// wide, so a contour within ~1–2 px of its edge is fully supported and
@@ -180,6 +190,9 @@ pub const MAX_MIN_MAGNITUDE: f32 = 2885.0;
 /// and [`MotionEdgeParams::lost_evidence`]: no frame has more pixels.
 pub const MAX_COUNT: usize = MAX_FRAME_PIXELS;
 
+/// Upper bound of [`MotionEdgeParams::search_after`], frames (an hour at 30 Hz).
+pub const MAX_SEARCH_AFTER: usize = 108_000;
+
 /// Range of the positive distances, px.
 const POSITIVE_PX: Interval = Interval::open_closed(0.0, MAX_DISTANCE_PX);
 /// Range of the margins, px.
@@ -208,6 +221,8 @@ impl Default for MotionEdgeParams {
             prediction: Prediction::MeasuredVelocity,
             verify: true,
             min_support: 0.6,
+            min_side_support: 0.5,
+            search_after: 10,
             support_distance: 3.0,
             support_edge_threshold: 80.0,
         }
@@ -264,6 +279,7 @@ impl MotionEdgeParams {
             ("init_tolerance", self.init_tolerance, POSITIVE_PX, " px"),
             ("min_magnitude", f64::from(self.min_magnitude), Interval::closed(0.0, f64::from(MAX_MIN_MAGNITUDE)), ""),
             ("min_support", self.min_support, Interval::closed(0.0, 1.0), ""),
+            ("min_side_support", self.min_side_support, Interval::closed(0.0, 1.0), ""),
             ("support_distance", self.support_distance, POSITIVE_PX, " px"),
             (
                 "support_edge_threshold",
@@ -282,6 +298,7 @@ impl MotionEdgeParams {
             ("min_points_per_line", self.min_points_per_line, 2, MAX_COUNT),
             ("lost_evidence", self.lost_evidence, 1, MAX_COUNT),
             ("refine_iterations", self.refine_iterations, 0, MAX_PASSES),
+            ("search_after", self.search_after, 1, MAX_SEARCH_AFTER),
         ];
         for (name, v, lo, hi) in counts {
             check_count(WHO, name, v, lo, hi)?;
