@@ -80,9 +80,7 @@ impl EdgeMap {
     /// Support of the segments `segments` (module doc): `(supported, samples)`.
     #[must_use]
     pub fn support(&self, segments: &[([f64; 2], [f64; 2])], distance: f64, angle: f64) -> (usize, usize) {
-        self.support_by_segment(segments, distance, angle)
-            .into_iter()
-            .fold((0, 0), |(s, n), (si, ni)| (s + si, n + ni))
+        self.support_by_segment(segments, distance, angle).into_iter().fold((0, 0), |(s, n), (si, ni)| (s + si, n + ni))
     }
 
     /// Support of each segment of `segments` (module doc): `(supported,

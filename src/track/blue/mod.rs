@@ -176,6 +176,19 @@ use crate::track::support::{self, EdgeMap};
 use crate::{Error, Result};
 use std::f64::consts::FRAC_PI_2;
 
+/// Shift grid of the whole-image search of a lost target, px: the vote's
+/// 3×3 sum gathers lines within ±1.5 steps; each peak is then aligned on
+/// the 1-px grid within ±1 step.
+const SEARCH_STEP_PX: f64 = 4.0;
+/// Vote peaks the whole-image search compares by their contour support.
+const SEARCH_PEAKS: usize = 8;
+/// Ranges the whole-image search tries: the last tracked range times
+/// `SEARCH_RANGE_RATIO^k`, |k| ≤ `SEARCH_RANGE_STEPS` (0.5–2 times).
+const SEARCH_RANGE_RATIO: f64 = std::f64::consts::SQRT_2;
+const SEARCH_RANGE_STEPS: i32 = 2;
+/// Least distance between two of those peaks, grid steps.
+const SEARCH_SEPARATION: i64 = 3;
+
 /// The paper's target location: image position of the tracked point
 /// (the model's vertex centroid) and its range (module doc).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -425,9 +438,8 @@ impl BlueTracker {
     /// px across itself (d = [`BlueParams::support_distance`]), i.e. the
     /// support the edge density around the target gives any outline there;
     /// `None` when no contour is visible.
-    fn contour_support(&self, edges: &[Feature], location: &TargetLocation) -> Option<(f64, f64)> {
+    fn contour_support(&self, map: &EdgeMap, location: &TargetLocation) -> Option<(f64, f64)> {
         let p = &self.params;
-        let map = EdgeMap::new(edges, p.edge_threshold, |f| wrap_orientation(f64::from(f.theta) + FRAC_PI_2));
         let vertices = self.vertices_at(location);
         let segments: Vec<([f64; 2], [f64; 2])> = self
             .geometry
@@ -452,6 +464,17 @@ impl BlueTracker {
         Some((support::fraction(counts), shifted(shift).max(shifted(-shift))))
     }
 
+    /// The frame's edge pixels indexed by position for the verification.
+    fn edge_map(&self, edges: &[Feature]) -> EdgeMap {
+        EdgeMap::new(edges, self.params.edge_threshold, |f| wrap_orientation(f64::from(f.theta) + FRAC_PI_2))
+    }
+
+    /// Whether the tracker has been lost long enough to search the whole
+    /// image (module doc, "Verification").
+    fn searching(&self) -> bool {
+        self.phase == Phase::Lost && self.params.verify && self.lost_run >= self.params.search_after
+    }
+
     /// Association distance of the next frame.
     fn association_distance(&self) -> f64 {
         if self.phase == Phase::Tracking && self.filters[0].samples() >= 3 {
@@ -467,6 +490,9 @@ impl BlueTracker {
     /// front of the camera.
     #[must_use]
     pub fn window_of_interest(&self, width: usize, height: usize) -> Window {
+        if self.searching() {
+            return Window::full(width, height);
+        }
         let location = self.location_at(self.next_frame as f64);
         let margin = self.association_distance() + self.params.window_margin;
         Window::around(&self.vertices_at(&location), margin, width, height)
@@ -484,6 +510,38 @@ impl BlueTracker {
             // the target was last seen.
             predicted = self.last_tracked;
             self.restart_motion_models(&predicted, time);
+        }
+        let map = self.edge_map(edges);
+        if self.searching() {
+            // Lost for `search_after` frames: look for the target over the
+            // whole image, at the last tracked range (module doc, "Verification").
+            let radius = f64::from(self.camera.width.max(self.camera.height));
+            let last = self.last_tracked;
+            let excess = |location: &TargetLocation| {
+                self.contour_support(&map, location).map_or(f64::NEG_INFINITY, |(on, off)| on - off)
+            };
+            let best = (-SEARCH_RANGE_STEPS..=SEARCH_RANGE_STEPS)
+                .flat_map(|k| {
+                    let at_range = TargetLocation { cz: last.cz * SEARCH_RANGE_RATIO.powi(k), ..last };
+                    let peaks =
+                        self.shift_peaks(edges, &at_range, radius, SEARCH_STEP_PX, SEARCH_PEAKS, SEARCH_SEPARATION);
+                    peaks.into_iter().map(move |[sx, sy]| TargetLocation {
+                        cx: at_range.cx + sx,
+                        cy: at_range.cy + sy,
+                        ..at_range
+                    })
+                })
+                .map(|coarse| {
+                    let [fx, fy] = self.align_shift(edges, &coarse, SEARCH_STEP_PX).unwrap_or([0.0; 2]);
+                    let fine = TargetLocation { cx: coarse.cx + fx, cy: coarse.cy + fy, ..coarse };
+                    let e = excess(&fine);
+                    (e, fine)
+                })
+                .max_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((_, location)) = best {
+                predicted = location;
+                self.restart_motion_models(&predicted, time);
+            }
         }
         let distance = self.association_distance();
         // Steps 1 (alignment) to 6, then step 7.
@@ -506,7 +564,7 @@ impl BlueTracker {
         }
         // Verification: the estimate's outline must stand out on the image's edges.
         let support =
-            if pass.estimated && failure.is_none() { self.contour_support(edges, &pass.location) } else { None };
+            if pass.estimated && failure.is_none() { self.contour_support(&map, &pass.location) } else { None };
         if failure.is_none() && self.params.verify {
             let excess = support.map_or(0.0, |(on, off)| on - off);
             if !(excess >= self.params.min_support) {
@@ -586,13 +644,24 @@ impl Tracker for BlueTracker {
     /// §2.3: Sobel on the raw frame, magnitude above `edge_threshold`, inside
     /// the window of interest, at most `max_edge_points` by the seeded subsample.
     fn request(&self, width: usize, height: usize) -> FrameRequest {
-        let cap = u32::try_from(self.params.max_edge_points).unwrap_or(u32::MAX).min(MAX_CAP);
+        let window = BlueTracker::window_of_interest(self, width, height);
+        // While searching, the cap grows with the window so that the edge
+        // pixels keep the density of a tracking window.
+        let scale = if self.searching() {
+            let area = |w: &Window| (w.x1 - w.x0) as f64 * (w.y1 - w.y0) as f64;
+            let tracking_margin = self.params.distance_tolerance + self.params.window_margin;
+            Window::around(&self.vertices_at(&self.last_tracked), tracking_margin, width, height)
+                .map_or(1.0, |w| (area(&window) / area(&w).max(1.0)).max(1.0))
+        } else {
+            1.0
+        };
+        let cap = (self.params.max_edge_points as f64 * scale).min(f64::from(MAX_CAP)) as u32;
         FrameRequest {
             edges: Some(EdgeRequest {
                 threshold: self.params.edge_threshold,
                 smoothed: false,
                 list: ListSpec {
-                    window: BlueTracker::window_of_interest(self, width, height),
+                    window,
                     cap: Some(cap),
                     // Fold the 64-bit seed into the compaction's 32 bits.
                     seed: (self.params.sample_seed ^ (self.params.sample_seed >> 32)) as u32,

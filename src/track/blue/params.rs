@@ -150,6 +150,13 @@ pub struct BlueParams {
     /// Largest distance across the contour of an edge pixel that supports a
     /// contour sample in the verification, px. Range: (0, [`MAX_DISTANCE_PX`]].
     pub support_distance: f64,
+    /// With `verify`, lost frames in a row after which the tracker searches
+    /// the whole image: the window of interest opens to the full frame (its
+    /// edge cap grown in proportion) and the coarse alignment's vote over
+    /// every image shift places the model at the last tracked range before
+    /// the frame is measured (module doc, "Verification").
+    /// Range: 1 ..= [`MAX_SEARCH_AFTER`].
+    pub search_after: usize,
 }
 
 /// Upper bound of the distances, margins and pixel-sized tolerances and
@@ -180,6 +187,9 @@ pub const MAX_COUNT: usize = MAX_CAP as usize;
 /// one a camera tracks by its edges; the bound keeps products of Z₀ with
 /// focal lengths and image coordinates far from overflow.
 pub const MAX_RANGE_M: f64 = 1e6;
+
+/// Upper bound of [`BlueParams::search_after`], frames (an hour at 30 Hz).
+pub const MAX_SEARCH_AFTER: usize = 108_000;
 
 /// Upper bound of [`BlueParams::coast_frames`]: extrapolating the motion
 /// models for longer than about half a minute at 30 Hz only carries the
@@ -226,6 +236,7 @@ impl Default for BlueParams {
             verify: true,
             min_support: 0.26,
             support_distance: 3.0,
+            search_after: 3,
         }
     }
 }
@@ -272,6 +283,7 @@ impl BlueParams {
             ("perspective_iterations", self.perspective_iterations, 0, MAX_PASSES),
             ("min_corners", self.min_corners, 2, MAX_COUNT),
             ("coast_frames", self.coast_frames, 0, MAX_COAST_FRAMES),
+            ("search_after", self.search_after, 1, MAX_SEARCH_AFTER),
         ];
         for (name, v, lo, hi) in counts {
             check_count(WHO, name, v, lo, hi)?;

@@ -199,15 +199,34 @@ impl BlueTracker {
     /// shifts along one direction. `None` when no pixel votes.
     #[must_use]
     pub(super) fn align_shift(&self, edges: &[Feature], model: &TargetLocation, radius: f64) -> Option<[f64; 2]> {
+        self.shift_peaks(edges, model, radius, 1.0, 1, 0).first().copied()
+    }
+
+    /// The `count` best shifts of [`BlueTracker::align_shift`]'s vote on a
+    /// grid of shifts `step` px apart, best first, each the peak of its
+    /// 3×3-summed votes over the grid cells within `separation` cells (the
+    /// whole-image search of a lost target uses a coarse grid and several
+    /// peaks).
+    #[must_use]
+    pub(super) fn shift_peaks(
+        &self,
+        edges: &[Feature],
+        model: &TargetLocation,
+        radius: f64,
+        step: f64,
+        count: usize,
+        separation: i64,
+    ) -> Vec<[f64; 2]> {
         let p = &self.params;
         let lines: Vec<PredictedLine> = self.predicted_lines(model).into_iter().flatten().collect();
-        if lines.is_empty() || !(radius >= 0.0) {
-            return None;
+        if lines.is_empty() || !(radius >= 0.0) || !(step > 0.0) {
+            return Vec::new();
         }
-        let r = radius.ceil() as i64;
+        let r = (radius / step).ceil() as i64;
         let n = (2 * r + 1) as usize;
         let mut votes = vec![0u32; n * n];
-        for feature in edges {
+        // A coarse grid needs fewer voters: every `step`-th edge pixel.
+        for feature in edges.iter().step_by(step.max(1.0) as usize) {
             if !is_edge(p, feature) {
                 continue;
             }
@@ -218,7 +237,7 @@ impl BlueTracker {
                     continue;
                 }
                 let d = line.line.signed_distance(point);
-                if d.abs() > radius * std::f64::consts::SQRT_2 + 1.0 {
+                if d.abs() > radius * std::f64::consts::SQRT_2 + step {
                     continue;
                 }
                 let s = line.along(point);
@@ -229,7 +248,7 @@ impl BlueTracker {
                         return;
                     }
                     // The foot of the pixel on the shifted segment.
-                    let along = s - (ux * ix as f64 + uy * iy as f64);
+                    let along = s - step * (ux * ix as f64 + uy * iy as f64);
                     if along >= p.end_margin && along <= line.length - p.end_margin {
                         votes[(iy + r) as usize * n + (ix + r) as usize] += 1;
                     }
@@ -237,18 +256,18 @@ impl BlueTracker {
                 // Shifted line: a·(x − s_x) + b·(y − s_y) + c = 0 ⇔ a·s_x + b·s_y = d.
                 if a.abs() >= b.abs() {
                     for iy in -r..=r {
-                        let sx = (d - b * iy as f64) / a;
-                        vote(sx.round() as i64, iy);
+                        let sx = (d - b * step * iy as f64) / a;
+                        vote((sx / step).round() as i64, iy);
                     }
                 } else {
                     for ix in -r..=r {
-                        let sy = (d - a * ix as f64) / b;
-                        vote(ix, sy.round() as i64);
+                        let sy = (d - a * step * ix as f64) / b;
+                        vote(ix, (sy / step).round() as i64);
                     }
                 }
             }
         }
-        let mut best: Option<(u32, i64, i64)> = None;
+        let mut summed = vec![0u32; n * n];
         for iy in -r..=r {
             for ix in -r..=r {
                 let mut sum = 0;
@@ -257,14 +276,28 @@ impl BlueTracker {
                         sum += votes[(jy + r) as usize * n + (jx + r) as usize];
                     }
                 }
-                // Ties go to the smaller shift (the prediction is a prior).
-                let closer = |bx: i64, by: i64| ix * ix + iy * iy < bx * bx + by * by;
-                if sum > 0 && best.is_none_or(|(bs, bx, by)| sum > bs || (sum == bs && closer(bx, by))) {
-                    best = Some((sum, ix, iy));
-                }
+                summed[(iy + r) as usize * n + (ix + r) as usize] = sum;
             }
         }
-        best.map(|(_, ix, iy)| [ix as f64, iy as f64])
+        // Cells by summed votes, highest first; ties go to the smaller shift
+        // (the prediction is a prior).
+        let cell = |i: usize| (i as i64 % n as i64 - r, i as i64 / n as i64 - r);
+        let mut order: Vec<usize> = (0..n * n).filter(|&i| summed[i] > 0).collect();
+        order.sort_by_key(|&i| {
+            let (ix, iy) = cell(i);
+            (std::cmp::Reverse(summed[i]), ix * ix + iy * iy)
+        });
+        let mut peaks: Vec<(u32, i64, i64)> = Vec::with_capacity(count);
+        for i in order {
+            if peaks.len() == count {
+                break;
+            }
+            let (ix, iy) = cell(i);
+            if !peaks.iter().any(|&(_, px, py)| (ix - px).abs() <= separation && (iy - py).abs() <= separation) {
+                peaks.push((summed[i], ix, iy));
+            }
+        }
+        peaks.into_iter().map(|(_, ix, iy)| [step * ix as f64, step * iy as f64]).collect()
     }
 }
 

@@ -637,10 +637,13 @@ impl MotionEdgeTracker {
         };
         let Some(previous) = candidate else {
             self.reacquisition_candidate = Some(m.corners.clone());
-            return self.coast(frame, m, "re-acquiring: motion matches the model, to be confirmed by the next frame".into());
+            return self.coast(
+                frame,
+                m,
+                "re-acquiring: motion matches the model, to be confirmed by the next frame".into(),
+            );
         };
-        let trend: Vec<[f64; 2]> =
-            m.corners.iter().zip(&previous).map(|(c, p)| [c[0] - p[0], c[1] - p[1]]).collect();
+        let trend: Vec<[f64; 2]> = m.corners.iter().zip(&previous).map(|(c, p)| [c[0] - p[0], c[1] - p[1]]).collect();
         if trend.iter().any(|v| !(v[0].hypot(v[1]) < tolerance)) {
             self.reacquisition_candidate = Some(m.corners.clone());
             return self.coast(frame, m, "re-acquiring: the candidate moved too far to be confirmed".into());
