@@ -145,7 +145,10 @@ pub fn read_manifest(path: &Path, default_tracker: Option<&str>, out_dir: &Path)
                 continue;
             }
             if fields.len() > 3 {
-                return Err(Error::input(path, format!("{place}expected SEQ_DIR [TRACKER [CONFIG]], got {} fields", fields.len())));
+                return Err(Error::input(
+                    path,
+                    format!("{place}expected SEQ_DIR [TRACKER [CONFIG]], got {} fields", fields.len()),
+                ));
             }
             let dir = base.join(fields[0]);
             let tracker = match fields.get(1) {
@@ -378,7 +381,9 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
         let seq = match Sequence::open(&entry.dir, false) {
             Ok(seq) => seq,
             Err(e) => {
-                lines[k] = Some(SummaryLine::failed(entry, &e));
+                let line = SummaryLine::failed(entry, &e);
+                eprintln!("pipetrack: {}: {}", entry.name, line.error.as_deref().unwrap_or_default());
+                lines[k] = Some(line);
                 first_error.get_or_insert(e);
                 continue;
             }
@@ -460,8 +465,7 @@ fn read_summary(path: &Path) -> Vec<SummaryLine> {
 /// write the summary atomically, in the order of the manifest `all`, lines
 /// of names it does not list last.
 fn write_summary(path: &Path, all: &[ManifestEntry], earlier: Vec<SummaryLine>, ours: &[SummaryLine]) -> Result<()> {
-    let mut merged: Vec<SummaryLine> =
-        earlier.into_iter().filter(|l| !ours.iter().any(|o| o.name == l.name)).collect();
+    let mut merged: Vec<SummaryLine> = earlier.into_iter().filter(|l| !ours.iter().any(|o| o.name == l.name)).collect();
     merged.extend(ours.iter().cloned());
     let position: HashMap<&str, usize> = all.iter().enumerate().map(|(i, e)| (e.name.as_str(), i)).collect();
     merged.sort_by_key(|l| position.get(l.name.as_str()).copied().unwrap_or(usize::MAX));

@@ -84,6 +84,7 @@ fn draw(score: &Score, predictions: &[FrameResult], pixels: &mut [u8], (w, h): (
         .configure_mesh()
         .x_desc("frame")
         .y_desc("corner error (px)")
+        .x_label_formatter(&|x| format!("{x:.0}"))
         .label_style(font(13))
         .axis_desc_style(font(14))
         .draw()?;
@@ -118,7 +119,14 @@ fn draw(score: &Score, predictions: &[FrameResult], pixels: &mut [u8], (w, h): (
         .x_label_area_size(25)
         .y_label_area_size(55)
         .build_cartesian_2d(0.0..frames, 0.0..1.0)?;
-    strip.configure_mesh().disable_y_mesh().disable_y_axis().disable_x_mesh().label_style(font(12)).draw()?;
+    strip
+        .configure_mesh()
+        .disable_y_mesh()
+        .disable_y_axis()
+        .disable_x_mesh()
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .label_style(font(12))
+        .draw()?;
     strip.draw_series(predictions.iter().map(|p| {
         let colour = match p.status {
             Status::Lost => LOST,

@@ -70,7 +70,7 @@ pub fn run_batch(
     match backend {
         BackendKind::Cpu => Ok(run_on_cpu(jobs, lanes, progress)),
         BackendKind::Gpu => match GpuContext::new() {
-            Ok(ctx) => run_on_gpu(jobs, &mut GpuBackend::new(ctx), lanes, progress),
+            Ok(ctx) => run_batch_on_gpu(jobs, &mut GpuBackend::new(ctx), lanes, progress),
             Err(e) => {
                 eprintln!("pipetrack: no GPU ({e}; running the CPU backend)");
                 Ok(run_on_cpu(jobs, lanes, progress))
@@ -80,11 +80,7 @@ pub fn run_batch(
 }
 
 /// `lanes` threads, each taking the next job and tracking it to its file.
-fn run_on_cpu(
-    jobs: &[BatchJob],
-    lanes: usize,
-    progress: &(dyn Fn(BatchProgress) + Sync),
-) -> Vec<Result<RunSummary>> {
+fn run_on_cpu(jobs: &[BatchJob], lanes: usize, progress: &(dyn Fn(BatchProgress) + Sync)) -> Vec<Result<RunSummary>> {
     let next = AtomicUsize::new(0);
     let results: Mutex<Vec<Option<Result<RunSummary>>>> = Mutex::new(jobs.iter().map(|_| None).collect());
     std::thread::scope(|scope| {
@@ -93,7 +89,8 @@ fn run_on_cpu(
                 loop {
                     let index = next.fetch_add(1, Ordering::Relaxed);
                     let Some(job) = jobs.get(index) else { break };
-                    let opts = TrackOptions { backend: BackendKind::Cpu, overlay: None, progress: false, ..job.opts.clone() };
+                    let opts =
+                        TrackOptions { backend: BackendKind::Cpu, overlay: None, progress: false, ..job.opts.clone() };
                     let result =
                         run::track_to_file_with(&job.seq, &opts, &job.out_path, |_| progress(BatchProgress::Frame));
                     results.lock().unwrap_or_else(|p| p.into_inner())[index] = Some(result);
@@ -146,10 +143,7 @@ impl<'j> Running<'j> {
         let size = (self.seq.camera.width as usize, self.seq.camera.height as usize);
         if frame.size() != size {
             let (w, h) = frame.size();
-            return Err(Error::Size(format!(
-                "frame {} is {w}x{h}, the sequence is {}x{}",
-                self.index, size.0, size.1
-            )));
+            return Err(Error::Size(format!("frame {} is {w}x{h}, the sequence is {}x{}", self.index, size.0, size.1)));
         }
         let requested = Instant::now();
         let request = self.tracker.request(size.0, size.1);
@@ -178,24 +172,25 @@ impl<'j> Running<'j> {
     }
 }
 
-/// The lockstep loop of the module doc on one GPU backend.
-fn run_on_gpu(
+/// The lockstep loop of the module doc on `backend` (for a caller that has
+/// its own device), with up to `lanes` sequences in flight (1 ..= [`MAX_LANES`]).
+pub fn run_batch_on_gpu(
     jobs: &[BatchJob],
     backend: &mut GpuBackend,
     lanes: usize,
     progress: &(dyn Fn(BatchProgress) + Sync),
 ) -> Result<Vec<Result<RunSummary>>> {
+    if !(1..=MAX_LANES).contains(&lanes) {
+        return Err(Error::Parameter(format!("{lanes} sequences in flight: give 1 to {MAX_LANES}")));
+    }
     let name = backend.name();
     let lanes = lanes.min(jobs.len()).max(1);
     let mut results: Vec<Option<Result<RunSummary>>> = jobs.iter().map(|_| None).collect();
     let mut running: Vec<Option<Running<'_>>> = (0..lanes).map(|_| None).collect();
     let mut next_job = 0;
     // Two groups taking turns (one group when there is a single lane).
-    let groups: Vec<Vec<usize>> = if lanes == 1 {
-        vec![vec![0]]
-    } else {
-        vec![(0..lanes).step_by(2).collect(), (1..lanes).step_by(2).collect()]
-    };
+    let groups: Vec<Vec<usize>> =
+        if lanes == 1 { vec![vec![0]] } else { vec![(0..lanes).step_by(2).collect(), (1..lanes).step_by(2).collect()] };
     let mut pending: Vec<Vec<(usize, crate::backend::Ticket)>> = groups.iter().map(|_| Vec::new()).collect();
 
     loop {
