@@ -44,7 +44,6 @@ use serde::{Deserialize, Serialize};
 
 use super::score::{read_predictions, score};
 use crate::backend::BackendKind;
-use crate::io::json::one_short_line;
 use crate::io::{AtomicFile, Sequence};
 use crate::track::batch::{BatchJob, BatchProgress, run_batch};
 use crate::track::run::{RunSummary, TRACKERS, TrackOptions};
@@ -206,6 +205,11 @@ fn name_of(dir: &Path) -> String {
     }
 }
 
+/// An error message on one line (its lines joined with `; `), for a summary line.
+fn one_line(message: &str) -> String {
+    message.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join("; ")
+}
+
 /// What happened to a sequence in a run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -290,7 +294,7 @@ impl SummaryLine {
     }
 
     fn failed(entry: &ManifestEntry, error: &Error) -> Self {
-        Self { error: Some(one_short_line(&error.to_string())), ..Self::new(entry, SequenceStatus::Failed) }
+        Self { error: Some(one_line(&error.to_string())), ..Self::new(entry, SequenceStatus::Failed) }
     }
 
     /// Fill frames, tracked and the score from the complete output of `seq`.
@@ -298,7 +302,7 @@ impl SummaryLine {
         let predictions = match read_predictions(out_path) {
             Ok(p) => p,
             Err(e) => {
-                self.score_error = Some(one_short_line(&e.to_string()));
+                self.score_error = Some(one_line(&e.to_string()));
                 return;
             }
         };
@@ -316,7 +320,7 @@ impl SummaryLine {
                 self.false_tracking = Some(s.false_tracking.len());
                 self.first_lost = s.first_lost;
             }
-            Err(e) => self.score_error = Some(one_short_line(&e.to_string())),
+            Err(e) => self.score_error = Some(one_line(&e.to_string())),
         }
     }
 }
