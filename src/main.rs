@@ -326,8 +326,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
                 return Ok(());
             }
+            let start = std::time::Instant::now();
             let report = batch::run(&manifest, &opts)?;
+            let seconds = start.elapsed().as_secs_f64().max(1e-9);
             say(format_args!("{}", batch::markdown(&report.lines)))?;
+            let tracked: Vec<_> = report.lines.iter().filter(|l| l.status == batch::SequenceStatus::Tracked).collect();
+            let frames: usize = tracked.iter().filter_map(|l| l.frames).sum();
+            note(format_args!(
+                "pipetrack: {} sequences tracked, {} skipped, {} failed in {seconds:.2} s: {:.2} sequences/s, {:.1} frames/s",
+                tracked.len(),
+                report.lines.iter().filter(|l| l.status == batch::SequenceStatus::Skipped).count(),
+                report.failed(),
+                tracked.len() as f64 / seconds,
+                frames as f64 / seconds
+            ));
             let (failed, total) = (report.failed(), report.lines.len());
             match report.first_error {
                 None => Ok(()),
