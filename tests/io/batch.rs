@@ -61,7 +61,11 @@ fn complete_outputs_are_skipped_and_a_stopped_run_is_finished() {
     let manifest = sequences(&root, 4);
     let out = root.join("out");
     let first = batch_cpu(&manifest, &out, &[]);
-    assert!(first.status.success(), "{}", text(&first).1);
+    let (_, stderr) = text(&first);
+    assert!(first.status.success(), "{stderr}");
+    // stderr is not a terminal here: no progress bar, only the closing line.
+    assert!(!stderr.contains('\r') && stderr.lines().all(|l| l.starts_with("pipetrack: ")), "{stderr:?}");
+    assert!(stderr.contains("4 sequences tracked, 0 skipped, 0 failed"), "{stderr}");
     let lines = summary(&out);
     assert_eq!(lines.len(), 4);
     for (i, l) in lines.iter().enumerate() {
