@@ -26,7 +26,7 @@ use rayon::prelude::*;
 
 use super::Tracker;
 use super::run::{self, RunSummary, TrackOptions, make_tracker, track_features, write_result_line};
-use crate::backend::{BackendKind, EarlyVision, FrameRequest, GpuBackend, LaneFrame, MAX_LANES};
+use crate::backend::{BackendKind, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, LaneFrame, MAX_LANES, Ticket};
 use crate::image::GrayImage;
 use crate::io::formats::Status;
 use crate::io::sequence::CAMERA_FILE;
@@ -154,7 +154,7 @@ impl<'j> Running<'j> {
     }
 
     /// Let the tracker update with this step's features and write its line.
-    fn track(&mut self, features: &crate::backend::FrameFeatures) -> Result<()> {
+    fn track(&mut self, features: &FrameFeatures) -> Result<()> {
         let (_, _, requested) = self.current.take().ok_or_else(|| Error::Gpu("no frame submitted".into()))?;
         let (_, result) = track_features(self.tracker.as_mut(), self.index, features, requested);
         let name = self.out.path().to_path_buf();
@@ -183,125 +183,154 @@ pub fn run_batch_on_gpu(
     if !(1..=MAX_LANES).contains(&lanes) {
         return Err(Error::Parameter(format!("{lanes} sequences in flight: give 1 to {MAX_LANES}")));
     }
-    let name = backend.name();
     let lanes = lanes.min(jobs.len()).max(1);
-    let mut results: Vec<Option<Result<RunSummary>>> = jobs.iter().map(|_| None).collect();
-    let mut running: Vec<Option<Running<'_>>> = (0..lanes).map(|_| None).collect();
-    let mut next_job = 0;
+    let mut batch = Lanes {
+        jobs,
+        running: (0..lanes).map(|_| None).collect(),
+        results: jobs.iter().map(|_| None).collect(),
+        next_job: 0,
+        backend_name: backend.name(),
+        progress,
+    };
     // Two groups taking turns (one group when there is a single lane).
     let groups: Vec<Vec<usize>> =
         if lanes == 1 { vec![vec![0]] } else { vec![(0..lanes).step_by(2).collect(), (1..lanes).step_by(2).collect()] };
-    let mut pending: Vec<Vec<(usize, crate::backend::Ticket)>> = groups.iter().map(|_| Vec::new()).collect();
-
+    let mut pending: Vec<Vec<(usize, Ticket)>> = groups.iter().map(|_| Vec::new()).collect();
     loop {
         let mut busy = false;
-        for (g, group) in groups.iter().enumerate() {
-            // Collect this group's last submission and run its trackers in parallel.
-            let tickets = std::mem::take(&mut pending[g]);
-            let mut features = Vec::with_capacity(tickets.len());
-            for (lane, ticket) in tickets {
-                features.push((lane, backend.finish(ticket)?));
-            }
-            let tracked: Vec<(usize, Result<()>)> = {
-                let mut by_lane: Vec<(usize, &mut Running<'_>, crate::backend::FrameFeatures)> = Vec::new();
-                let mut slots: Vec<Option<&mut Running<'_>>> = running.iter_mut().map(Option::as_mut).collect();
-                for (lane, f) in features {
-                    if let Some(r) = slots[lane].take() {
-                        by_lane.push((lane, r, f));
-                    }
-                }
-                by_lane
-                    .into_par_iter()
-                    .map(|(lane, r, f)| {
-                        let result = r.track(&f);
-                        progress(BatchProgress::Frame);
-                        (lane, result)
-                    })
-                    .collect()
-            };
-            for (lane, result) in tracked {
-                if let Err(e) = result {
-                    fail(&mut running[lane], &mut results, e, progress);
-                }
-            }
-
-            // Read every lane's next frame, starting new sequences in lanes that are free.
-            loop {
-                for &lane in group {
-                    while running[lane].is_none() && next_job < jobs.len() {
-                        match Running::start(next_job, &jobs[next_job], backend) {
-                            Ok(r) => {
-                                backend.reset_lane(lane);
-                                running[lane] = Some(r);
-                            }
-                            Err(e) => {
-                                results[next_job] = Some(Err(e));
-                                progress(BatchProgress::Sequence);
-                            }
-                        }
-                        next_job += 1;
-                    }
-                }
-                let read: Vec<(usize, Result<bool>)> = running
-                    .par_iter_mut()
-                    .enumerate()
-                    .filter(|(lane, r)| group.contains(lane) && r.as_ref().is_some_and(|r| r.current.is_none()))
-                    .filter_map(|(lane, r)| r.as_mut().map(|r| (lane, r.next_frame())))
-                    .collect();
-                let mut freed = false;
-                for (lane, result) in read {
-                    match result {
-                        Ok(true) => {}
-                        Ok(false) => {
-                            if let Some(r) = running[lane].take() {
-                                let job = r.job;
-                                results[job] = Some(r.finish(&name));
-                                progress(BatchProgress::Sequence);
-                            }
-                            freed = true;
-                        }
-                        Err(e) => {
-                            fail(&mut running[lane], &mut results, e, progress);
-                            freed = true;
-                        }
-                    }
-                }
-                if !freed || next_job >= jobs.len() {
-                    break;
-                }
-            }
-
-            // One submission for the group's frames.
-            let frames: Vec<LaneFrame<'_>> = group
-                .iter()
-                .filter_map(|&lane| {
-                    let (frame, request, _) = running[lane].as_ref()?.current.as_ref()?;
-                    Some(LaneFrame { lane, frame, request })
-                })
-                .collect();
-            if !frames.is_empty() {
-                let lanes_submitted: Vec<usize> = frames.iter().map(|f| f.lane).collect();
-                let tickets = backend.submit_lanes(&frames)?;
-                pending[g] = lanes_submitted.into_iter().zip(tickets).collect();
-                busy = true;
-            }
+        for (group, submitted) in groups.iter().zip(&mut pending) {
+            batch.track_submitted(backend, std::mem::take(submitted))?;
+            batch.read_next_frames(group, backend);
+            *submitted = batch.submit(group, backend)?;
+            busy |= !submitted.is_empty();
         }
         if !busy {
             break;
         }
     }
-    Ok(results.into_iter().map(|r| r.unwrap_or_else(|| Err(Error::Gpu("job never ran".into())))).collect())
+    Ok(batch.results.into_iter().map(|r| r.unwrap_or_else(|| Err(Error::Gpu("job never ran".into())))).collect())
 }
 
-/// End the sequence in `lane` with `error` (its partial output is removed).
-fn fail(
-    lane: &mut Option<Running<'_>>,
-    results: &mut [Option<Result<RunSummary>>],
-    error: Error,
-    progress: &(dyn Fn(BatchProgress) + Sync),
-) {
-    if let Some(r) = lane.take() {
-        results[r.job] = Some(Err(error));
-        progress(BatchProgress::Sequence);
+/// The state of [`run_batch_on_gpu`]: which sequence runs in which lane, and
+/// the results so far.
+struct Lanes<'j, 'p> {
+    jobs: &'j [BatchJob],
+    running: Vec<Option<Running<'j>>>,
+    results: Vec<Option<Result<RunSummary>>>,
+    next_job: usize,
+    backend_name: String,
+    progress: &'p (dyn Fn(BatchProgress) + Sync),
+}
+
+impl<'j> Lanes<'j, '_> {
+    /// Collect a group's submission and run its trackers in parallel, one
+    /// sequence per thread; a sequence whose output cannot be written fails.
+    fn track_submitted(&mut self, backend: &mut GpuBackend, submitted: Vec<(usize, Ticket)>) -> Result<()> {
+        let mut features = Vec::with_capacity(submitted.len());
+        for (lane, ticket) in submitted {
+            features.push((lane, backend.finish(ticket)?));
+        }
+        let mut lanes: Vec<Option<&mut Running<'j>>> = self.running.iter_mut().map(Option::as_mut).collect();
+        let work: Vec<(usize, &mut Running<'j>, FrameFeatures)> =
+            features.into_iter().filter_map(|(lane, f)| Some((lane, lanes[lane].take()?, f))).collect();
+        let progress = self.progress;
+        let tracked: Vec<(usize, Result<()>)> = work
+            .into_par_iter()
+            .map(|(lane, running, features)| {
+                let result = running.track(&features);
+                progress(BatchProgress::Frame);
+                (lane, result)
+            })
+            .collect();
+        for (lane, result) in tracked {
+            if let Err(e) = result {
+                self.end(lane, Err(e));
+            }
+        }
+        Ok(())
+    }
+
+    /// Give every lane of `group` its next frame (read in parallel),
+    /// publishing sequences that ended and starting the next jobs in lanes
+    /// that are free, until each lane has a frame or no job is left.
+    fn read_next_frames(&mut self, group: &[usize], backend: &mut GpuBackend) {
+        loop {
+            for &lane in group {
+                self.start_next_job(lane, backend);
+            }
+            let read: Vec<(usize, Result<bool>)> = self
+                .running
+                .par_iter_mut()
+                .enumerate()
+                .filter(|(lane, _)| group.contains(lane))
+                .filter_map(|(lane, r)| r.as_mut().filter(|r| r.current.is_none()).map(|r| (lane, r.next_frame())))
+                .collect();
+            let mut freed = false;
+            for (lane, result) in read {
+                match result {
+                    Ok(true) => {}
+                    Ok(false) => {
+                        if let Some(r) = self.running[lane].take() {
+                            let job = r.job;
+                            let summary = r.finish(&self.backend_name);
+                            self.results[job] = Some(summary);
+                            (self.progress)(BatchProgress::Sequence);
+                        }
+                        freed = true;
+                    }
+                    Err(e) => {
+                        self.end(lane, Err(e));
+                        freed = true;
+                    }
+                }
+            }
+            if !freed || self.next_job >= self.jobs.len() {
+                return;
+            }
+        }
+    }
+
+    /// While `lane` is free and jobs are left, start the next one there (a
+    /// job that cannot start fails at once).
+    fn start_next_job(&mut self, lane: usize, backend: &mut GpuBackend) {
+        while self.running[lane].is_none() && self.next_job < self.jobs.len() {
+            let job = self.next_job;
+            self.next_job += 1;
+            match Running::start(job, &self.jobs[job], backend) {
+                Ok(r) => {
+                    backend.reset_lane(lane);
+                    self.running[lane] = Some(r);
+                }
+                Err(e) => {
+                    self.results[job] = Some(Err(e));
+                    (self.progress)(BatchProgress::Sequence);
+                }
+            }
+        }
+    }
+
+    /// Record the frames read in `group`'s lanes into one submission.
+    fn submit(&self, group: &[usize], backend: &mut GpuBackend) -> Result<Vec<(usize, Ticket)>> {
+        let frames: Vec<LaneFrame<'_>> = group
+            .iter()
+            .filter_map(|&lane| {
+                let (frame, request, _) = self.running[lane].as_ref()?.current.as_ref()?;
+                Some(LaneFrame { lane, frame, request })
+            })
+            .collect();
+        if frames.is_empty() {
+            return Ok(Vec::new());
+        }
+        let tickets = backend.submit_lanes(&frames)?;
+        Ok(frames.iter().map(|f| f.lane).zip(tickets).collect())
+    }
+
+    /// End the sequence in `lane` with `result` (after an error its partial
+    /// output is removed as the sequence is dropped).
+    fn end(&mut self, lane: usize, result: Result<RunSummary>) {
+        if let Some(r) = self.running[lane].take() {
+            self.results[r.job] = Some(result);
+            (self.progress)(BatchProgress::Sequence);
+        }
     }
 }
