@@ -21,7 +21,9 @@
 //! ([`crate::cli::score::read_predictions`]) with exactly one line per frame
 //! of the sequence. A complete output is not tracked again; anything else
 //! (missing, or a file left by another sequence of that name) is tracked
-//! and replaced. A killed batch run again therefore finishes the rest.
+//! and replaced. A killed batch run again therefore finishes the rest. The
+//! check does not look at which tracker or config wrote an output: after
+//! changing them, remove the outputs to track again.
 //!
 //! **Summary.** Each line is one JSON object ([`SummaryLine`]): the
 //! sequence's name, folder, tracker, `status` (`tracked`, `skipped` for a
