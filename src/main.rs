@@ -94,6 +94,35 @@ enum Command {
         /// Corner error (px) above which a frame reported `tracking` counts as false tracking.
         #[arg(long = "false-tracking-px", default_value_t = pipetrack::cli::score::DEFAULT_FALSE_TRACKING_PX)]
         false_tracking_px: f64,
+        /// Also draw the per-frame corner error and status over time into this PNG.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// Size of the plot in pixels, WxH.
+        #[arg(long, default_value = "1000x500", value_parser = parse_size)]
+        plot_size: (usize, usize),
+    },
+    /// Track every sequence of a manifest into OUT/<name>.jsonl, skipping complete outputs.
+    Batch {
+        /// A file listing `SEQ_DIR [TRACKER [CONFIG]]` per line, or a folder of sequence folders.
+        manifest: PathBuf,
+        /// Output folder: <name>.jsonl per sequence and summary.jsonl.
+        #[arg(long)]
+        out: PathBuf,
+        /// Tracker for sequences whose manifest line names none.
+        #[arg(long)]
+        tracker: Option<String>,
+        /// Early-vision backend.
+        #[arg(long, value_enum, default_value_t = Backend::Gpu)]
+        backend: Backend,
+        /// Sequences in flight: GPU lanes sharing one submission per step, or CPU threads.
+        #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u16).range(1..=pipetrack::backend::MAX_LANES as i64))]
+        jobs: u16,
+        /// Take only the sequences at positions I, I+N, I+2N, … of the manifest (0 ≤ I < N).
+        #[arg(long, value_name = "I/N")]
+        shard: Option<pipetrack::cli::batch::Shard>,
+        /// Print the sequences this shard takes (name and folder) and track nothing.
+        #[arg(long)]
+        list: bool,
     },
     /// Synthesise a short sequence, track it, write overlays to a temp folder, print the score.
     Demo,
@@ -127,6 +156,13 @@ enum Command {
 
 #[derive(Clone, Debug)]
 struct Sizes(Vec<(usize, usize)>);
+
+fn parse_size(s: &str) -> Result<(usize, usize), String> {
+    parse_sizes(s).and_then(|sizes| match sizes.0[..] {
+        [one] => Ok(one),
+        _ => Err(format!("{s:?} is not one WxH size")),
+    })
+}
 
 fn parse_sizes(s: &str) -> Result<Sizes, String> {
     s.split(',')
@@ -264,11 +300,54 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             note(format_args!("pipetrack: wrote {} frames of '{}' to {}", seq.frames.len(), scene, out_dir.display()));
             Ok(())
         }
-        Command::Score { seq_dir, pred, false_tracking_px } => {
+        Command::Score { seq_dir, pred, false_tracking_px, plot, plot_size } => {
             let seq = Sequence::open(&seq_dir, false)?;
             let truth = seq.read_truth()?;
             let score = pipetrack::cli::score::score_file_with(&truth, &pred, false_tracking_px)?;
+            if let Some(png) = plot {
+                let predictions = pipetrack::cli::score::read_predictions(&pred)?;
+                pipetrack::cli::plot::plot_score(&score, &predictions, &png, plot_size)?;
+            }
             say(format_args!("{score}"))
+        }
+        Command::Batch { manifest, out, tracker, backend, jobs, shard, list } => {
+            use pipetrack::cli::batch::{self, BatchOptions, Shard};
+            let opts = BatchOptions {
+                out_dir: out,
+                tracker,
+                backend: backend.into(),
+                jobs: usize::from(jobs),
+                shard: shard.unwrap_or(Shard::ALL),
+                progress: true,
+            };
+            if list {
+                for entry in batch::shard_entries(&manifest, &opts)? {
+                    say(format_args!("{}\t{}", entry.name, entry.dir.display()))?;
+                }
+                return Ok(());
+            }
+            let start = std::time::Instant::now();
+            let report = batch::run(&manifest, &opts)?;
+            let seconds = start.elapsed().as_secs_f64().max(1e-9);
+            say(format_args!("{}", batch::markdown(&report.lines)))?;
+            let tracked: Vec<_> = report.lines.iter().filter(|l| l.status == batch::SequenceStatus::Tracked).collect();
+            let frames: usize = tracked.iter().filter_map(|l| l.frames).sum();
+            note(format_args!(
+                "pipetrack: {} sequences tracked, {} skipped, {} failed in {seconds:.2} s: {:.2} sequences/s, {:.1} frames/s",
+                tracked.len(),
+                report.lines.iter().filter(|l| l.status == batch::SequenceStatus::Skipped).count(),
+                report.failed(),
+                tracked.len() as f64 / seconds,
+                frames as f64 / seconds
+            ));
+            let (failed, total) = (report.failed(), report.lines.len());
+            match report.first_error {
+                None => Ok(()),
+                Some(first) => Err(anyhow::Error::new(first).context(format!(
+                    "{failed} of {total} sequences failed (each named in {}); first failure",
+                    opts.out_dir.join(batch::SUMMARY_FILE).display()
+                ))),
+            }
         }
         Command::Demo => {
             pipetrack::cli::demo::run_demo(&pipetrack::cli::demo::default_root(), &mut std::io::stdout().lock())?;

@@ -2,6 +2,12 @@
 //! per-slot buffers reused across frames, one submission per frame, only the
 //! compact lists read back, and a ring of frame slots so that uploading,
 //! computing and reading back successive frames overlap.
+//!
+//! Frames of several independent sequences can share one submission: each
+//! sequence runs in its own *lane* (its own ring of slots and its own
+//! previous frame), and [`GpuBackend::submit_lanes`] records one frame of
+//! each lane into one `queue.submit`. The single-sequence API
+//! ([`EarlyVision`], [`GpuBackend::submit`]) uses lane 0.
 
 use super::plan::{EdgelPart, FramePlan, List, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
 use super::{EarlyVision, FrameFeatures, FrameRequest};
@@ -34,12 +40,67 @@ pub struct FrameStats {
     pub bytes_read_back: u64,
 }
 
+/// Most lanes (independent sequences) one backend keeps.
+pub const MAX_LANES: usize = 64;
+
 /// A frame submitted to the GPU whose results are not yet collected; pass it
 /// to [`GpuBackend::finish`].
 #[derive(Debug)]
 #[must_use = "a submitted frame must be finished to get its features and free its slot"]
 pub struct Ticket {
+    lane: usize,
     slot: usize,
+}
+
+/// One frame of one lane for [`GpuBackend::submit_lanes`]: the next frame of
+/// the sequence running in `lane`.
+#[derive(Clone, Copy, Debug)]
+pub struct LaneFrame<'a> {
+    /// The lane (below [`MAX_LANES`]); each lane differences its frames
+    /// against its own previous frame only.
+    pub lane: usize,
+    /// The grey frame.
+    pub frame: &'a GrayImage,
+    /// What to compute on it.
+    pub request: &'a FrameRequest,
+}
+
+/// Where a recorded frame's pixels come from.
+#[derive(Clone, Copy)]
+enum Input<'a> {
+    Bytes(&'a GrayImage),
+    Texture(&'a wgpu::Texture),
+}
+
+impl Input<'_> {
+    fn size(&self) -> (usize, usize) {
+        match self {
+            Input::Bytes(g) => g.size(),
+            Input::Texture(t) => (t.width() as usize, t.height() as usize),
+        }
+    }
+}
+
+/// One sequence's frame stream: its ring of slots, and the slot holding its
+/// previous frame's smoothed image with what that image is.
+struct Lane {
+    slots: Vec<Option<Slot>>,
+    next_slot: usize,
+    previous: Option<(usize, PreviousFrame)>,
+}
+
+impl Lane {
+    fn new() -> Self {
+        Self { slots: (0..SLOTS).map(|_| None).collect(), next_slot: 0, previous: None }
+    }
+
+    fn slot(&self, slot: usize) -> Result<&Slot> {
+        self.slots[slot].as_ref().ok_or_else(|| Error::Gpu("slot vanished".into()))
+    }
+
+    fn slot_mut(&mut self, slot: usize) -> Result<&mut Slot> {
+        self.slots[slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))
+    }
 }
 
 /// Device buffers of one frame slot, allocated on first need.
@@ -211,10 +272,8 @@ impl FrameImages<'_> {
 /// with [`GpuBackend::submit_texture`].
 pub struct GpuBackend {
     ctx: GpuContext,
-    slots: Vec<Option<Slot>>,
-    next_slot: usize,
-    /// Slot holding the previous frame's smoothed image, and what it is.
-    previous: Option<(usize, PreviousFrame)>,
+    /// Lane 0 serves the single-sequence API; more are made on demand.
+    lanes: Vec<Lane>,
     stats: FrameStats,
 }
 
@@ -237,13 +296,7 @@ impl GpuBackend {
             (gaussian::SHADER, "blur_rows"),
             (gaussian::SHADER, "blur_cols"),
         ]);
-        Self {
-            ctx,
-            slots: (0..SLOTS).map(|_| None).collect(),
-            next_slot: 0,
-            previous: None,
-            stats: FrameStats::default(),
-        }
+        Self { ctx, lanes: vec![Lane::new()], stats: FrameStats::default() }
     }
 
     /// The context (device, queue, adapter name).
@@ -261,25 +314,32 @@ impl GpuBackend {
     /// Submit a grey frame; the GPU starts on it at once. Collect the result
     /// with [`GpuBackend::finish`]; up to three frames may be in flight.
     pub fn submit(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<Ticket> {
-        let (w, h) = frame.size();
-        let (slot, plan) = self.prepare_slot(w, h, request)?;
-        let s = self.slots[slot].as_ref().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
-        let packed = ingest::pack_bytes(frame.data());
-        if !packed.is_empty() {
-            self.ctx.queue.write_buffer(&s.packed, 0, bytemuck::cast_slice(&packed));
-        }
-        self.stats.bytes_uploaded = (packed.len() * 4) as u64;
-        self.record_and_submit(slot, plan, |rec, s| ingest::encode(rec, &s.packed, &s.luma))
+        self.submit_inputs(&[(0, Input::Bytes(frame), request)]).and_then(first_ticket)
     }
 
     /// Submit a frame that is already a texture on this backend's device (a
     /// format of [`crate::early::ingest::TEXTURE_FORMATS`], with
     /// `TEXTURE_BINDING` usage; colour is reduced to luma as that module says).
     pub fn submit_texture(&mut self, texture: &wgpu::Texture, request: &FrameRequest) -> Result<Ticket> {
-        let (w, h) = (texture.width() as usize, texture.height() as usize);
-        let (slot, plan) = self.prepare_slot(w, h, request)?;
-        self.stats.bytes_uploaded = 0;
-        self.record_and_submit(slot, plan, |rec, s| ingest::encode_texture(rec, texture, &s.luma))
+        self.submit_inputs(&[(0, Input::Texture(texture), request)]).and_then(first_ticket)
+    }
+
+    /// Submit the next frame of several lanes (independent sequences, each
+    /// at most once here) in one submission: every pass of every frame goes
+    /// into one `queue.submit`, so the device gets all of them at once.
+    /// Returns one ticket per frame, in order; [`GpuBackend::finish`] each.
+    /// Every request is checked before anything is recorded.
+    pub fn submit_lanes(&mut self, frames: &[LaneFrame<'_>]) -> Result<Vec<Ticket>> {
+        let inputs: Vec<(usize, Input<'_>, &FrameRequest)> =
+            frames.iter().map(|f| (f.lane, Input::Bytes(f.frame), f.request)).collect();
+        self.submit_inputs(&inputs)
+    }
+
+    /// Forget `lane`'s previous frame: its next frame starts a new sequence.
+    pub fn reset_lane(&mut self, lane: usize) {
+        if let Some(l) = self.lanes.get_mut(lane) {
+            l.previous = None;
+        }
     }
 
     /// Process a texture frame and wait for its features.
@@ -311,46 +371,84 @@ impl GpuBackend {
         Ok(())
     }
 
-    /// Pick the next slot, plan the frame, and (re)allocate the slot's
-    /// buffers for this size and plan.
-    fn prepare_slot(&mut self, w: usize, h: usize, request: &FrameRequest) -> Result<(usize, FramePlan)> {
-        request.validate()?;
-        let slot = self.next_slot;
-        if self.slots[slot].as_ref().is_some_and(|s| s.pending.is_some()) {
-            return Err(Error::Gpu(format!("more than {SLOTS} frames in flight: finish a ticket first")));
+    /// Check every frame (lane in range and not repeated, request valid),
+    /// then record each into its lane's next slot and submit them all at once.
+    fn submit_inputs(&mut self, frames: &[(usize, Input<'_>, &FrameRequest)]) -> Result<Vec<Ticket>> {
+        for (i, &(lane, _, request)) in frames.iter().enumerate() {
+            request.validate()?;
+            if lane >= MAX_LANES {
+                return Err(Error::Parameter(format!("lane {lane} out of range (at most {MAX_LANES} lanes)")));
+            }
+            if frames[..i].iter().any(|&(other, _, _)| other == lane) {
+                return Err(Error::Parameter(format!("lane {lane} given twice in one submission")));
+            }
+            if self.lanes.get(lane).is_some_and(|l| l.slots[l.next_slot].as_ref().is_some_and(|s| s.pending.is_some()))
+            {
+                return Err(Error::Gpu(format!("more than {SLOTS} frames in flight: finish a ticket first")));
+            }
         }
-        if self.slots[slot].as_ref().is_none_or(|s| (s.width, s.height) != (w, h)) {
-            self.slots[slot] = Some(Slot::new(&self.ctx, w, h));
+        let mut recorded = Vec::with_capacity(frames.len());
+        let mut commands = Vec::with_capacity(frames.len());
+        for &(lane, input, request) in frames {
+            while self.lanes.len() <= lane {
+                self.lanes.push(Lane::new());
+            }
+            let (w, h) = input.size();
+            let (slot, plan) = self.prepare_slot(lane, w, h, request)?;
+            commands.push(self.record(lane, slot, &plan, input)?);
+            recorded.push((lane, slot, plan));
+        }
+        let submitted = self.ctx.queue.submit(commands);
+        let mut tickets = Vec::with_capacity(recorded.len());
+        for (lane, slot, plan) in recorded {
+            self.lanes[lane].slot_mut(slot)?.pending = Some((plan, submitted.clone()));
+            tickets.push(Ticket { lane, slot });
+        }
+        Ok(tickets)
+    }
+
+    /// Pick `lane`'s next slot, plan the frame, and (re)allocate the slot's
+    /// buffers for this size and plan.
+    fn prepare_slot(&mut self, lane: usize, w: usize, h: usize, request: &FrameRequest) -> Result<(usize, FramePlan)> {
+        let ctx = &self.ctx;
+        let lane = &mut self.lanes[lane];
+        let slot = lane.next_slot;
+        if lane.slots[slot].as_ref().is_none_or(|s| (s.width, s.height) != (w, h)) {
+            lane.slots[slot] = Some(Slot::new(ctx, w, h));
         }
         // The ring never puts two consecutive frames in one slot; a previous
         // frame in this very slot would be overwritten, so it does not count.
-        let previous = self.previous.filter(|&(p, _)| p != slot).map(|(_, kept)| kept);
+        let previous = lane.previous.filter(|&(p, _)| p != slot).map(|(_, kept)| kept);
         let plan = FramePlan::new(request, w, h, previous.as_ref());
-        let s = self.slots[slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
-        s.allocate(&self.ctx, &plan)?;
+        lane.slot_mut(slot)?.allocate(ctx, &plan)?;
         Ok((slot, plan))
     }
 
-    /// Record ingest (by `ingest`) and every step of `plan` into one encoder, then submit.
-    fn record_and_submit(
-        &mut self,
-        slot: usize,
-        plan: FramePlan,
-        ingest: impl FnOnce(&mut Recorder<'_>, &Slot) -> Result<()>,
-    ) -> Result<Ticket> {
-        let previous_slot = self.previous.map(|(p, _)| p).filter(|&p| p != slot && plan.reads_previous());
-        let (before, rest) = self.slots.split_at(slot);
-        let (this, after) = rest.split_first().ok_or_else(|| Error::Gpu("bad slot".into()))?;
-        let s = this.as_ref().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
-        let previous = previous_slot.and_then(|p| {
-            let other = if p < slot { before[p].as_ref() } else { after[p - slot - 1].as_ref() };
-            other.map(|o| &o.smoothed)
-        });
+    /// Upload `input` (bytes) and record its ingest and every step of `plan`
+    /// into one command buffer; the lane's previous frame becomes this one.
+    fn record(&mut self, lane: usize, slot: usize, plan: &FramePlan, input: Input<'_>) -> Result<wgpu::CommandBuffer> {
+        let l = &self.lanes[lane];
+        let previous_slot = l.previous.map(|(p, _)| p).filter(|&p| p != slot && plan.reads_previous());
+        let s = l.slot(slot)?;
+        let previous = previous_slot.and_then(|p| l.slots[p].as_ref()).map(|o| &o.smoothed);
         let images = FrameImages { slot: s, previous };
         let area = s.width * s.height;
 
         let mut rec = Recorder::new(&self.ctx, &s.arena);
-        ingest(&mut rec, s)?;
+        match input {
+            Input::Bytes(frame) => {
+                let packed = ingest::pack_bytes(frame.data());
+                if !packed.is_empty() {
+                    self.ctx.queue.write_buffer(&s.packed, 0, bytemuck::cast_slice(&packed));
+                }
+                self.stats.bytes_uploaded = (packed.len() * 4) as u64;
+                ingest::encode(&mut rec, &s.packed, &s.luma)?;
+            }
+            Input::Texture(texture) => {
+                self.stats.bytes_uploaded = 0;
+                ingest::encode_texture(&mut rec, texture, &s.luma)?;
+            }
+        }
         for step in plan.steps() {
             match *step {
                 Step::Smooth(p) => gaussian::encode(&mut rec, &s.luma, &s.tmp, &s.smoothed, &p)?,
@@ -381,19 +479,19 @@ impl GpuBackend {
             }
         }
         self.stats.dispatches = rec.dispatch_count();
-        let submitted = rec.submit();
+        let commands = rec.finish();
 
-        self.previous = plan.next_previous().map(|kept| (slot, kept));
-        let s = self.slots[slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
-        s.pending = Some((plan, submitted));
-        self.next_slot = (slot + 1) % SLOTS;
-        Ok(Ticket { slot })
+        let l = &mut self.lanes[lane];
+        l.previous = plan.next_previous().map(|kept| (slot, kept));
+        l.next_slot = (slot + 1) % SLOTS;
+        Ok(commands)
     }
 
     /// Wait for a submitted frame (its own submission only, not other work
     /// on the device) and read back its lists.
     pub fn finish(&mut self, ticket: Ticket) -> Result<FrameFeatures> {
-        let s = self.slots[ticket.slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
+        let lane = self.lanes.get_mut(ticket.lane).ok_or_else(|| Error::Gpu("lane vanished".into()))?;
+        let s = lane.slot_mut(ticket.slot)?;
         let (plan, submitted) = s.pending.take().ok_or_else(|| Error::Gpu("ticket already finished".into()))?;
         self.ctx.wait_for(submitted)?;
         let mut out = FrameFeatures::default();
@@ -424,6 +522,10 @@ impl GpuBackend {
     }
 }
 
+fn first_ticket(mut tickets: Vec<Ticket>) -> Result<Ticket> {
+    tickets.pop().ok_or_else(|| Error::Gpu("no frame was submitted".into()))
+}
+
 fn opt<T>(v: &Option<T>) -> Result<&T> {
     v.as_ref().ok_or_else(|| Error::Gpu("stage buffers not allocated".into()))
 }
@@ -434,7 +536,7 @@ impl EarlyVision for GpuBackend {
     }
 
     fn reset(&mut self) {
-        self.previous = None;
+        self.reset_lane(0);
     }
 
     /// A list may hold every pixel of the frame (a window of the whole

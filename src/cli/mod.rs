@@ -2,7 +2,9 @@
 //! the demo, scoring a run against the truth, benchmarking the backends, reproducing a
 //! paper's tables. `src/main.rs` parses the command line and calls these.
 
+pub mod batch;
 pub mod bench;
 pub mod demo;
+pub mod plot;
 pub mod reproduce;
 pub mod score;

@@ -319,10 +319,18 @@ impl<'a> Recorder<'a> {
     /// Write the uniform blocks and submit everything recorded as one command
     /// buffer; wait for the returned index with [`GpuContext::wait_for`].
     pub(crate) fn submit(self) -> wgpu::SubmissionIndex {
+        let ctx = self.ctx;
+        ctx.queue.submit([self.finish()])
+    }
+
+    /// Queue the write of the uniform blocks and end recording: the command
+    /// buffer, for a `queue.submit` that may carry other recorders' buffers
+    /// too (each recorder has its own arena, so their uniforms do not mix).
+    pub(crate) fn finish(self) -> wgpu::CommandBuffer {
         if !self.uniforms.is_empty() {
             self.ctx.queue.write_buffer(&self.arena.uniforms, 0, &self.uniforms);
         }
-        self.ctx.queue.submit([self.encoder.finish()])
+        self.encoder.finish()
     }
 }
 

@@ -9,6 +9,7 @@
 //! diagnostic data), which [`FrameOutcome::to_result`] turns into the output
 //! line of SPEC §4.
 
+pub mod batch;
 pub mod blue;
 pub mod motion_edge;
 pub mod run;

@@ -10,7 +10,7 @@ use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::backend::{BackendKind, EarlyVision, make_backend};
+use crate::backend::{BackendKind, EarlyVision, FrameFeatures, make_backend};
 use crate::geometry::{ModelGeometry, check_simple_polygon};
 use crate::image::GrayImage;
 use crate::io::formats::{FrameResult, Status};
@@ -77,7 +77,7 @@ fn one_line(s: &str) -> String {
 }
 
 /// Make the tracker `name` for `seq`, with parameters from `config`.
-pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result<Box<dyn Tracker>> {
+pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result<Box<dyn Tracker + Send>> {
     match name {
         "motion-edge" => {
             let params: MotionEdgeParams = read_config(config, name)?;
@@ -179,8 +179,7 @@ fn track_named(
     let start = Instant::now();
     let (mut count, mut tracked) = (0, 0);
     track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), |frame, outcome, result| {
-        serde_json::to_writer(&mut *out, result).map_err(|e| Error::io(out_name, e.into()))?;
-        writeln!(out).map_err(|e| Error::io(out_name, e))?;
+        write_result_line(out, out_name, result)?;
         if let (Some(dir), Some(frame)) = (&overlay, frame.gray()) {
             let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
             let visible = match (&model_geometry, &outcome.pose) {
@@ -301,11 +300,31 @@ pub fn track_step(
         Frame::Gray(g) => backend.process(g, &request)?,
         Frame::Texture(t) => backend.process_texture(t, &request)?,
     };
-    let obs = Observations::from(&features);
-    let outcome = tracker.track(index, &obs);
+    let step = track_features(tracker, index, &features, t0);
     backend.recycle(features);
-    let result = outcome.to_result(t0.elapsed().as_secs_f64() * 1e3);
-    Ok((outcome, result))
+    Ok(step)
+}
+
+/// The second half of [`track_step`], for a caller that ran early vision
+/// itself (several sequences' frames in one GPU submission): let the tracker
+/// update with `features` as frame `index`; the output line's time runs from
+/// `requested` (when the tracker's request was taken) to the outcome.
+pub fn track_features(
+    tracker: &mut dyn Tracker,
+    index: usize,
+    features: &FrameFeatures,
+    requested: Instant,
+) -> (FrameOutcome, FrameResult) {
+    let obs = Observations::from(features);
+    let outcome = tracker.track(index, &obs);
+    let result = outcome.to_result(requested.elapsed().as_secs_f64() * 1e3);
+    (outcome, result)
+}
+
+/// Write `result` as one JSON line to `out`; errors are [`Error::Io`] naming `out_name`.
+pub fn write_result_line(out: &mut dyn Write, out_name: &Path, result: &FrameResult) -> Result<()> {
+    serde_json::to_writer(&mut *out, result).map_err(|e| Error::io(out_name, e.into()))?;
+    writeln!(out).map_err(|e| Error::io(out_name, e))
 }
 
 /// The per-frame loop shared by every caller: reset the backend, then for
@@ -358,6 +377,16 @@ fn progress_bar(enabled: bool, len: Option<usize>) -> indicatif::ProgressBar {
 /// Before tracking, `out_path` is checked (see [`check_output`]) and so is
 /// the overlay folder. Errors writing name `out_path`.
 pub fn track_to_file(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Result<RunSummary> {
+    track_to_file_with(seq, opts, out_path, |_| {})
+}
+
+/// [`track_to_file`], handing each frame's output line to `on_result` once written.
+pub fn track_to_file_with(
+    seq: &Sequence,
+    opts: &TrackOptions,
+    out_path: &Path,
+    mut on_result: impl FnMut(&FrameResult),
+) -> Result<RunSummary> {
     check_output(seq, opts, out_path)?;
     match fs::metadata(out_path) {
         Ok(meta) if !meta.is_file() => {
@@ -366,11 +395,11 @@ pub fn track_to_file(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Re
                 .open(out_path)
                 .map_err(|e| Error::input(out_path, format!("cannot open for writing: {e}")))?;
             // `track_named` flushes what it wrote.
-            track_named(seq, opts, &mut BufWriter::new(file), out_path, |_| {})
+            track_named(seq, opts, &mut BufWriter::new(file), out_path, &mut on_result)
         }
         _ => {
             let mut file = AtomicFile::create(out_path)?;
-            let summary = track_named(seq, opts, &mut file, out_path, |_| {})?;
+            let summary = track_named(seq, opts, &mut file, out_path, &mut on_result)?;
             file.finish()?;
             Ok(summary)
         }

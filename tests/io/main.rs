@@ -4,9 +4,11 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod batch;
 mod bounds;
 mod cli;
 mod fuzz;
+mod plot;
 mod score;
 mod sequence_io;
 mod synth;

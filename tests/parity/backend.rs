@@ -339,3 +339,56 @@ fn changing_requests_in_flight_equal_cpu() {
         compare(j, gpu.finish(t).unwrap());
     }
 }
+
+/// Lanes of one backend (independent sequences) recorded into shared
+/// submissions: each lane's frames are differenced against that lane's own
+/// previous frame, and equal the CPU backend run on that sequence alone, on
+/// an odd size, with lanes joining late, one starting a new sequence
+/// part-way, and requests that differ between lanes.
+#[test]
+fn lanes_in_one_submission_equal_cpu_per_sequence() {
+    use pipetrack::backend::LaneFrame;
+    let Some((ctx, _g)) = common::gpu("lanes_in_one_submission_equal_cpu_per_sequence") else { return };
+    let (w, h) = (257, 243);
+    let full = ListSpec::full(w, h);
+    let scene = natural(w + 40, h + 40, 7);
+    // Lane k shows the scene moving by k + 1 px per frame from its own offset.
+    let frame =
+        |lane: usize, i: usize| GrayImage::from_fn(w, h, |x, y| scene.get(x + (lane + 1) * i % 40, y + 5 * lane));
+    let requests = [
+        FrameRequest { motion: Some(motion(full)), ..FrameRequest::default() },
+        FrameRequest { motion: Some(motion(full)), edges: Some(edges(true, full)), ..FrameRequest::default() },
+        FrameRequest { edges: Some(edges(false, full)), motion: Some(motion(full)), ..FrameRequest::default() },
+    ];
+    let mut gpu = GpuBackend::new(ctx.clone());
+    let mut cpu: Vec<CpuBackend> = (0..3).map(|_| CpuBackend::new()).collect();
+    let mut frame_index = [0usize; 3];
+    for step in 0..6 {
+        // Lane 2 joins at step 2; lane 0 starts a new sequence at step 4.
+        let lanes: Vec<usize> = (0..3).filter(|&l| l != 2 || step >= 2).collect();
+        if step == 4 {
+            gpu.reset_lane(0);
+            cpu[0].reset();
+            frame_index[0] = 10;
+        }
+        let frames: Vec<GrayImage> = lanes.iter().map(|&l| frame(l, frame_index[l])).collect();
+        let batch: Vec<LaneFrame<'_>> = lanes
+            .iter()
+            .zip(&frames)
+            .map(|(&lane, frame)| LaneFrame { lane, frame, request: &requests[lane] })
+            .collect();
+        let tickets = gpu.submit_lanes(&batch).unwrap();
+        for ((&lane, f), ticket) in lanes.iter().zip(&frames).zip(tickets) {
+            let g = gpu.finish(ticket).unwrap();
+            let c = cpu[lane].process(f, &requests[lane]).unwrap();
+            same_features(&format!("lane{lane}/step{step}"), &c, &g);
+            let motion = g.motion.as_ref().unwrap();
+            let first_of_sequence = frame_index[lane] == 0 || (lane == 0 && step == 4);
+            assert_eq!(motion.is_empty(), first_of_sequence, "lane{lane}/step{step}: motion only after a first frame");
+            frame_index[lane] += 1;
+        }
+    }
+    let again = frame(1, 0);
+    let one = [LaneFrame { lane: 1, frame: &again, request: &requests[1] }; 2];
+    assert!(gpu.submit_lanes(&one).is_err(), "a lane twice in one submission");
+}

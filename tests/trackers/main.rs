@@ -4,6 +4,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod batch;
 mod blue_e2e;
 mod blue_logic;
 mod embed;

@@ -1,0 +1,52 @@
+//! `score --plot`: a PNG of the size asked, with the error curve and the
+//! status strip drawn (not blank), written only when it can be.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn pipetrack(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
+}
+
+fn tracked_sequence(root: &Path) -> (String, String) {
+    let seq = root.join("seq").to_str().unwrap().to_string();
+    let pred = root.join("pred.jsonl").to_str().unwrap().to_string();
+    assert!(pipetrack(&["synth", "pendulum", &seq, "--frames", "8", "--seed", "2"]).status.success());
+    let track = pipetrack(&["track", &seq, "--tracker", "motion-edge", "--backend", "cpu", "--out", &pred]);
+    assert!(track.status.success(), "{}", String::from_utf8_lossy(&track.stderr));
+    (seq, pred)
+}
+
+#[test]
+fn score_plot_draws_the_error_and_status() {
+    let root = crate::common::scratch("plot", "ok");
+    let (seq, pred) = tracked_sequence(&root);
+    let png = root.join("score.png");
+    let out = pipetrack(&["score", &seq, &pred, "--plot", png.to_str().unwrap(), "--plot-size", "640x360"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("mean corner error"), "the score is still printed");
+    let img = image::open(&png).expect("the plot decodes").to_rgb8();
+    assert_eq!(img.dimensions(), (640, 360));
+    let colours: std::collections::HashSet<[u8; 3]> = img.pixels().map(|p| p.0).collect();
+    assert!(colours.len() > 20, "a blank plot: {} colours", colours.len());
+    // Every frame tracked: the status strip is green, and no frame is drawn lost (red).
+    assert!(colours.contains(&[46, 160, 67]), "no tracking green in the status strip");
+    assert!(!colours.contains(&[210, 40, 40]), "a lost frame drawn");
+}
+
+#[test]
+fn score_plot_errors_are_bad_input() {
+    let root = crate::common::scratch("plot", "bad");
+    let (seq, pred) = tracked_sequence(&root);
+    let png = root.join("missing-folder/score.png");
+    let out = pipetrack(&["score", &seq, &pred, "--plot", png.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("score.png"), "{stderr}");
+    assert!(!png.exists());
+    let small = root.join("small.png");
+    let out = pipetrack(&["score", &seq, &pred, "--plot", small.to_str().unwrap(), "--plot-size", "20x20"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("plot size 20x20"));
+    assert!(!small.exists());
+}
