@@ -10,7 +10,7 @@
 //! Acceptance: at the paper's 1.1, 3.9 and 4.5 px/frame peak
 //! speeds every frame is `tracking` on both backends, with mean corner error
 //! ≤ 0.5 px and per-frame error ≤ 2 px; at 16 px/frame every frame is still
-//! `tracking`; an object that jumps away is reported `lost`, and a line is
+//! `tracking`, and at 20 px/frame; an object that jumps away is reported `lost`, and a line is
 //! still written for every frame.
 
 use crate::common;
@@ -108,6 +108,15 @@ fn gpu_keeps_tracking_at_16_px_per_frame() {
     let Some((ctx, _guard)) = common::gpu("gpu_keeps_tracking_at_16_px_per_frame") else { return };
     let (results, s) = track(&pendulum(16.0), &mut GpuBackend::new(ctx.clone()));
     check("GPU", 16.0, &results, &s, 1.0, 3.0);
+}
+
+#[test]
+fn cpu_keeps_tracking_at_20_px_per_frame() {
+    // Beyond 16: ~18 px bands on 35 px edges, fast turns out of the bottom
+    // of the swing. Measured (seed 0): every frame tracking, mean 1.1 px,
+    // worst frame 2.3 px.
+    let (results, s) = track(&pendulum(20.0), &mut CpuBackend::new());
+    check("CPU", 20.0, &results, &s, 1.5, 3.5);
 }
 
 #[test]

@@ -134,6 +134,15 @@
 //! support any outline gets from the edge density there, which the random
 //! subsample of the edge list scales alike), must reach
 //! [`BlueParams::min_support`]. Otherwise the frame is lost as above.
+//! After [`BlueParams::search_after`] lost frames in a row the target is
+//! searched over the whole image: the window of interest opens to the full
+//! frame (its edge cap grown with its area, so the edge density stays that
+//! of a tracking window), the coarse alignment's vote runs over every image
+//! shift on a 4-px grid at five ranges (the last tracked range times
+//! 2^(k/2), |k| ≤ 2: the target may have moved in depth while hidden), and
+//! of its best peaks, each aligned again on the 1-px grid, the one whose
+//! contour stands out most (the verification's excess) is where the frame
+//! is measured. A searching frame costs several times a tracking frame.
 //!
 //! Reported per frame: the projection of every model vertex (model-vertex
 //! order, hidden ones too) at the frame's BLUE (the prediction when lost),

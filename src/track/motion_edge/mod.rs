@@ -186,20 +186,33 @@
 //! the reported outline is checked against the image: the backend also lists
 //! the edge pixels of the σ-smoothed frame in the window
 //! (`support_edge_threshold`), and at least `min_support` (60 %) of the
-//! outline's 1-px samples must have an edge pixel within `support_distance`
-//! (3 px) across it at the line's orientation (±δ)
-//! ([`crate::track::support`]). Otherwise the frame is `lost` with the
-//! support in the reason, and a tracking phase turns to lost (predict on,
-//! re-acquire from motion). Measured on the pendulum: 99–100 % on every
-//! frame at 1.1–16 px/frame, 0 % after a jump or with the operator's
-//! corners 40 px off. Support cannot see a corner that slides along its
-//! own edge. Without an edge list ([`MotionEdgeTracker::update`]) the check
-//! is skipped.
+//! outline's 1-px samples, and at least `min_side_support` (50 %) of each
+//! side's, must have an edge pixel within `support_distance` (3 px) across
+//! it at the line's orientation (±δ) ([`crate::track::support`]). A side too
+//! short to sample counts as unsupported (a collapsed outline), as does a
+//! side outside the image. Otherwise the frame is `lost` with the support
+//! in the reason, and a tracking phase turns to lost. Measured on the
+//! pendulum: every side ≥ 96 % on every frame at 1.1–16 px/frame; after a
+//! jump, with the operator's corners 40 px off, or with an outline slid 3 px
+//! along one side, the weakest side falls to 0–20 %: the per-side test sees
+//! the slide the overall fraction misses. Without an edge list
+//! ([`MotionEdgeTracker::update`]) the check is skipped.
 //!
+//! # Loss and re-acquisition
 //! When lost, the tracker keeps predicting (fed as for a missing
-//! measurement) and writes an outcome every frame with status `lost`; it
+//! measurement) and writes an outcome every frame with status `lost`. It
 //! re-acquires like the initial acquisition, around the predicted corners,
-//! keeping the smoothers' trend.
+//! in two frames: a frame whose motion matches every corner makes a
+//! candidate and stays `lost`; the next frame, measured around the
+//! candidate, confirms it when every corner moved less than
+//! `init_tolerance`, and tracking restarts with the displacement between the
+//! two as velocity (one frame of motion can match by chance, two consistent
+//! ones rarely do). After `search_after` lost frames (with `verify`) the
+//! window of interest opens to the whole image and the candidate is searched
+//! there: the last tracked shape is placed on the centroid of the motion
+//! pixels and turned by multiples of δ up to ±45°, the smallest turn that
+//! the motion confirms first. The verification then decides, as on every
+//! frame.
 
 mod params;
 mod steps;
