@@ -9,7 +9,7 @@ use crate::early::compaction::compaction_cpu;
 use crate::early::gaussian::gaussian_cpu;
 use crate::early::ingest::ingest_cpu;
 use crate::early::log::log_cpu;
-use crate::early::sobel::{SobelOutput, sobel_cpu};
+use crate::early::sobel::{SobelOutput, SobelPixel, sobel_at, sobel_cpu};
 use crate::early::temporal_diff;
 use crate::early::zero_crossing::{Edgels, zero_crossing_cpu};
 use crate::early::{cpf, edge_pyramid};
@@ -23,6 +23,10 @@ pub struct CpuBackend {
     tmp2: FloatImage,
     /// What `images.previous` holds, if it holds a usable previous frame.
     previous: Option<PreviousFrame>,
+    /// For each Sobel set of this frame's plan that only compactions read as
+    /// θ or magnitude, the plane its last [`Step::Sobel`] differentiated:
+    /// those sets are evaluated at the listed pixels only (see [`listed_only`]).
+    sparse_sobel: [Option<Plane>; 2],
     /// Lists and pyramids handed back by [`EarlyVision::recycle`], refilled
     /// by the next frame (no per-frame allocation, no copy of the levels).
     spare: FrameFeatures,
@@ -85,6 +89,13 @@ impl Images {
         }
     }
 
+    fn sobel_mut(&mut self, set: SobelPlanes) -> &mut SobelOutput {
+        match set {
+            SobelPlanes::OfSum => &mut self.sobel_of_sum,
+            SobelPlanes::OfFrame => &mut self.sobel_of_frame,
+        }
+    }
+
     /// Sobel of plane `input` into set `output` (disjoint fields of `self`).
     fn sobel_into(&mut self, input: Plane, output: SobelPlanes) {
         let Self { luma, smoothed, previous, motion_mask, sum, log, sobel_of_sum, sobel_of_frame, .. } = self;
@@ -132,6 +143,7 @@ impl CpuBackend {
             tmp: FloatImage::new(0, 0),
             tmp2: FloatImage::new(0, 0),
             previous: None,
+            sparse_sobel: [None; 2],
             spare: FrameFeatures::default(),
         }
     }
@@ -147,7 +159,13 @@ impl EarlyVision for CpuBackend {
     }
 
     fn recycle(&mut self, features: FrameFeatures) {
+        // Pyramids kept here (`Pyramids::Keep`) stay when the features handed
+        // back carry none, so the next frame refills them instead of allocating.
+        let kept = self.spare.pyramids.take();
         self.spare = features;
+        if self.spare.pyramids.is_none() {
+            self.spare.pyramids = kept;
+        }
     }
 
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {
@@ -157,7 +175,8 @@ impl EarlyVision for CpuBackend {
         let mut out = FrameFeatures::default();
         let img = &mut self.images;
         ingest_cpu(frame, &mut img.luma);
-        for step in plan.steps() {
+        for (i, step) in plan.steps().iter().enumerate() {
+            let last_step = i + 1 == plan.steps().len();
             match *step {
                 Step::Smooth(p) => gaussian_cpu(&img.luma, &p, &mut self.tmp, &mut img.smoothed)?,
                 // 000 eq. 1: G*_t − G*_{t+1}, thresholded, and the sum of both
@@ -169,18 +188,43 @@ impl EarlyVision for CpuBackend {
                     &mut img.motion_mask,
                     &mut img.sum,
                 )?,
-                Step::Sobel { input, output } => img.sobel_into(input, output),
+                Step::Sobel { input, output } => {
+                    let sparse = listed_only(&plan, output);
+                    self.sparse_sobel[sobel_slot(output)] = sparse.then_some(input);
+                    if !sparse {
+                        img.sobel_into(input, output);
+                    }
+                }
                 Step::Log(p) => log_cpu(&img.luma, &p, &mut self.tmp, &mut self.tmp2, &mut img.log)?,
                 Step::ZeroCrossings(p) => zero_crossing_cpu(&img.log, &p, &mut img.edgels),
                 Step::Compact { list, select, theta, magnitude, params } => {
                     let mut features = recycled_list(self.spare.list_mut(list));
+                    let sparse = |source| match source {
+                        Source::Sobel(set, part) => self.sparse_sobel[sobel_slot(set)].map(|plane| (plane, part)),
+                        _ => None,
+                    };
+                    let (sparse_theta, sparse_magnitude) = (sparse(theta), sparse(magnitude));
+                    // A sparse set has no planes: list `select` in their place, then fill in.
+                    let dense = |source, sparse: Option<_>| img.source(if sparse.is_some() { select } else { source });
                     compaction_cpu(
                         img.source(select),
-                        img.source(theta),
-                        img.source(magnitude),
+                        dense(theta, sparse_theta),
+                        dense(magnitude, sparse_magnitude),
                         &params,
                         &mut features,
                     )?;
+                    if let Some((plane, _)) = sparse_theta.or(sparse_magnitude) {
+                        let src = img.source(Source::Plane(plane));
+                        for f in &mut features {
+                            let p = sobel_at(src, f.x as usize, f.y as usize);
+                            if let Some((_, part)) = sparse_theta {
+                                f.theta = sobel_part(&p, part);
+                            }
+                            if let Some((_, part)) = sparse_magnitude {
+                                f.magnitude = sobel_part(&p, part);
+                            }
+                        }
+                    }
                     *out.list_mut(list) = Some(features);
                 }
                 Step::EmptyList(list) => *out.list_mut(list) = Some(recycled_list(self.spare.list_mut(list))),
@@ -188,9 +232,18 @@ impl EarlyVision for CpuBackend {
                     // Computed straight into the levels handed out (recycled
                     // ones when the caller gave them back): no copy of every level.
                     let (mut cpf_levels, mut edge_levels) = self.spare.pyramids.take().unwrap_or_default();
-                    cpf::cpf_cpu(&img.luma, &mut cpf_levels);
-                    let g = img.sobel(gradient);
-                    edge_pyramid::edge_pyramid_cpu(&g.gx, &g.gy, &mut edge_levels)?;
+                    if last_step {
+                        // Nothing reads the frame or its gradient after this
+                        // step: they move into level 0 instead of being copied
+                        // (the next frame overwrites the buffers they leave).
+                        cpf::cpf_cpu_taking(&mut img.luma, &mut cpf_levels);
+                        let g = img.sobel_mut(gradient);
+                        edge_pyramid::edge_pyramid_cpu_taking(&mut g.gx, &mut g.gy, &mut edge_levels)?;
+                    } else {
+                        cpf::cpf_cpu(&img.luma, &mut cpf_levels);
+                        let g = img.sobel(gradient);
+                        edge_pyramid::edge_pyramid_cpu(&g.gx, &g.gy, &mut edge_levels)?;
+                    }
                     if returned {
                         out.pyramids = Some((cpf_levels, edge_levels));
                     } else {
@@ -207,6 +260,39 @@ impl EarlyVision for CpuBackend {
             std::mem::swap(&mut img.previous, &mut img.smoothed);
         }
         Ok(out)
+    }
+}
+
+/// Whether the plan reads Sobel set `set` only as the θ or magnitude of
+/// listed pixels (never as a compaction's `select`, nor as the pyramids'
+/// gradient): then the CPU computes it at the listed pixels alone, with
+/// [`sobel_at`], bit for bit what the full planes would hold there. The
+/// motion list's Sobel of the frame sum is such a set: it is needed only
+/// where the motion mask is set.
+fn listed_only(plan: &FramePlan, set: SobelPlanes) -> bool {
+    plan.steps().iter().all(|step| match *step {
+        Step::Compact { select: Source::Sobel(s, _), .. } => s != set,
+        Step::Pyramids { gradient, .. } => gradient != set,
+        _ => true,
+    })
+}
+
+/// Index of a Sobel set in [`CpuBackend`]'s per-set arrays.
+fn sobel_slot(set: SobelPlanes) -> usize {
+    match set {
+        SobelPlanes::OfSum => 0,
+        SobelPlanes::OfFrame => 1,
+    }
+}
+
+/// One of the five values of a Sobel pixel.
+fn sobel_part(p: &SobelPixel, part: SobelPart) -> f32 {
+    match part {
+        SobelPart::Gx => p.gx,
+        SobelPart::Gy => p.gy,
+        SobelPart::Magnitude => p.magnitude,
+        SobelPart::Direction => p.direction,
+        SobelPart::Theta => p.theta,
     }
 }
 

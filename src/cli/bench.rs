@@ -216,16 +216,31 @@ pub fn cpu_frames_per_call(_stage: &str) -> usize {
     1
 }
 
-/// Time `body` for about `budget`, after one warm-up call; returns frames per second.
-pub fn frames_per_second(body: &mut Body<'_>, frames_per_call: usize, budget: Duration) -> Result<f64> {
+/// Frames per second of a timed body, from its median call and from its
+/// fastest call.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Rate {
+    /// Frames per second of the median call.
+    pub median_fps: f64,
+    /// Frames per second of the fastest call: on a machine shared with
+    /// other processes, the figure least disturbed by them (a long call is
+    /// more often interrupted than a short one, which skews a median).
+    pub best_fps: f64,
+}
+
+/// Time `body` for about `budget` (at least three calls), after one warm-up call.
+pub fn frames_per_second(body: &mut Body<'_>, frames_per_call: usize, budget: Duration) -> Result<Rate> {
     body()?;
     let start = Instant::now();
-    let mut calls = 0usize;
-    while calls < 3 || start.elapsed() < budget {
+    let mut seconds = Vec::new();
+    while seconds.len() < 3 || start.elapsed() < budget {
+        let call = Instant::now();
         body()?;
-        calls += 1;
+        seconds.push(call.elapsed().as_secs_f64());
     }
-    Ok((calls * frames_per_call) as f64 / start.elapsed().as_secs_f64())
+    seconds.sort_by(f64::total_cmp);
+    let fps = |s: f64| frames_per_call as f64 / s;
+    Ok(Rate { median_fps: fps(seconds[seconds.len() / 2]), best_fps: fps(seconds[0]) })
 }
 
 /// One row of a comparison: a stage at a size on both backends.
@@ -235,9 +250,11 @@ pub struct BenchRow {
     pub stage: String,
     /// `WxH`.
     pub size: String,
-    /// CPU frames per second.
+    /// CPU frames per second (median call).
     pub cpu_fps: f64,
-    /// GPU frames per second, if a GPU was available.
+    /// CPU frames per second of the fastest call.
+    pub cpu_best_fps: f64,
+    /// GPU frames per second (median call), if a GPU was available.
     pub gpu_fps: Option<f64>,
     /// GPU fps / CPU fps.
     pub gpu_over_cpu: Option<f64>,
@@ -277,40 +294,45 @@ pub fn chain_cost(ctx: &GpuContext, inp: &Inputs) -> Result<FrameStats> {
     Ok(backend.last_frame_stats())
 }
 
-/// Run every stage at every size on both backends.
+/// Run every stage at every size on the CPU and, with `gpu`, on the GPU too.
 pub fn compare(
     sizes: &[(usize, usize)],
     stages: &[&str],
     budget: Duration,
+    gpu: bool,
     mut progress: impl FnMut(&BenchRow),
 ) -> Result<BenchReport> {
-    let gpu = GpuContext::new();
+    let gpu = gpu.then(GpuContext::new);
     let adapter = match &gpu {
-        Ok(ctx) => ctx.adapter_name().to_string(),
-        Err(e) => format!("none ({e})"),
+        None => "not used (CPU only)".to_string(),
+        Some(Ok(ctx)) => ctx.adapter_name().to_string(),
+        Some(Err(e)) => format!("none ({e})"),
     };
+    let gpu = gpu.and_then(|g| g.ok());
     let mut rows = Vec::new();
     let mut gpu_chain = Vec::new();
     for &(w, h) in sizes {
         let inp = Inputs::new(w, h)?;
-        if let Ok(ctx) = &gpu {
+        if let Some(ctx) = &gpu {
             gpu_chain.push(ChainCost { size: format!("{w}x{h}"), per_frame: chain_cost(ctx, &inp)? });
         }
         for &stage in stages {
             let mut cpu = cpu_body(stage, &inp)?;
-            let cpu_fps = frames_per_second(&mut cpu, cpu_frames_per_call(stage), budget)?;
+            let cpu_rate = frames_per_second(&mut cpu, cpu_frames_per_call(stage), budget)?;
             drop(cpu);
             let gpu_fps = match &gpu {
-                Ok(ctx) => {
+                Some(ctx) => {
                     let mut body = gpu_body(stage, ctx, &inp)?;
-                    Some(frames_per_second(&mut body, gpu_frames_per_call(stage), budget)?)
+                    Some(frames_per_second(&mut body, gpu_frames_per_call(stage), budget)?.median_fps)
                 }
-                Err(_) => None,
+                None => None,
             };
+            let cpu_fps = cpu_rate.median_fps;
             let row = BenchRow {
                 stage: stage.to_string(),
                 size: format!("{w}x{h}"),
                 cpu_fps,
+                cpu_best_fps: cpu_rate.best_fps,
                 gpu_fps,
                 gpu_over_cpu: gpu_fps.map(|g| g / cpu_fps),
             };

@@ -212,6 +212,31 @@ pub fn cpf_cpu(src: &FloatImage, out: &mut CpfPyramids) {
         shape_levels(levels, &sizes);
         levels[0].data_mut().copy_from_slice(src.data());
     }
+    reduce_hierarchies(src, out, &sizes);
+}
+
+/// [`cpf_cpu`] for a caller done with its input: `src` becomes level 0 of
+/// hierarchy 0 without a copy, and `src` is left holding an image of the
+/// same size whose values are unspecified (the buffer that level held).
+/// The hierarchies are those [`cpf_cpu`] gives.
+pub fn cpf_cpu_taking(src: &mut FloatImage, out: &mut CpfPyramids) {
+    let sizes = level_sizes(src.width(), src.height());
+    for levels in &mut out.hierarchies {
+        shape_levels(levels, &sizes);
+    }
+    let [first, rest @ ..] = &mut out.hierarchies;
+    std::mem::swap(src, &mut first[0]);
+    for levels in rest {
+        levels[0].data_mut().copy_from_slice(first[0].data());
+    }
+    let input = std::mem::replace(&mut out.hierarchies[0][0], FloatImage::new(0, 0));
+    reduce_hierarchies(&input, out, &sizes);
+    out.hierarchies[0][0] = input;
+}
+
+/// Levels 1.. of the four hierarchies of `src`, whose level sizes are
+/// `sizes` (levels already shaped).
+fn reduce_hierarchies(src: &FloatImage, out: &mut CpfPyramids, sizes: &[(usize, usize)]) {
     if sizes.len() < 2 {
         return;
     }

@@ -13,15 +13,23 @@ use rayon::iter::{IndexedParallelIterator, ParallelIterator};
 /// several threads.
 pub(crate) const PARALLEL_PIXELS: usize = 1 << 16;
 
+/// Whether an image of `pixels` pixels has its rows spread over threads:
+/// at least [`PARALLEL_PIXELS`] of them, and a pool of more than one thread
+/// (a pool of one would only add a hand-over to it and a wake-up of the
+/// caller per call).
+pub(crate) fn parallel(pixels: usize) -> bool {
+    pixels >= PARALLEL_PIXELS && rayon::current_num_threads() > 1
+}
+
 /// Run `body` on every item of `rows` (one item per row or band of rows,
 /// e.g. zipped `par_chunks_mut(width)` of the output planes), spread over
-/// rayon's pool when the image has at least [`PARALLEL_PIXELS`] `pixels`, in
-/// order on the calling thread otherwise.
+/// rayon's pool when [`parallel`] says so for `pixels`, in order on the
+/// calling thread otherwise.
 pub(crate) fn for_each_row<I>(pixels: usize, rows: I, body: impl Fn(I::Item) + Sync + Send)
 where
     I: IndexedParallelIterator,
 {
-    if pixels >= PARALLEL_PIXELS {
+    if parallel(pixels) {
         rows.for_each(body);
     } else {
         // A minimum piece length above the item count keeps rayon from

@@ -200,6 +200,35 @@ fn gradient_at(up: &[f32], mid: &[f32], down: &[f32], xl: usize, xc: usize, xr: 
     (sum_r - sum_l, (d_l + 2.0 * d_c) + d_r)
 }
 
+/// The Sobel stage's five values at one pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SobelPixel {
+    /// Horizontal derivative.
+    pub gx: f32,
+    /// Vertical derivative.
+    pub gy: f32,
+    /// Gradient magnitude.
+    pub magnitude: f32,
+    /// Gradient direction in `(−π, π]`.
+    pub direction: f32,
+    /// Edge orientation of 000 eq. 2 in `[0, π)`.
+    pub theta: f32,
+}
+
+/// The five Sobel values of `src` at pixel `(x, y)` alone, equal bit for bit
+/// to that pixel of [`sobel_cpu`]'s planes (the same operations in the same
+/// order): for callers that need the gradient at a few listed pixels only.
+/// Panics when `(x, y)` lies outside `src`.
+#[must_use]
+pub fn sobel_at(src: &FloatImage, x: usize, y: usize) -> SobelPixel {
+    let (w, h) = src.size();
+    assert!(x < w && y < h, "pixel ({x}, {y}) outside a {w}x{h} image");
+    let (up, mid, down) = (src.row(y.saturating_sub(1)), src.row(y), src.row((y + 1).min(h - 1)));
+    let (gx, gy) = gradient_at(up, mid, down, x.saturating_sub(1), x, (x + 1).min(w - 1));
+    let (direction, theta) = gradient_angles(gx, gy);
+    SobelPixel { gx, gy, magnitude: (gx * gx + gy * gy).sqrt(), direction, theta }
+}
+
 /// The five output rows of one image row.
 struct Rows<'a> {
     gx: &'a mut [f32],
@@ -336,6 +365,22 @@ mod tests {
                 .collect()
         };
         assert_eq!(bits(&fast), bits(&base));
+    }
+
+    /// `sobel_at` gives every pixel's five values bit for bit as the planes
+    /// do, borders and interior, on an image with values of both signs.
+    #[test]
+    fn one_pixel_equals_the_planes_bitwise() {
+        let (w, h) = (23, 7);
+        let src = FloatImage::from_fn(w, h, |x, y| ((x * 37 + y * 91) % 53) as f32 * 1.7 - 40.0);
+        let s = sobel(&src);
+        for y in 0..h {
+            for x in 0..w {
+                let p = sobel_at(&src, x, y);
+                let planes = [&s.gx, &s.gy, &s.magnitude, &s.direction, &s.theta].map(|i| i.get(x, y).to_bits());
+                assert_eq!([p.gx, p.gy, p.magnitude, p.direction, p.theta].map(f32::to_bits), planes, "({x}, {y})");
+            }
+        }
     }
 
     fn close(a: f32, b: f32) -> bool {
