@@ -112,20 +112,51 @@ fn blur_row_body(src: &[f32], dst: &mut [f32], half: &[f32]) {
         return;
     }
     (0..r).for_each(|x| edge(x, dst));
-    // Interior, tap-major so the inner loop runs along the row over
-    // equal-length slices and vectorises; each pixel still sums its taps in
-    // the order k = 0, 1, …, r, like the shader.
     let inner = &mut dst[r..n - r];
-    for (d, &c) in inner.iter_mut().zip(&src[r..n - r]) {
+    match half.len() {
+        2 => blur_interior::<2>(src, inner, half),
+        3 => blur_interior::<3>(src, inner, half),
+        4 => blur_interior::<4>(src, inner, half),
+        5 => blur_interior::<5>(src, inner, half),
+        _ => blur_interior_any(src, inner, half),
+    }
+    (n - r..n).for_each(|x| edge(x, dst));
+}
+
+/// The interior `dst = src[r..n − r]` blurred, for a half kernel of `N`
+/// taps known at compile time: every pixel sums its taps in registers, in
+/// the order k = 0, 1, …, r like the shader, over shifted views of the row
+/// (no bounds checks in the loop, so it vectorises).
+#[inline(always)]
+fn blur_interior<const N: usize>(src: &[f32], inner: &mut [f32], half: &[f32]) {
+    let (r, n) = (N - 1, inner.len());
+    let w: [f32; N] = std::array::from_fn(|k| half[k]);
+    let left: [&[f32]; N] = std::array::from_fn(|k| &src[r - k..r - k + n]);
+    let right: [&[f32]; N] = std::array::from_fn(|k| &src[r + k..r + k + n]);
+    for (i, d) in inner.iter_mut().enumerate() {
+        let mut sum = w[0] * left[0][i];
+        for k in 1..N {
+            sum += w[k] * (left[k][i] + right[k][i]);
+        }
+        *d = sum;
+    }
+}
+
+/// [`blur_interior`] for any kernel length: tap-major, so the inner loop
+/// runs along the row over equal-length slices and vectorises; each pixel
+/// still sums its taps in the order k = 0, 1, …, r.
+#[inline(always)]
+fn blur_interior_any(src: &[f32], inner: &mut [f32], half: &[f32]) {
+    let (r, n) = (half.len() - 1, inner.len());
+    for (d, &c) in inner.iter_mut().zip(&src[r..r + n]) {
         *d = half[0] * c;
     }
     for (k, &w) in half.iter().enumerate().skip(1) {
-        let (left, right) = (&src[r - k..n - r - k], &src[r + k..n - r + k]);
+        let (left, right) = (&src[r - k..r - k + n], &src[r + k..r + k + n]);
         for ((d, &l), &rr) in inner.iter_mut().zip(left).zip(right) {
             *d += w * (l + rr);
         }
     }
-    (n - r..n).for_each(|x| edge(x, dst));
 }
 
 simd_dispatch!(fn blur_col_row(src: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], half: &[f32]) => blur_col_row_body);
@@ -138,16 +169,46 @@ fn blur_col_row_body(src: &[f32], width: usize, height: usize, y: usize, dst: &m
         let yy = yy.clamp(0, last) as usize;
         &src[yy * width..(yy + 1) * width]
     };
-    let centre = row(y as isize);
-    for (d, &c) in dst.iter_mut().zip(centre) {
-        *d = half[0] * c;
-    }
-    for (k, &w) in half.iter().enumerate().skip(1) {
-        let up = row(y as isize - k as isize);
-        let down = row(y as isize + k as isize);
-        for ((d, &u), &v) in dst.iter_mut().zip(up).zip(down) {
-            *d += w * (u + v);
+    let rows_at = |k: usize| (row(y as isize - k as isize), row(y as isize + k as isize));
+    match half.len() {
+        2 => blur_col_fixed::<2>(dst, half, rows_at),
+        3 => blur_col_fixed::<3>(dst, half, rows_at),
+        4 => blur_col_fixed::<4>(dst, half, rows_at),
+        5 => blur_col_fixed::<5>(dst, half, rows_at),
+        _ => {
+            let centre = row(y as isize);
+            for (d, &c) in dst.iter_mut().zip(centre) {
+                *d = half[0] * c;
+            }
+            for (k, &w) in half.iter().enumerate().skip(1) {
+                let (up, down) = rows_at(k);
+                for ((d, &u), &v) in dst.iter_mut().zip(up).zip(down) {
+                    *d += w * (u + v);
+                }
+            }
         }
+    }
+}
+
+/// One output row of the vertical pass for a half kernel of `N` taps known
+/// at compile time, the taps summed in registers in the order k = 0, 1, …, r;
+/// `rows_at(k)` gives the rows k above and k below (clamped).
+#[inline(always)]
+fn blur_col_fixed<'a, const N: usize>(
+    dst: &mut [f32],
+    half: &[f32],
+    rows_at: impl Fn(usize) -> (&'a [f32], &'a [f32]),
+) {
+    let n = dst.len();
+    let w: [f32; N] = std::array::from_fn(|k| half[k]);
+    let up: [&[f32]; N] = std::array::from_fn(|k| &rows_at(k).0[..n]);
+    let down: [&[f32]; N] = std::array::from_fn(|k| &rows_at(k).1[..n]);
+    for (i, d) in dst.iter_mut().enumerate() {
+        let mut sum = w[0] * up[0][i];
+        for k in 1..N {
+            sum += w[k] * (up[k][i] + down[k][i]);
+        }
+        *d = sum;
     }
 }
 

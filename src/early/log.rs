@@ -168,11 +168,19 @@ fn log_row_body(src: &[f32], tg: &mut [f32], td: &mut [f32], k: &LogKernels) {
         return;
     }
     (0..r).for_each(|x| edge(x, tg, td));
+    (n - r..n).for_each(|x| edge(x, tg, td));
+    let inner = r..n - r;
+    let (tg_in, td_in) = (&mut tg[inner.clone()], &mut td[inner.clone()]);
+    match r {
+        1 => return log_row_interior::<2>(src, tg_in, td_in, k),
+        2 => return log_row_interior::<3>(src, tg_in, td_in, k),
+        3 => return log_row_interior::<4>(src, tg_in, td_in, k),
+        4 => return log_row_interior::<5>(src, tg_in, td_in, k),
+        _ => {}
+    }
     // Interior, tap-major so the inner loop runs along the row and vectorises;
     // each pixel still sums its taps in the order k = 0, 1, …, r.
-    let inner = r..n - r;
-    let centre = &src[inner.clone()];
-    let (tg_in, td_in) = (&mut tg[inner.clone()], &mut td[inner]);
+    let centre = &src[inner];
     for ((a, b), &c) in tg_in.iter_mut().zip(td_in.iter_mut()).zip(centre) {
         *a = g[0] * c;
         *b = d[0] * c;
@@ -187,7 +195,30 @@ fn log_row_body(src: &[f32], tg: &mut [f32], td: &mut [f32], k: &LogKernels) {
             *b += dj * pair;
         }
     }
-    (n - r..n).for_each(|x| edge(x, tg, td));
+}
+
+/// The row pass's interior for kernels of `N` taps (radius `N − 1`) known at
+/// compile time: each pixel sums its taps in registers, in the order
+/// k = 0, 1, …, r, over shifted views of the row (no bounds checks in the
+/// loop, so it vectorises).
+#[inline(always)]
+fn log_row_interior<const N: usize>(src: &[f32], tg: &mut [f32], td: &mut [f32], k: &LogKernels) {
+    let (r, n) = (N - 1, tg.len());
+    let g: [f32; N] = std::array::from_fn(|j| k.gauss[j]);
+    let d: [f32; N] = std::array::from_fn(|j| k.second[j]);
+    let left: [&[f32]; N] = std::array::from_fn(|j| &src[r - j..r - j + n]);
+    let right: [&[f32]; N] = std::array::from_fn(|j| &src[r + j..r + j + n]);
+    for (i, (a, b)) in tg.iter_mut().zip(td.iter_mut()).enumerate() {
+        let c = left[0][i];
+        let (mut sum_g, mut sum_d) = (g[0] * c, d[0] * c);
+        for j in 1..N {
+            let pair = left[j][i] + right[j][i];
+            sum_g += g[j] * pair;
+            sum_d += d[j] * pair;
+        }
+        *a = sum_g;
+        *b = sum_d;
+    }
 }
 
 simd_dispatch!(fn log_col_row(tg: &[f32], td: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], k: &LogKernels) => log_col_row_body);
@@ -204,6 +235,18 @@ fn log_col_row_body(tg: &[f32], td: &[f32], width: usize, height: usize, y: usiz
         &img[start..start + n]
     }
     let row_of = |img, yy, x0, n| row_of(img, width, last, yy, x0, n);
+    let n = dst.len();
+    let rows_at = |j: usize| {
+        let (up, down) = (y as isize - j as isize, y as isize + j as isize);
+        [row_of(tg, up, 0, n), row_of(tg, down, 0, n), row_of(td, up, 0, n), row_of(td, down, 0, n)]
+    };
+    match k.radius() {
+        1 => return log_col_fixed::<2>(dst, k, rows_at),
+        2 => return log_col_fixed::<3>(dst, k, rows_at),
+        3 => return log_col_fixed::<4>(dst, k, rows_at),
+        4 => return log_col_fixed::<5>(dst, k, rows_at),
+        _ => {}
+    }
     let mut acc_gd = [0.0f32; COL_BLOCK];
     for (block, out) in dst.chunks_mut(COL_BLOCK).enumerate() {
         let (x0, n) = (block * COL_BLOCK, out.len());
@@ -228,6 +271,27 @@ fn log_col_row_body(tg: &[f32], td: &[f32], width: usize, height: usize, y: usiz
         for (o, &a) in out.iter_mut().zip(acc.iter()) {
             *o += a;
         }
+    }
+}
+
+/// The column pass of one output row for kernels of `N` taps known at
+/// compile time: both sums in registers, each in the order k = 0, 1, …, r,
+/// added last, like the shader. `rows_at(j)` gives the rows j above and j
+/// below (clamped) of `tg` and then of `td`.
+#[inline(always)]
+fn log_col_fixed<'a, const N: usize>(dst: &mut [f32], k: &LogKernels, rows_at: impl Fn(usize) -> [&'a [f32]; 4]) {
+    let n = dst.len();
+    let g: [f32; N] = std::array::from_fn(|j| k.gauss[j]);
+    let d: [f32; N] = std::array::from_fn(|j| k.second[j]);
+    let rows: [[&[f32]; 4]; N] = std::array::from_fn(|j| rows_at(j).map(|r| &r[..n]));
+    for (i, o) in dst.iter_mut().enumerate() {
+        let (mut sum_dg, mut sum_gd) = (d[0] * rows[0][0][i], g[0] * rows[0][2][i]);
+        for j in 1..N {
+            let [tg_u, tg_v, td_u, td_v] = rows[j];
+            sum_dg += d[j] * (tg_u[i] + tg_v[i]);
+            sum_gd += g[j] * (td_u[i] + td_v[i]);
+        }
+        *o = sum_dg + sum_gd;
     }
 }
 

@@ -26,7 +26,8 @@
 //! write `direction = 0` and `theta = π/2` (`atan(0) + π/2`) there, never
 //! evaluating `atan2(0, 0)`, which is not portable across GPUs.
 //!
-//! Both twins compute the angles the same way, from one `a = atan(gy / gx)`:
+//! Both twins compute the angles the same way, from one `a = atan(gy / gx)`
+//! ([`super::angle::fast_atan_quotient`], one division):
 //! `θ = a + π/2` (a result that rounds to below 0 or to π or above becomes
 //! 0); `direction = a` for `gx > 0`, `a + π` for `gx < 0 ≤ gy`, `a − π` for
 //! `gx < 0, gy < 0` (a result that rounds to `−π` becomes `π`); `±π/2` for
@@ -40,7 +41,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::angle::fast_atan;
+use super::angle::fast_atan_quotient;
 use super::rows::for_each_row;
 use crate::Result;
 use crate::gpu::{
@@ -164,7 +165,7 @@ struct SobelUniform {
 #[inline]
 #[must_use]
 pub fn gradient_angles(gx: f32, gy: f32) -> (f32, f32) {
-    let a = fast_atan(gy / gx);
+    let a = fast_atan_quotient(gy, gx);
     // 000 eq. 2: θ = atan(∇y/∇x) + π/2, folded into [0, π).
     let theta = a + FRAC_PI_2;
     #[allow(clippy::manual_range_contains)] // the shader's comparison, NaN kept as it keeps it
