@@ -9,9 +9,9 @@ use crate::early::compaction::compaction_cpu;
 use crate::early::gaussian::gaussian_cpu;
 use crate::early::ingest::ingest_cpu;
 use crate::early::log::log_cpu;
-use crate::early::sobel::{SobelOutput, SobelPixel, sobel_at, sobel_cpu};
+use crate::early::sobel::{SobelOutput, SobelPixel, gradient_at_pixel, sobel_cpu, sobel_of_gradient};
 use crate::early::temporal_diff;
-use crate::early::zero_crossing::{Edgels, zero_crossing_cpu};
+use crate::early::zero_crossing::{Edgels, zero_crossing_strength_direction_cpu};
 use crate::early::{cpf, edge_pyramid};
 use crate::image::{FloatImage, GrayImage};
 
@@ -27,6 +27,8 @@ pub struct CpuBackend {
     /// θ or magnitude, the plane its last [`Step::Sobel`] differentiated:
     /// those sets are evaluated at the listed pixels only (see [`listed_only`]).
     sparse_sobel: [Option<Plane>; 2],
+    /// Scratch of [`fill_sobel_parts`].
+    gradients: Vec<(f32, f32)>,
     /// Lists and pyramids handed back by [`EarlyVision::recycle`], refilled
     /// by the next frame (no per-frame allocation, no copy of the levels).
     spare: FrameFeatures,
@@ -144,6 +146,7 @@ impl CpuBackend {
             tmp2: FloatImage::new(0, 0),
             previous: None,
             sparse_sobel: [None; 2],
+            gradients: Vec::new(),
             spare: FrameFeatures::default(),
         }
     }
@@ -196,7 +199,14 @@ impl EarlyVision for CpuBackend {
                     }
                 }
                 Step::Log(p) => log_cpu(&img.luma, &p, &mut self.tmp, &mut self.tmp2, &mut img.log)?,
-                Step::ZeroCrossings(p) => zero_crossing_cpu(&img.log, &p, &mut img.edgels),
+                // Steps read the edgels' strength and direction only
+                // (`EdgelPart`): the offsets are not computed.
+                Step::ZeroCrossings(p) => zero_crossing_strength_direction_cpu(
+                    &img.log,
+                    &p,
+                    &mut img.edgels.strength,
+                    &mut img.edgels.direction,
+                ),
                 Step::Compact { list, select, theta, magnitude, params } => {
                     let mut features = recycled_list(self.spare.list_mut(list));
                     let sparse = |source| match source {
@@ -215,15 +225,8 @@ impl EarlyVision for CpuBackend {
                     )?;
                     if let Some((plane, _)) = sparse_theta.or(sparse_magnitude) {
                         let src = img.source(Source::Plane(plane));
-                        for f in &mut features {
-                            let p = sobel_at(src, f.x as usize, f.y as usize);
-                            if let Some((_, part)) = sparse_theta {
-                                f.theta = sobel_part(&p, part);
-                            }
-                            if let Some((_, part)) = sparse_magnitude {
-                                f.magnitude = sobel_part(&p, part);
-                            }
-                        }
+                        let parts = (sparse_theta.map(|s| s.1), sparse_magnitude.map(|s| s.1));
+                        fill_sobel_parts(src, &mut features, parts.0, parts.1, &mut self.gradients);
                     }
                     *out.list_mut(list) = Some(features);
                 }
@@ -275,6 +278,27 @@ fn listed_only(plan: &FramePlan, set: SobelPlanes) -> bool {
         Step::Pyramids { gradient, .. } => gradient != set,
         _ => true,
     })
+}
+
+/// Set each feature's θ and magnitude, where a part is given, to that part
+/// of the Sobel values of `src` at the feature's pixel ([`sobel_at`], bit
+/// for bit). Two passes: the gradients, gathered pixel by pixel into
+/// `gradients` (scratch, reused), then the magnitudes and angles in one loop
+/// that vectorises.
+fn fill_sobel_parts(
+    src: &FloatImage,
+    features: &mut [Feature],
+    theta: Option<SobelPart>,
+    magnitude: Option<SobelPart>,
+    gradients: &mut Vec<(f32, f32)>,
+) {
+    gradients.clear();
+    gradients.extend(features.iter().map(|f| gradient_at_pixel(src, f.x as usize, f.y as usize)));
+    let pick = |part: Option<SobelPart>, p: &SobelPixel, kept: f32| part.map_or(kept, |part| sobel_part(p, part));
+    for (f, &(gx, gy)) in features.iter_mut().zip(gradients.iter()) {
+        let p = sobel_of_gradient(gx, gy);
+        (f.theta, f.magnitude) = (pick(theta, &p, f.theta), pick(magnitude, &p, f.magnitude));
+    }
 }
 
 /// Index of a Sobel set in [`CpuBackend`]'s per-set arrays.

@@ -10,6 +10,7 @@ use crate::backend::plan::PreviousFrame;
 use crate::backend::{CpuBackend, EarlyVision, FramePlan, FrameRequest, FrameStats, GpuBackend};
 use crate::early::compaction::{self, CompactionGpu, CompactionParams};
 use crate::early::cpf::{self, CpfGpu, CpfPyramids};
+use crate::early::edge_pyramid::{self, EdgePyramidGpu, EdgePyramids};
 use crate::early::gaussian::{self, GaussianParams};
 use crate::early::log::{self, LogParams};
 use crate::early::sobel::{self, SobelGpu, SobelOutput};
@@ -107,6 +108,11 @@ pub fn cpu_body<'a>(stage: &str, inp: &'a Inputs) -> Result<Body<'a>> {
                 Ok(())
             })
         }
+        "edge_pyramid" => {
+            let s = sobel::sobel(&inp.luma);
+            let mut out = EdgePyramids::default();
+            Box::new(move || edge_pyramid::edge_pyramid_cpu(&s.gx, &s.gy, &mut out))
+        }
         "compaction" => {
             let s = sobel::sobel(&inp.luma);
             let p = compaction_params(w, h);
@@ -153,6 +159,7 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
     let sob = SobelGpu::new(ctx, w, h);
     let edg = EdgelsGpu::new(ctx, w, h);
     let pyr = CpfGpu::new(ctx, w, h);
+    let edge_pyr = EdgePyramidGpu::new(ctx, w, h);
     let list = CompactionGpu::new(ctx, w * h, Some(1500))?;
     let arena = FrameArena::new(ctx);
     let stage: &'static str = stages()
@@ -167,7 +174,20 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
     Ok(Box::new(move || {
         let mut rec = Recorder::new(ctx, &arena);
         for _ in 0..GPU_REPEATS {
-            record_stage(&mut rec, stage, &luma, &s0, &s1, [&t1, &t2, &t3], &sob, &edg, &pyr, &list, w, h)?;
+            record_stage(
+                &mut rec,
+                stage,
+                &luma,
+                &s0,
+                &s1,
+                [&t1, &t2, &t3],
+                &sob,
+                &edg,
+                (&pyr, &edge_pyr),
+                &list,
+                w,
+                h,
+            )?;
         }
         ctx.wait_for(rec.submit())
     }))
@@ -183,7 +203,7 @@ fn record_stage(
     t: [&GpuImage; 3],
     sob: &SobelGpu,
     edg: &EdgelsGpu,
-    pyr: &CpfGpu,
+    (pyr, edge_pyr): (&CpfGpu, &EdgePyramidGpu),
     list: &CompactionGpu,
     w: usize,
     h: usize,
@@ -197,6 +217,7 @@ fn record_stage(
         "log" => log::encode(rec, luma, t[0], t[1], s1, &LogParams::default()),
         "zero_crossing" => zero_crossing::encode(rec, t[2], edg, &ZeroCrossingParams::default()),
         "cpf" => cpf::encode(rec, luma, pyr),
+        "edge_pyramid" => edge_pyramid::encode(rec, &sob.gx, &sob.gy, edge_pyr),
         "compaction" => {
             compaction::encode(rec, &sob.magnitude, &sob.direction, &sob.magnitude, &compaction_params(w, h), list)
         }

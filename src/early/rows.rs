@@ -39,6 +39,29 @@ where
     }
 }
 
+/// Where the row pass's output rows of a `height`-row image sit in a buffer
+/// of `width`-wide rows: row `v` (clamped to the image) in slot `v % slots`.
+/// `slots = height` is the whole image; fewer slots make a ring of the rows
+/// the vertical pass still needs.
+#[derive(Clone, Copy)]
+pub(crate) struct RowStore {
+    /// Row length.
+    pub(crate) width: usize,
+    /// Rows of the image.
+    pub(crate) height: usize,
+    /// Rows the buffer holds.
+    pub(crate) slots: usize,
+}
+
+impl RowStore {
+    /// Row `v` (clamped to the image) of `buf`.
+    #[inline(always)]
+    pub(crate) fn row(self, buf: &[f32], v: isize) -> &[f32] {
+        let s = v.clamp(0, self.height as isize - 1) as usize % self.slots;
+        &buf[s * self.width..(s + 1) * self.width]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use std::sync::Mutex;

@@ -222,10 +222,26 @@ pub struct SobelPixel {
 /// Panics when `(x, y)` lies outside `src`.
 #[must_use]
 pub fn sobel_at(src: &FloatImage, x: usize, y: usize) -> SobelPixel {
+    let (gx, gy) = gradient_at_pixel(src, x, y);
+    sobel_of_gradient(gx, gy)
+}
+
+/// `(gx, gy)` of `src` at pixel `(x, y)`, as [`sobel_at`] has them.
+/// Panics when `(x, y)` lies outside `src`.
+#[inline]
+#[must_use]
+pub fn gradient_at_pixel(src: &FloatImage, x: usize, y: usize) -> (f32, f32) {
     let (w, h) = src.size();
     assert!(x < w && y < h, "pixel ({x}, {y}) outside a {w}x{h} image");
     let (up, mid, down) = (src.row(y.saturating_sub(1)), src.row(y), src.row((y + 1).min(h - 1)));
-    let (gx, gy) = gradient_at(up, mid, down, x.saturating_sub(1), x, (x + 1).min(w - 1));
+    gradient_at(up, mid, down, x.saturating_sub(1), x, (x + 1).min(w - 1))
+}
+
+/// The five Sobel values of a pixel from its gradient `(gx, gy)`: the
+/// magnitude and angles as [`sobel_cpu`] computes them.
+#[inline]
+#[must_use]
+pub fn sobel_of_gradient(gx: f32, gy: f32) -> SobelPixel {
     let (direction, theta) = gradient_angles(gx, gy);
     SobelPixel { gx, gy, magnitude: (gx * gx + gy * gy).sqrt(), direction, theta }
 }
