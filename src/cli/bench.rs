@@ -288,7 +288,14 @@ pub struct ChainCost {
     pub size: String,
     /// Dispatches and bytes across the bus for one frame.
     pub per_frame: FrameStats,
+    /// Host time per frame in milliseconds (median over [`HOST_FRAMES`]
+    /// frames): recording and submitting the frame, then reading its lists
+    /// back once the device is done, without the wait for the device.
+    pub host_ms: f64,
 }
+
+/// Frames timed for [`ChainCost::host_ms`].
+pub const HOST_FRAMES: usize = 24;
 
 /// A whole comparison run.
 #[derive(Clone, Debug, Serialize)]
@@ -303,8 +310,9 @@ pub struct BenchReport {
     pub gpu_chain: Vec<ChainCost>,
 }
 
-/// Dispatches and bytes moved for one frame of the full chain on the GPU.
-pub fn chain_cost(ctx: &GpuContext, inp: &Inputs) -> Result<FrameStats> {
+/// Dispatches and bytes moved for one frame of the full chain on the GPU,
+/// and the host's time per frame (see [`ChainCost::host_ms`]).
+pub fn chain_cost(ctx: &GpuContext, inp: &Inputs) -> Result<(FrameStats, f64)> {
     let (w, h) = inp.luma.size();
     let mut backend = GpuBackend::new(ctx.clone());
     let request = FrameRequest::full_chain(w, h);
@@ -312,7 +320,20 @@ pub fn chain_cost(ctx: &GpuContext, inp: &Inputs) -> Result<FrameStats> {
     for f in &inp.frames[..2] {
         backend.process(f, &request)?;
     }
-    Ok(backend.last_frame_stats())
+    let stats = backend.last_frame_stats();
+    let mut host = Vec::with_capacity(HOST_FRAMES);
+    for f in inp.frames.iter().cycle().take(HOST_FRAMES) {
+        let record = Instant::now();
+        let ticket = backend.submit(f, &request)?;
+        let recorded = record.elapsed();
+        // Not timed: the device's own work.
+        ctx.wait()?;
+        let readback = Instant::now();
+        backend.finish(ticket)?;
+        host.push((recorded + readback.elapsed()).as_secs_f64() * 1e3);
+    }
+    host.sort_by(f64::total_cmp);
+    Ok((stats, host[host.len() / 2]))
 }
 
 /// Run every stage at every size on the CPU and, with `gpu`, on the GPU too.
@@ -335,7 +356,8 @@ pub fn compare(
     for &(w, h) in sizes {
         let inp = Inputs::new(w, h)?;
         if let Some(ctx) = &gpu {
-            gpu_chain.push(ChainCost { size: format!("{w}x{h}"), per_frame: chain_cost(ctx, &inp)? });
+            let (per_frame, host_ms) = chain_cost(ctx, &inp)?;
+            gpu_chain.push(ChainCost { size: format!("{w}x{h}"), per_frame, host_ms });
         }
         for &stage in stages {
             let mut cpu = cpu_body(stage, &inp)?;

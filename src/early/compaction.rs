@@ -402,8 +402,16 @@ impl CompactionGpu {
     /// and mapped, so only `16 + 16·count` bytes ever cross the bus.
     pub fn read(&self, ctx: &GpuContext) -> Result<Vec<Feature>> {
         let prefetched = u64::from(self.prefetched.load(Ordering::Relaxed));
-        let bytes = ctx.read_buffer(&self.staging, 0..HEADER_BYTES + prefetched * FEATURE_BYTES)?;
-        let header: Header = bytemuck::pod_read_unaligned(&bytes[..HEADER_BYTES as usize]);
+        // The header and the prefetched features, decoded straight from the mapping.
+        let (header, mut out) =
+            ctx.read_mapped(&self.staging, 0..HEADER_BYTES + prefetched * FEATURE_BYTES, |bytes| {
+                let header: Header = bytemuck::pod_read_unaligned(&bytes[..HEADER_BYTES as usize]);
+                let head = u64::from(header.listed).min(prefetched);
+                let features: Vec<Feature> = bytemuck::pod_collect_to_vec(
+                    &bytes[HEADER_BYTES as usize..(HEADER_BYTES + head * FEATURE_BYTES) as usize],
+                );
+                (header, features)
+            })?;
         let (list, capacity) = self.list();
         let listed = u64::from(header.listed);
         if listed > capacity || header.listed > header.total {
@@ -412,9 +420,6 @@ impl CompactionGpu {
                 header.listed, header.total
             )));
         }
-        let head = listed.min(prefetched);
-        let mut out: Vec<Feature> =
-            bytemuck::pod_collect_to_vec(&bytes[HEADER_BYTES as usize..(HEADER_BYTES + head * FEATURE_BYTES) as usize]);
         if listed > prefetched {
             let at = HEADER_BYTES + prefetched * FEATURE_BYTES;
             let size = (listed - prefetched) * FEATURE_BYTES;
@@ -423,8 +428,9 @@ impl CompactionGpu {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("compaction.readback") });
             enc.copy_buffer_to_buffer(list, prefetched * FEATURE_BYTES, &self.staging, at, size);
             ctx.wait_for(ctx.queue.submit([enc.finish()]))?;
-            let rest = ctx.read_buffer(&self.staging, at..at + size)?;
-            out.extend(bytemuck::pod_collect_to_vec::<u8, Feature>(&rest));
+            ctx.read_mapped(&self.staging, at..at + size, |rest| {
+                out.extend(rest.chunks_exact(FEATURE_BYTES as usize).map(bytemuck::pod_read_unaligned::<Feature>));
+            })?;
         }
         Ok(out)
     }
