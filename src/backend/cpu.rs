@@ -235,15 +235,24 @@ impl EarlyVision for CpuBackend {
                     // Computed straight into the levels handed out (recycled
                     // ones when the caller gave them back): no copy of every level.
                     let (mut cpf_levels, mut edge_levels) = self.spare.pyramids.take().unwrap_or_default();
+                    if !returned {
+                        // Kept here, where nothing reads them: the CPF levels
+                        // 0, four copies of the frame, are not made.
+                        cpf::cpf_cpu_coarser_levels(&img.luma, &mut cpf_levels);
+                    }
                     if last_step {
                         // Nothing reads the frame or its gradient after this
                         // step: they move into level 0 instead of being copied
                         // (the next frame overwrites the buffers they leave).
-                        cpf::cpf_cpu_taking(&mut img.luma, &mut cpf_levels);
+                        if returned {
+                            cpf::cpf_cpu_taking(&mut img.luma, &mut cpf_levels);
+                        }
                         let g = img.sobel_mut(gradient);
                         edge_pyramid::edge_pyramid_cpu_taking(&mut g.gx, &mut g.gy, &mut edge_levels)?;
                     } else {
-                        cpf::cpf_cpu(&img.luma, &mut cpf_levels);
+                        if returned {
+                            cpf::cpf_cpu(&img.luma, &mut cpf_levels);
+                        }
                         let g = img.sobel(gradient);
                         edge_pyramid::edge_pyramid_cpu(&g.gx, &g.gy, &mut edge_levels)?;
                     }

@@ -584,7 +584,7 @@ mod tests {
     /// mask width, with NaN and ±∞ among the values.
     #[test]
     fn row_scan_lists_what_a_plain_filter_lists() {
-        for len in [0, 1, 5, SCAN_LANES - 1, SCAN_LANES, SCAN_LANES + 1, 3 * SCAN_LANES + 7] {
+        for len in [0, 1, 5, SCAN_LANES - 1, SCAN_LANES, SCAN_LANES + 1, 3 * SCAN_LANES + 7, 17 * SCAN_LANES + 3] {
             let sel: Vec<f32> = (0..len)
                 .map(|i| match i % 11 {
                     3 => f32::NAN,

@@ -233,7 +233,7 @@ pub fn cpf_cpu(src: &FloatImage, out: &mut CpfPyramids) {
     for levels in &mut out.hierarchies {
         shape_levels(levels, &sizes);
     }
-    reduce_hierarchies(src, out, &sizes, true);
+    reduce_hierarchies(src, out, &sizes, 0);
 }
 
 /// [`cpf_cpu`] for a caller done with its input: `src` becomes level 0 of
@@ -247,14 +247,26 @@ pub fn cpf_cpu_taking(src: &mut FloatImage, out: &mut CpfPyramids) {
     }
     std::mem::swap(src, &mut out.hierarchies[0][0]);
     let input = std::mem::replace(&mut out.hierarchies[0][0], FloatImage::new(0, 0));
-    reduce_hierarchies(&input, out, &sizes, false);
+    reduce_hierarchies(&input, out, &sizes, 1);
     out.hierarchies[0][0] = input;
 }
 
+/// Levels 1.. of the four hierarchies of `src` into `out`, leaving each
+/// level 0 (shaped to the input's size) with unspecified values instead of
+/// four copies of `src`: for a caller that keeps the hierarchies where no
+/// one reads their level 0, which is the input it holds anyway.
+pub(crate) fn cpf_cpu_coarser_levels(src: &FloatImage, out: &mut CpfPyramids) {
+    let sizes = level_sizes(src.width(), src.height());
+    for levels in &mut out.hierarchies {
+        shape_levels(levels, &sizes);
+    }
+    reduce_hierarchies(src, out, &sizes, HIERARCHIES);
+}
+
 /// Levels 1.. of the four hierarchies of `src`, whose level sizes are
-/// `sizes` (levels already shaped), and `src` copied into level 0 of
-/// hierarchies 1..=3, and of hierarchy 0 too with `copy_into_first`.
-fn reduce_hierarchies(src: &FloatImage, out: &mut CpfPyramids, sizes: &[(usize, usize)], copy_into_first: bool) {
+/// `sizes` (levels already shaped), and `src` copied into level 0 of the
+/// hierarchies `copy_from..`.
+fn reduce_hierarchies(src: &FloatImage, out: &mut CpfPyramids, sizes: &[(usize, usize)], copy_from: usize) {
     let [h0, h1, h2, h3] = &mut out.hierarchies;
     let ([l0, r0 @ ..], [l1, r1 @ ..], [l2, r2 @ ..], [l3, r3 @ ..]) =
         (&mut h0[..], &mut h1[..], &mut h2[..], &mut h3[..])
@@ -262,7 +274,7 @@ fn reduce_hierarchies(src: &FloatImage, out: &mut CpfPyramids, sizes: &[(usize, 
         return;
     };
     let mut level0 = [l0, l1, l2, l3];
-    let copies = &mut level0[usize::from(!copy_into_first)..];
+    let copies = &mut level0[copy_from..];
     let ([n0, ..], [n1, ..], [n2, ..], [n3, ..]) = (r0, r1, r2, r3) else {
         for c in copies.iter_mut() {
             c.data_mut().copy_from_slice(src.data());
