@@ -18,6 +18,8 @@
 # CPU benchmark (`RAYON_NUM_THREADS=1`, no GPU). Both report the fastest of
 # many calls; a stage's figure is its best over the rounds. On a machine
 # shared with other processes that is the figure least disturbed by them.
+# A second table sets pipetrack's whole chain against the sum of the stage
+# rows it runs (every stage of `pipetrack bench`).
 set -euo pipefail
 
 opencv="${OPENCV_EV_BENCH:-}"
@@ -32,7 +34,7 @@ while [ $# -gt 0 ]; do
         --rounds) rounds="$2"; shift 2 ;;
         --seconds) seconds="$2"; shift 2 ;;
         --iters) iters="$2"; shift 2 ;;
-        -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
         *) echo "vs_opencv.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -60,7 +62,7 @@ trap 'rm -rf "$work"' EXIT
 
 # pipetrack stage, the OpenCV row that computes the same, and what each does.
 pairs="gaussian:gauss5_s1.0 temporal_diff:tdiff_thr sobel:sobel_mag_ori log:log_gl zero_crossing:zc_loop cpf:cpf_loop"
-stages="gaussian,temporal_diff,frame_sum,sobel,compaction,log,zero_crossing,cpf,chain"
+stages="gaussian,temporal_diff,frame_sum,sobel,compaction,log,zero_crossing,cpf,edge_pyramid,chain"
 
 for round in $(seq "$rounds"); do
     for size in ${sizes//,/ }; do
@@ -115,7 +117,8 @@ awk -v sizes="$sizes" -v pairs="$pairs" -v have_opencv="$have_opencv" '
         for (i = 1; i <= n; i++) {
             s = size[i]
             all = ours[s, "gaussian"] + ours[s, "temporal_diff"] + ours[s, "frame_sum"] + ours[s, "sobel"] \
-                + ours[s, "compaction"] + ours[s, "log"] + ours[s, "zero_crossing"] + ours[s, "cpf"]
+                + ours[s, "compaction"] + ours[s, "log"] + ours[s, "zero_crossing"] + ours[s, "cpf"] \
+                + ours[s, "edge_pyramid"]
             printf "| %s | %.3f | %.3f | %.2f |\n", s, ours[s, "chain"], all, ours[s, "chain"] / all
         }
         if (have_opencv) {
