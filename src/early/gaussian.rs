@@ -244,17 +244,71 @@ pub fn gaussian_cpu(
 fn blur_through_ring(src: &FloatImage, half: &[f32], ring: &mut FloatImage, dst: &mut FloatImage) {
     let (w, h) = src.size();
     let r = half.len() - 1;
-    let rows = RowStore { width: w, height: h, slots: (2 * r + 1).min(h) };
+    // Two output rows at a time read the 2r + 2 rows around them.
+    let rows = RowStore { width: w, height: h, slots: (2 * r + 2).min(h) };
     ring.resize(w, rows.slots);
     let mut done = 0;
-    for (y, d) in dst.data_mut().chunks_exact_mut(w).enumerate() {
-        // Rows up to y + r (clamped) must have been through the row pass.
-        while done <= (y + r).min(h - 1) {
+    for (pair, d) in dst.data_mut().chunks_mut(2 * w).enumerate() {
+        let y = 2 * pair;
+        // Rows up to y + 1 + r (clamped) must have been through the row pass.
+        while done <= (y + 1 + r).min(h - 1) {
             let slot = done % rows.slots;
             blur_row(src.row(done), &mut ring.data_mut()[slot * w..(slot + 1) * w], half);
             done += 1;
         }
-        blur_col_row(ring.data(), rows, y, d, half);
+        match d.split_at_mut_checked(w) {
+            Some((d0, d1)) if !d1.is_empty() => blur_col_row_pair(ring.data(), rows, y, d0, d1, half),
+            _ => blur_col_row(ring.data(), rows, y, d, half),
+        }
+    }
+}
+
+simd_dispatch!(fn blur_col_row_pair(src: &[f32], rows: RowStore, y: usize, dst0: &mut [f32], dst1: &mut [f32], half: &[f32]) => blur_col_row_pair_body);
+
+/// Output rows `y` and `y + 1` of the vertical pass together, each exactly
+/// as [`blur_col_row`] computes it: the two rows share all but two of their
+/// input rows, so each input value is loaded once for both.
+#[inline(always)]
+fn blur_col_row_pair_body(src: &[f32], rows: RowStore, y: usize, dst0: &mut [f32], dst1: &mut [f32], half: &[f32]) {
+    // Row y − r + m (clamped).
+    let rows_from = |m: usize| rows.row(src, y as isize - (half.len() as isize - 1) + m as isize);
+    match half.len() {
+        2 => blur_col_pair_fixed::<2, 4>(dst0, dst1, half, rows_from),
+        3 => blur_col_pair_fixed::<3, 6>(dst0, dst1, half, rows_from),
+        4 => blur_col_pair_fixed::<4, 8>(dst0, dst1, half, rows_from),
+        5 => blur_col_pair_fixed::<5, 10>(dst0, dst1, half, rows_from),
+        _ => {
+            blur_col_row_body(src, rows, y, dst0, half);
+            blur_col_row_body(src, rows, y + 1, dst1, half);
+        }
+    }
+}
+
+/// Two output rows of the vertical pass for a half kernel of `N` taps
+/// (`M = 2N` input rows, `rows_from(m)` = row `y − r + m`), each row's taps
+/// summed in the order of [`blur_col_fixed`].
+#[inline(always)]
+fn blur_col_pair_fixed<'a, const N: usize, const M: usize>(
+    dst0: &mut [f32],
+    dst1: &mut [f32],
+    half: &[f32],
+    rows_from: impl Fn(usize) -> &'a [f32],
+) {
+    let n = dst0.len();
+    let r = N - 1;
+    let w: [f32; N] = std::array::from_fn(|k| half[k]);
+    let rows: [&[f32]; M] = std::array::from_fn(|m| &rows_from(m)[..n]);
+    let dst1 = &mut dst1[..n];
+    for (i, (d0, d1)) in dst0.iter_mut().zip(dst1.iter_mut()).enumerate() {
+        let v: [f32; M] = std::array::from_fn(|m| rows[m][i]);
+        // Row y is at index r, row y + 1 at r + 1.
+        let (mut s0, mut s1) = (w[0] * v[r], w[0] * v[r + 1]);
+        for k in 1..N {
+            s0 += w[k] * (v[r - k] + v[r + k]);
+            s1 += w[k] * (v[r + 1 - k] + v[r + 1 + k]);
+        }
+        *d0 = s0;
+        *d1 = s1;
     }
 }
 

@@ -337,18 +337,89 @@ fn log_through_ring(
 ) {
     let (w, h) = src.size();
     let r = k.radius();
-    let rows = RowStore { width: w, height: h, slots: (2 * r + 1).min(h) };
+    // Two output rows at a time read the 2r + 2 rows around them.
+    let rows = RowStore { width: w, height: h, slots: (2 * r + 2).min(h) };
     ring_g.resize(w, rows.slots);
     ring_d.resize(w, rows.slots);
     let mut done = 0;
-    for (y, o) in out.data_mut().chunks_exact_mut(w).enumerate() {
-        // Rows up to y + r (clamped) must have been through the row pass.
-        while done <= (y + r).min(h - 1) {
+    for (pair, o) in out.data_mut().chunks_mut(2 * w).enumerate() {
+        let y = 2 * pair;
+        // Rows up to y + 1 + r (clamped) must have been through the row pass.
+        while done <= (y + 1 + r).min(h - 1) {
             let slot = (done % rows.slots) * w..(done % rows.slots + 1) * w;
             log_row(src.row(done), &mut ring_g.data_mut()[slot.clone()], &mut ring_d.data_mut()[slot], k);
             done += 1;
         }
-        log_col_row(ring_g.data(), ring_d.data(), rows, y, o, k);
+        match o.split_at_mut_checked(w) {
+            Some((o0, o1)) if !o1.is_empty() => log_col_row_pair(ring_g.data(), ring_d.data(), rows, y, o0, o1, k),
+            _ => log_col_row(ring_g.data(), ring_d.data(), rows, y, o, k),
+        }
+    }
+}
+
+simd_dispatch!(fn log_col_row_pair(tg: &[f32], td: &[f32], rows: RowStore, y: usize, dst0: &mut [f32], dst1: &mut [f32], k: &LogKernels) => log_col_row_pair_body);
+
+/// The column pass of output rows `y` and `y + 1` together, each exactly as
+/// [`log_col_row`] computes it: the two rows share all but two of their
+/// input rows, so each input value is loaded once for both.
+#[inline(always)]
+fn log_col_row_pair_body(
+    tg: &[f32],
+    td: &[f32],
+    rows: RowStore,
+    y: usize,
+    dst0: &mut [f32],
+    dst1: &mut [f32],
+    k: &LogKernels,
+) {
+    // Rows y − r ..= y + 1 + r (clamped) of both intermediates.
+    let rows_from = |m: usize| {
+        let v = y as isize - k.radius() as isize + m as isize;
+        [rows.row(tg, v), rows.row(td, v)]
+    };
+    match k.radius() {
+        1 => log_col_pair_fixed::<2, 4>(dst0, dst1, k, rows_from),
+        2 => log_col_pair_fixed::<3, 6>(dst0, dst1, k, rows_from),
+        3 => log_col_pair_fixed::<4, 8>(dst0, dst1, k, rows_from),
+        4 => log_col_pair_fixed::<5, 10>(dst0, dst1, k, rows_from),
+        _ => {
+            log_col_row_body(tg, td, rows, y, dst0, k);
+            log_col_row_body(tg, td, rows, y + 1, dst1, k);
+        }
+    }
+}
+
+/// Two output rows of the column pass for kernels of `N` taps (`M = 2N`
+/// input rows, `rows_from(m)` = row `y − r + m` of `tg` and of `td`), each
+/// row's sums in the order of [`log_col_fixed`].
+#[inline(always)]
+fn log_col_pair_fixed<'a, const N: usize, const M: usize>(
+    dst0: &mut [f32],
+    dst1: &mut [f32],
+    k: &LogKernels,
+    rows_from: impl Fn(usize) -> [&'a [f32]; 2],
+) {
+    let n = dst0.len();
+    let r = N - 1;
+    let g: [f32; N] = std::array::from_fn(|j| k.gauss[j]);
+    let d: [f32; N] = std::array::from_fn(|j| k.second[j]);
+    let tg: [&[f32]; M] = std::array::from_fn(|m| &rows_from(m)[0][..n]);
+    let td: [&[f32]; M] = std::array::from_fn(|m| &rows_from(m)[1][..n]);
+    let dst1 = &mut dst1[..n];
+    for (i, (o0, o1)) in dst0.iter_mut().zip(dst1.iter_mut()).enumerate() {
+        let a: [f32; M] = std::array::from_fn(|m| tg[m][i]);
+        let b: [f32; M] = std::array::from_fn(|m| td[m][i]);
+        // Row y is at index r, row y + 1 at r + 1.
+        let (mut dg0, mut gd0) = (d[0] * a[r], g[0] * b[r]);
+        let (mut dg1, mut gd1) = (d[0] * a[r + 1], g[0] * b[r + 1]);
+        for j in 1..N {
+            dg0 += d[j] * (a[r - j] + a[r + j]);
+            gd0 += g[j] * (b[r - j] + b[r + j]);
+            dg1 += d[j] * (a[r + 1 - j] + a[r + 1 + j]);
+            gd1 += g[j] * (b[r + 1 - j] + b[r + 1 + j]);
+        }
+        *o0 = dg0 + gd0;
+        *o1 = dg1 + gd1;
     }
 }
 
