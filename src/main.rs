@@ -347,8 +347,8 @@ fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64, 
         for c in &report.gpu_chain {
             let f = &c.per_frame;
             say(format_args!(
-                "gpu chain {:>10}: {} dispatches, {} bytes up, {} bytes back, host {:.3} ms per frame",
-                c.size, f.dispatches, f.bytes_uploaded, f.bytes_read_back, c.host_ms
+                "gpu chain {:>10}: {} dispatches, {} bytes up, {} bytes back, host {:.3} ms per frame (best {:.3})",
+                c.size, f.dispatches, f.bytes_uploaded, f.bytes_read_back, c.host_ms, c.host_best_ms
             ))?;
         }
         say(format_args!("adapter: {}\ncpu threads: {}", report.adapter, report.cpu_threads))?;
