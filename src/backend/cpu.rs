@@ -223,10 +223,19 @@ impl EarlyVision for CpuBackend {
                         &params,
                         &mut features,
                     )?;
-                    if let Some((plane, _)) = sparse_theta.or(sparse_magnitude) {
-                        let src = img.source(Source::Plane(plane));
-                        let parts = (sparse_theta.map(|s| s.1), sparse_magnitude.map(|s| s.1));
-                        fill_sobel_parts(src, &mut features, parts.0, parts.1, &mut self.gradients);
+                    let plane = |p| img.source(Source::Plane(p));
+                    match (sparse_theta, sparse_magnitude) {
+                        (Some((pt, t)), Some((pm, m))) if pt == pm => {
+                            fill_sobel_parts(plane(pt), &mut features, Some(t), Some(m), &mut self.gradients);
+                        }
+                        (theta, magnitude) => {
+                            if let Some((pt, t)) = theta {
+                                fill_sobel_parts(plane(pt), &mut features, Some(t), None, &mut self.gradients);
+                            }
+                            if let Some((pm, m)) = magnitude {
+                                fill_sobel_parts(plane(pm), &mut features, None, Some(m), &mut self.gradients);
+                            }
+                        }
                     }
                     *out.list_mut(list) = Some(features);
                 }
@@ -278,9 +287,9 @@ impl EarlyVision for CpuBackend {
 /// Whether the plan reads Sobel set `set` only as the θ or magnitude of
 /// listed pixels (never as a compaction's `select`, nor as the pyramids'
 /// gradient): then the CPU computes it at the listed pixels alone, with
-/// [`sobel_at`], bit for bit what the full planes would hold there. The
-/// motion list's Sobel of the frame sum is such a set: it is needed only
-/// where the motion mask is set.
+/// [`crate::early::sobel::sobel_at`], bit for bit what the full planes would
+/// hold there. The motion list's Sobel of the frame sum is such a set: it is
+/// needed only where the motion mask is set.
 fn listed_only(plan: &FramePlan, set: SobelPlanes) -> bool {
     plan.steps().iter().all(|step| match *step {
         Step::Compact { select: Source::Sobel(s, _), .. } => s != set,
@@ -290,10 +299,10 @@ fn listed_only(plan: &FramePlan, set: SobelPlanes) -> bool {
 }
 
 /// Set each feature's θ and magnitude, where a part is given, to that part
-/// of the Sobel values of `src` at the feature's pixel ([`sobel_at`], bit
-/// for bit). Two passes: the gradients, gathered pixel by pixel into
-/// `gradients` (scratch, reused), then the magnitudes and angles in one loop
-/// that vectorises.
+/// of the Sobel values of `src` at the feature's pixel
+/// ([`crate::early::sobel::sobel_at`], bit for bit). Two passes: the
+/// gradients, gathered pixel by pixel into `gradients` (scratch, reused),
+/// then the magnitudes and angles in one loop that vectorises.
 fn fill_sobel_parts(
     src: &FloatImage,
     features: &mut [Feature],
@@ -340,6 +349,36 @@ fn recycled_list(spare: &mut Option<Vec<Feature>>) -> Vec<Feature> {
 mod tests {
     use super::*;
     use crate::testimage::natural;
+
+    /// The motion list, whose θ and magnitude the backend computes at the
+    /// listed pixels only, equals the list compacted from the dense Sobel
+    /// planes of the frame sum, bit for bit.
+    #[test]
+    fn motion_list_from_listed_pixels_equals_the_dense_planes() {
+        use crate::early::compaction::compaction;
+        use crate::early::gaussian::gaussian;
+        use crate::early::sobel::sobel;
+        let (w, h) = (40, 30);
+        let base = natural(w + 4, h, 5);
+        let frames: Vec<GrayImage> = (0..2).map(|k| GrayImage::from_fn(w, h, |x, y| base.get(x + 2 * k, y))).collect();
+        let request = FrameRequest::full_chain(w, h);
+        let mut backend = CpuBackend::new();
+        backend.process(&frames[0], &request).unwrap();
+        let got = backend.process(&frames[1], &request).unwrap().motion.unwrap();
+
+        let motion = request.motion.unwrap();
+        let smooth = |f: &GrayImage| gaussian(&f.to_f32(), &request.smoothing).unwrap();
+        let (mut mask, mut sum) = (FloatImage::new(0, 0), FloatImage::new(0, 0));
+        let (previous, current) = (smooth(&frames[0]), smooth(&frames[1]));
+        temporal_diff::temporal_diff_and_sum_cpu(&previous, &current, &motion.diff, &mut mask, &mut sum).unwrap();
+        let planes = sobel(&sum);
+        // The plan lists mask pixels above one half.
+        let expected = compaction(&mask, &planes.theta, &planes.magnitude, &motion.list.compaction(0.5)).unwrap();
+        assert!(!expected.is_empty());
+        let bits =
+            |l: &[Feature]| l.iter().map(|f| (f.x, f.y, f.theta.to_bits(), f.magnitude.to_bits())).collect::<Vec<_>>();
+        assert_eq!(bits(&got), bits(&expected));
+    }
 
     /// Recycled lists and pyramid levels are refilled, not appended to: a
     /// backend fed its own features back answers as one that is not.
