@@ -1,8 +1,8 @@
 // Arctangents by Hastings' odd degree-15 polynomial, shared by the shaders
 // that include it (sobel, zero_crossing: see `includes` in their ShaderDef).
-// The CPU twin is src/early/angle.rs (`fast_atan`, `fast_atan2`): the same
-// operations in the same order, so both twins round alike, and atan2(0, 0)
-// is defined (0), unlike the builtin's.
+// The CPU twin is src/early/angle.rs (`fast_atan`, `fast_atan_quotient`,
+// `fast_atan2`): the same operations in the same order, so both twins round
+// alike, and atan2(0, 0) is defined (0), unlike the builtin's.
 
 const PI: f32 = 3.14159265358979;
 const HALF_PI: f32 = 1.57079632679490;
@@ -28,6 +28,20 @@ fn fast_atan(t: f32) -> f32 {
         r = HALF_PI - r;
     }
     return select(r, -r, t < 0.0);
+}
+
+// atan(y / x) in [−π/2, π/2] for x != 0 with one division: the polynomial of
+// min(|x|, |y|) / max(|x|, |y|), reflected where |y| > |x|, negative where x
+// and y differ in sign (−0 counts as positive).
+fn fast_atan_quotient(y: f32, x: f32) -> f32 {
+    let ax = abs(x);
+    let ay = abs(y);
+    let invert = ay > ax;
+    var r = atan_unit(select(ay, ax, invert) / select(ax, ay, invert));
+    if (invert) {
+        r = HALF_PI - r;
+    }
+    return select(r, -r, (x < 0.0) != (y < 0.0));
 }
 
 // atan2(y, x) in (−π, π], with atan2(0, 0) = 0.

@@ -3,7 +3,7 @@
 // direction atan2(gy, gx) in (−π, π], and the edge orientation θ of 000
 // eq. 2 in [0, π). The angle conventions and guards are documented in
 // src/early/sobel.rs and mirrored there step by step. PI, HALF_PI and
-// fast_atan come from shaders/angle.wgsl, appended to this file when the
+// fast_atan_quotient come from shaders/angle.wgsl, appended to this file when the
 // module is built. Kept in sync with `SobelUniform` in src/early/sobel.rs.
 
 struct Params {
@@ -53,7 +53,7 @@ fn sobel(@builtin(global_invocation_id) id: vec3<u32>) {
     var direction = 0.0;
     var theta = HALF_PI;
     if (gx != 0.0) {
-        let a = fast_atan(gy / gx);
+        let a = fast_atan_quotient(gy, gx);
         // 000 eq. 2: θ = atan(∇y/∇x) + π/2, folded into [0, π).
         theta = a + HALF_PI;
         if (theta < 0.0 || theta >= PI) {

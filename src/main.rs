@@ -151,6 +151,9 @@ enum Command {
         /// Seconds of timing per stage, size and backend.
         #[arg(long, default_value_t = 0.5)]
         seconds: f64,
+        /// Time the CPU twins only, without opening a GPU adapter.
+        #[arg(long)]
+        cpu_only: bool,
     },
 }
 
@@ -368,11 +371,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             note(format_args!(""));
             say(format_args!("{}", markdown(&tables)))
         }
-        Command::Bench { sizes, json, stages, seconds } => bench(&sizes.0, json, &stages, seconds),
+        Command::Bench { sizes, json, stages, seconds, cpu_only } => bench(&sizes.0, json, &stages, seconds, !cpu_only),
     }
 }
 
-fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) -> anyhow::Result<()> {
+fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64, gpu: bool) -> anyhow::Result<()> {
     let all = pipetrack::cli::bench::stages();
     let chosen: Vec<&str> = if stages.is_empty() {
         all.to_vec()
@@ -391,16 +394,26 @@ fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) 
     }
     let budget = Duration::from_secs_f64(seconds);
     if !json {
-        say(format_args!("{:<14} {:>10} {:>12} {:>12} {:>9}", "stage", "size", "cpu fps", "gpu fps", "gpu/cpu"))?;
+        say(format_args!(
+            "{:<14} {:>10} {:>12} {:>12} {:>9} {:>12}",
+            "stage", "size", "cpu fps", "gpu fps", "gpu/cpu", "cpu best ms"
+        ))?;
     }
     let mut write_error = None;
-    let report = pipetrack::cli::bench::compare(sizes, &chosen, budget, |row| {
+    let report = pipetrack::cli::bench::compare(sizes, &chosen, budget, gpu, |row| {
         if !json && write_error.is_none() {
             let gpu = row.gpu_fps.map_or("-".to_string(), |g| format!("{g:.1}"));
             let ratio = row.gpu_over_cpu.map_or("-".to_string(), |r| format!("{r:.2}"));
-            write_error =
-                say(format_args!("{:<14} {:>10} {:>12.1} {:>12} {:>9}", row.stage, row.size, row.cpu_fps, gpu, ratio))
-                    .err();
+            write_error = say(format_args!(
+                "{:<14} {:>10} {:>12.1} {:>12} {:>9} {:>12.4}",
+                row.stage,
+                row.size,
+                row.cpu_fps,
+                gpu,
+                ratio,
+                1e3 / row.cpu_best_fps
+            ))
+            .err();
         }
     })
     .context("benchmark failed")?;
@@ -413,8 +426,8 @@ fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) 
         for c in &report.gpu_chain {
             let f = &c.per_frame;
             say(format_args!(
-                "gpu chain {:>10}: {} dispatches, {} bytes up, {} bytes back per frame",
-                c.size, f.dispatches, f.bytes_uploaded, f.bytes_read_back
+                "gpu chain {:>10}: {} dispatches, {} bytes up, {} bytes back, host {:.3} ms per frame (best {:.3})",
+                c.size, f.dispatches, f.bytes_uploaded, f.bytes_read_back, c.host_ms, c.host_best_ms
             ))?;
         }
         say(format_args!("adapter: {}\ncpu threads: {}", report.adapter, report.cpu_threads))?;

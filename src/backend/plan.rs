@@ -17,7 +17,7 @@ use crate::early::gaussian::{self, GaussianParams};
 use crate::early::log::{self, LogParams};
 use crate::early::temporal_diff::{self, TemporalDiffParams};
 use crate::early::zero_crossing::{self, ZeroCrossingParams};
-use crate::early::{cpf, frame_sum, sobel};
+use crate::early::{cpf, edge_pyramid, frame_sum, sobel};
 
 /// The motion mask is 0 or 1: pixels above one half are moving.
 const MASK_THRESHOLD: f32 = 0.5;
@@ -152,7 +152,7 @@ const SOBEL_STAGES: &[&str] = &[sobel::SHADER.name];
 const LOG_STAGES: &[&str] = &[log::SHADER.name];
 const ZERO_CROSSING_STAGES: &[&str] = &[zero_crossing::SHADER.name];
 const COMPACTION_STAGES: &[&str] = &[compaction::SHADER.name];
-const PYRAMID_STAGES: &[&str] = &[cpf::SHADER.name];
+const PYRAMID_STAGES: &[&str] = &[cpf::SHADER.name, edge_pyramid::SHADER.name];
 
 const SOBEL_PARTS: [SobelPart; 5] =
     [SobelPart::Gx, SobelPart::Gy, SobelPart::Magnitude, SobelPart::Direction, SobelPart::Theta];
@@ -492,7 +492,17 @@ mod tests {
             FramePlan::new(&request, W, H, Some(&PreviousFrame { width: W, height: H, smoothing: request.smoothing }));
         assert_eq!(
             plan.stage_names(),
-            ["gaussian", "temporal_diff", "frame_sum", "sobel", "compaction", "log", "zero_crossing", "cpf"]
+            [
+                "gaussian",
+                "temporal_diff",
+                "frame_sum",
+                "sobel",
+                "compaction",
+                "log",
+                "zero_crossing",
+                "cpf",
+                "edge_pyramid"
+            ]
         );
     }
 

@@ -10,6 +10,7 @@ use crate::backend::plan::PreviousFrame;
 use crate::backend::{CpuBackend, EarlyVision, FramePlan, FrameRequest, FrameStats, GpuBackend};
 use crate::early::compaction::{self, CompactionGpu, CompactionParams};
 use crate::early::cpf::{self, CpfGpu, CpfPyramids};
+use crate::early::edge_pyramid::{self, EdgePyramidGpu, EdgePyramids};
 use crate::early::gaussian::{self, GaussianParams};
 use crate::early::log::{self, LogParams};
 use crate::early::sobel::{self, SobelGpu, SobelOutput};
@@ -107,6 +108,11 @@ pub fn cpu_body<'a>(stage: &str, inp: &'a Inputs) -> Result<Body<'a>> {
                 Ok(())
             })
         }
+        "edge_pyramid" => {
+            let s = sobel::sobel(&inp.luma);
+            let mut out = EdgePyramids::default();
+            Box::new(move || edge_pyramid::edge_pyramid_cpu(&s.gx, &s.gy, &mut out))
+        }
         "compaction" => {
             let s = sobel::sobel(&inp.luma);
             let p = compaction_params(w, h);
@@ -153,6 +159,7 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
     let sob = SobelGpu::new(ctx, w, h);
     let edg = EdgelsGpu::new(ctx, w, h);
     let pyr = CpfGpu::new(ctx, w, h);
+    let edge_pyr = EdgePyramidGpu::new(ctx, w, h);
     let list = CompactionGpu::new(ctx, w * h, Some(1500))?;
     let arena = FrameArena::new(ctx);
     let stage: &'static str = stages()
@@ -167,7 +174,20 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
     Ok(Box::new(move || {
         let mut rec = Recorder::new(ctx, &arena);
         for _ in 0..GPU_REPEATS {
-            record_stage(&mut rec, stage, &luma, &s0, &s1, [&t1, &t2, &t3], &sob, &edg, &pyr, &list, w, h)?;
+            record_stage(
+                &mut rec,
+                stage,
+                &luma,
+                &s0,
+                &s1,
+                [&t1, &t2, &t3],
+                &sob,
+                &edg,
+                (&pyr, &edge_pyr),
+                &list,
+                w,
+                h,
+            )?;
         }
         ctx.wait_for(rec.submit())
     }))
@@ -183,7 +203,7 @@ fn record_stage(
     t: [&GpuImage; 3],
     sob: &SobelGpu,
     edg: &EdgelsGpu,
-    pyr: &CpfGpu,
+    (pyr, edge_pyr): (&CpfGpu, &EdgePyramidGpu),
     list: &CompactionGpu,
     w: usize,
     h: usize,
@@ -197,6 +217,7 @@ fn record_stage(
         "log" => log::encode(rec, luma, t[0], t[1], s1, &LogParams::default()),
         "zero_crossing" => zero_crossing::encode(rec, t[2], edg, &ZeroCrossingParams::default()),
         "cpf" => cpf::encode(rec, luma, pyr),
+        "edge_pyramid" => edge_pyramid::encode(rec, &sob.gx, &sob.gy, edge_pyr),
         "compaction" => {
             compaction::encode(rec, &sob.magnitude, &sob.direction, &sob.magnitude, &compaction_params(w, h), list)
         }
@@ -216,16 +237,31 @@ pub fn cpu_frames_per_call(_stage: &str) -> usize {
     1
 }
 
-/// Time `body` for about `budget`, after one warm-up call; returns frames per second.
-pub fn frames_per_second(body: &mut Body<'_>, frames_per_call: usize, budget: Duration) -> Result<f64> {
+/// Frames per second of a timed body, from its median call and from its
+/// fastest call.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Rate {
+    /// Frames per second of the median call.
+    pub median_fps: f64,
+    /// Frames per second of the fastest call: on a machine shared with
+    /// other processes, the figure least disturbed by them (a long call is
+    /// more often interrupted than a short one, which skews a median).
+    pub best_fps: f64,
+}
+
+/// Time `body` for about `budget` (at least three calls), after one warm-up call.
+pub fn frames_per_second(body: &mut Body<'_>, frames_per_call: usize, budget: Duration) -> Result<Rate> {
     body()?;
     let start = Instant::now();
-    let mut calls = 0usize;
-    while calls < 3 || start.elapsed() < budget {
+    let mut seconds = Vec::new();
+    while seconds.len() < 3 || start.elapsed() < budget {
+        let call = Instant::now();
         body()?;
-        calls += 1;
+        seconds.push(call.elapsed().as_secs_f64());
     }
-    Ok((calls * frames_per_call) as f64 / start.elapsed().as_secs_f64())
+    seconds.sort_by(f64::total_cmp);
+    let fps = |s: f64| frames_per_call as f64 / s;
+    Ok(Rate { median_fps: fps(seconds[seconds.len() / 2]), best_fps: fps(seconds[0]) })
 }
 
 /// One row of a comparison: a stage at a size on both backends.
@@ -235,9 +271,11 @@ pub struct BenchRow {
     pub stage: String,
     /// `WxH`.
     pub size: String,
-    /// CPU frames per second.
+    /// CPU frames per second (median call).
     pub cpu_fps: f64,
-    /// GPU frames per second, if a GPU was available.
+    /// CPU frames per second of the fastest call.
+    pub cpu_best_fps: f64,
+    /// GPU frames per second (median call), if a GPU was available.
     pub gpu_fps: Option<f64>,
     /// GPU fps / CPU fps.
     pub gpu_over_cpu: Option<f64>,
@@ -250,7 +288,16 @@ pub struct ChainCost {
     pub size: String,
     /// Dispatches and bytes across the bus for one frame.
     pub per_frame: FrameStats,
+    /// Host time per frame in milliseconds (median over [`HOST_FRAMES`]
+    /// frames): recording and submitting the frame, then reading its lists
+    /// back once the device is done, without the wait for the device.
+    pub host_ms: f64,
+    /// Host time of the fastest of those frames, in milliseconds.
+    pub host_best_ms: f64,
 }
+
+/// Frames timed for [`ChainCost::host_ms`].
+pub const HOST_FRAMES: usize = 24;
 
 /// A whole comparison run.
 #[derive(Clone, Debug, Serialize)]
@@ -265,8 +312,9 @@ pub struct BenchReport {
     pub gpu_chain: Vec<ChainCost>,
 }
 
-/// Dispatches and bytes moved for one frame of the full chain on the GPU.
-pub fn chain_cost(ctx: &GpuContext, inp: &Inputs) -> Result<FrameStats> {
+/// Dispatches and bytes moved for one frame of the full chain on the GPU,
+/// and the host's time per frame (see [`ChainCost::host_ms`]).
+pub fn chain_cost(ctx: &GpuContext, inp: &Inputs) -> Result<(FrameStats, f64, f64)> {
     let (w, h) = inp.luma.size();
     let mut backend = GpuBackend::new(ctx.clone());
     let request = FrameRequest::full_chain(w, h);
@@ -274,43 +322,62 @@ pub fn chain_cost(ctx: &GpuContext, inp: &Inputs) -> Result<FrameStats> {
     for f in &inp.frames[..2] {
         backend.process(f, &request)?;
     }
-    Ok(backend.last_frame_stats())
+    let stats = backend.last_frame_stats();
+    let mut host = Vec::with_capacity(HOST_FRAMES);
+    for f in inp.frames.iter().cycle().take(HOST_FRAMES) {
+        let record = Instant::now();
+        let ticket = backend.submit(f, &request)?;
+        let recorded = record.elapsed();
+        // Not timed: the device's own work.
+        ctx.wait()?;
+        let readback = Instant::now();
+        backend.finish(ticket)?;
+        host.push((recorded + readback.elapsed()).as_secs_f64() * 1e3);
+    }
+    host.sort_by(f64::total_cmp);
+    Ok((stats, host[host.len() / 2], host[0]))
 }
 
-/// Run every stage at every size on both backends.
+/// Run every stage at every size on the CPU and, with `gpu`, on the GPU too.
 pub fn compare(
     sizes: &[(usize, usize)],
     stages: &[&str],
     budget: Duration,
+    gpu: bool,
     mut progress: impl FnMut(&BenchRow),
 ) -> Result<BenchReport> {
-    let gpu = GpuContext::new();
+    let gpu = gpu.then(GpuContext::new);
     let adapter = match &gpu {
-        Ok(ctx) => ctx.adapter_name().to_string(),
-        Err(e) => format!("none ({e})"),
+        None => "not used (CPU only)".to_string(),
+        Some(Ok(ctx)) => ctx.adapter_name().to_string(),
+        Some(Err(e)) => format!("none ({e})"),
     };
+    let gpu = gpu.and_then(|g| g.ok());
     let mut rows = Vec::new();
     let mut gpu_chain = Vec::new();
     for &(w, h) in sizes {
         let inp = Inputs::new(w, h)?;
-        if let Ok(ctx) = &gpu {
-            gpu_chain.push(ChainCost { size: format!("{w}x{h}"), per_frame: chain_cost(ctx, &inp)? });
+        if let Some(ctx) = &gpu {
+            let (per_frame, host_ms, host_best_ms) = chain_cost(ctx, &inp)?;
+            gpu_chain.push(ChainCost { size: format!("{w}x{h}"), per_frame, host_ms, host_best_ms });
         }
         for &stage in stages {
             let mut cpu = cpu_body(stage, &inp)?;
-            let cpu_fps = frames_per_second(&mut cpu, cpu_frames_per_call(stage), budget)?;
+            let cpu_rate = frames_per_second(&mut cpu, cpu_frames_per_call(stage), budget)?;
             drop(cpu);
             let gpu_fps = match &gpu {
-                Ok(ctx) => {
+                Some(ctx) => {
                     let mut body = gpu_body(stage, ctx, &inp)?;
-                    Some(frames_per_second(&mut body, gpu_frames_per_call(stage), budget)?)
+                    Some(frames_per_second(&mut body, gpu_frames_per_call(stage), budget)?.median_fps)
                 }
-                Err(_) => None,
+                None => None,
             };
+            let cpu_fps = cpu_rate.median_fps;
             let row = BenchRow {
                 stage: stage.to_string(),
                 size: format!("{w}x{h}"),
                 cpu_fps,
+                cpu_best_fps: cpu_rate.best_fps,
                 gpu_fps,
                 gpu_over_cpu: gpu_fps.map(|g| g / cpu_fps),
             };

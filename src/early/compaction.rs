@@ -30,7 +30,7 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::rows::{PARALLEL_PIXELS, for_each_row};
+use super::rows::{for_each_row, parallel};
 use super::{Feature, Window};
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
@@ -162,7 +162,13 @@ fn check_sizes(select: (usize, usize), theta: (usize, usize), magnitude: (usize,
     Ok(())
 }
 
-/// Append the selected pixels of window row `y` (columns `x0..x0 + sel.len()`) to `emit`.
+/// Pixels of a row tested per bit mask in [`list_row`].
+const SCAN_LANES: usize = 32;
+
+/// Append the selected pixels of window row `y` (columns `x0..x0 + sel.len()`)
+/// to `emit`, left to right. The row is tested `SCAN_LANES` pixels at a time
+/// into a bit mask (no branch per pixel, so the comparisons vectorise), and
+/// only the set bits are visited.
 #[inline]
 fn list_row(
     sel: &[f32],
@@ -173,9 +179,24 @@ fn list_row(
     threshold: f32,
     mut emit: impl FnMut(Feature),
 ) {
-    for (dx, ((&s, &t), &m)) in sel.iter().zip(theta).zip(mag).enumerate() {
+    let mut emit_at = |dx: usize| {
+        emit(Feature { x: (x0 + dx) as u32, y: y as u32, theta: theta[dx], magnitude: mag[dx] });
+    };
+    let mut chunks = sel.chunks_exact(SCAN_LANES);
+    for (c, chunk) in (&mut chunks).enumerate() {
+        let mut bits = 0u32;
+        for (i, &s) in chunk.iter().enumerate() {
+            bits |= u32::from(s > threshold) << i;
+        }
+        while bits != 0 {
+            emit_at(c * SCAN_LANES + bits.trailing_zeros() as usize);
+            bits &= bits - 1;
+        }
+    }
+    let tail = sel.len() - chunks.remainder().len();
+    for (i, &s) in chunks.remainder().iter().enumerate() {
         if s > threshold {
-            emit(Feature { x: (x0 + dx) as u32, y: y as u32, theta: t, magnitude: m });
+            emit_at(tail + i);
         }
     }
 }
@@ -207,7 +228,7 @@ pub fn compaction_cpu(
     }
 
     let area = win.area();
-    if area < PARALLEL_PIXELS {
+    if !parallel(area) {
         // One thread: rows straight into the list, in the same order.
         for y in y0..y1 {
             list_row(span(select, y, x0, x1), span(theta, y, x0, x1), span(magnitude, y, x0, x1), x0, y, th, |f| {
@@ -381,8 +402,16 @@ impl CompactionGpu {
     /// and mapped, so only `16 + 16·count` bytes ever cross the bus.
     pub fn read(&self, ctx: &GpuContext) -> Result<Vec<Feature>> {
         let prefetched = u64::from(self.prefetched.load(Ordering::Relaxed));
-        let bytes = ctx.read_buffer(&self.staging, 0..HEADER_BYTES + prefetched * FEATURE_BYTES)?;
-        let header: Header = bytemuck::pod_read_unaligned(&bytes[..HEADER_BYTES as usize]);
+        // The header and the prefetched features, decoded straight from the mapping.
+        let (header, mut out) =
+            ctx.read_mapped(&self.staging, 0..HEADER_BYTES + prefetched * FEATURE_BYTES, |bytes| {
+                let header: Header = bytemuck::pod_read_unaligned(&bytes[..HEADER_BYTES as usize]);
+                let head = u64::from(header.listed).min(prefetched);
+                let features: Vec<Feature> = bytemuck::pod_collect_to_vec(
+                    &bytes[HEADER_BYTES as usize..(HEADER_BYTES + head * FEATURE_BYTES) as usize],
+                );
+                (header, features)
+            })?;
         let (list, capacity) = self.list();
         let listed = u64::from(header.listed);
         if listed > capacity || header.listed > header.total {
@@ -391,9 +420,6 @@ impl CompactionGpu {
                 header.listed, header.total
             )));
         }
-        let head = listed.min(prefetched);
-        let mut out: Vec<Feature> =
-            bytemuck::pod_collect_to_vec(&bytes[HEADER_BYTES as usize..(HEADER_BYTES + head * FEATURE_BYTES) as usize]);
         if listed > prefetched {
             let at = HEADER_BYTES + prefetched * FEATURE_BYTES;
             let size = (listed - prefetched) * FEATURE_BYTES;
@@ -402,8 +428,9 @@ impl CompactionGpu {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("compaction.readback") });
             enc.copy_buffer_to_buffer(list, prefetched * FEATURE_BYTES, &self.staging, at, size);
             ctx.wait_for(ctx.queue.submit([enc.finish()]))?;
-            let rest = ctx.read_buffer(&self.staging, at..at + size)?;
-            out.extend(bytemuck::pod_collect_to_vec::<u8, Feature>(&rest));
+            ctx.read_mapped(&self.staging, at..at + size, |rest| {
+                out.extend(rest.chunks_exact(FEATURE_BYTES as usize).map(bytemuck::pod_read_unaligned::<Feature>));
+            })?;
         }
         Ok(out)
     }
@@ -550,6 +577,30 @@ mod tests {
         // Empty window.
         let empty = Window { x0: 2, y0: 0, x1: 2, y1: 3 };
         assert!(compaction(&s, &t, &m, &params(empty, None)).unwrap().is_empty());
+    }
+
+    /// The bit-mask scan lists exactly the pixels a plain left-to-right
+    /// filter lists, on rows shorter than, equal to and longer than the
+    /// mask width, with NaN and ±∞ among the values.
+    #[test]
+    fn row_scan_lists_what_a_plain_filter_lists() {
+        for len in [0, 1, 5, SCAN_LANES - 1, SCAN_LANES, SCAN_LANES + 1, 3 * SCAN_LANES + 7, 17 * SCAN_LANES + 3] {
+            let sel: Vec<f32> = (0..len)
+                .map(|i| match i % 11 {
+                    3 => f32::NAN,
+                    5 => f32::INFINITY,
+                    7 => f32::NEG_INFINITY,
+                    k => (k as f32 * 0.37 + i as f32 * 0.11).sin(),
+                })
+                .collect();
+            let theta: Vec<f32> = (0..len).map(|i| i as f32).collect();
+            let mag: Vec<f32> = (0..len).map(|i| -(i as f32)).collect();
+            let mut listed = Vec::new();
+            list_row(&sel, &theta, &mag, 4, 9, 0.25, |f| listed.push(f));
+            let expected: Vec<Feature> =
+                (0..len).filter(|&i| sel[i] > 0.25).map(|i| f(4 + i as u32, 9, theta[i], mag[i])).collect();
+            assert_eq!(listed, expected, "row of {len}");
+        }
     }
 
     #[test]

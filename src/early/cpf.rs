@@ -53,7 +53,7 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::rows::for_each_row;
+use super::rows::{for_each_row, parallel};
 use crate::gpu::{
     Binding::{Storage, Uniform},
     EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
@@ -166,13 +166,35 @@ pub(super) fn reduce_level(src: &FloatImage, dst: &mut FloatImage, row: impl Fn(
     for_each_row(sw * sh, dst.data_mut().par_chunks_mut(dw).enumerate(), body);
 }
 
-/// Level 1 of all four hierarchies from the input (each `dst` already sized).
-fn cpf_first_level(src: &FloatImage, dst: [&mut FloatImage; HIERARCHIES]) {
+/// Level 1 of all four hierarchies from the input (each `dst` already
+/// sized), copying the input into each of `copies` (level-0 images of the
+/// input's size) on the way: on one thread row by row, while the rows are
+/// in the fastest cache for the reduction anyway.
+fn cpf_first_level(src: &FloatImage, dst: [&mut FloatImage; HIERARCHIES], copies: &mut [&mut FloatImage]) {
     let (sw, sh) = src.size();
     let [d0, d1, d2, d3] = dst;
     let dw = d0.width();
     if dw == 0 || d0.height() == 0 {
+        for c in copies.iter_mut() {
+            c.data_mut().copy_from_slice(src.data());
+        }
         return;
+    }
+    if !parallel(sw * sh) {
+        let outs = d0.data_mut().chunks_exact_mut(dw).zip(d1.data_mut().chunks_exact_mut(dw));
+        let outs = outs.zip(d2.data_mut().chunks_exact_mut(dw)).zip(d3.data_mut().chunks_exact_mut(dw));
+        for (y, (((a, b), c), d)) in outs.enumerate() {
+            let (y0, y1) = child_rows(y, sh);
+            cpf_rows_all(src.row(y0), src.row(y1), [a, b, c, d]);
+            for copy in copies.iter_mut() {
+                let rows = y0 * sw..(y1 + 1) * sw;
+                copy.data_mut()[rows.clone()].copy_from_slice(&src.data()[rows]);
+            }
+        }
+        return;
+    }
+    for c in copies.iter_mut() {
+        c.data_mut().copy_from_slice(src.data());
     }
     let planes = (
         d0.data_mut().par_chunks_mut(dw),
@@ -210,13 +232,56 @@ pub fn cpf_cpu(src: &FloatImage, out: &mut CpfPyramids) {
     let sizes = level_sizes(src.width(), src.height());
     for levels in &mut out.hierarchies {
         shape_levels(levels, &sizes);
-        levels[0].data_mut().copy_from_slice(src.data());
     }
-    if sizes.len() < 2 {
-        return;
+    reduce_hierarchies(src, out, &sizes, 0);
+}
+
+/// [`cpf_cpu`] for a caller done with its input: `src` becomes level 0 of
+/// hierarchy 0 without a copy, and `src` is left holding an image of the
+/// same size whose values are unspecified (the buffer that level held).
+/// The hierarchies are those [`cpf_cpu`] gives.
+pub fn cpf_cpu_taking(src: &mut FloatImage, out: &mut CpfPyramids) {
+    let sizes = level_sizes(src.width(), src.height());
+    for levels in &mut out.hierarchies {
+        shape_levels(levels, &sizes);
     }
+    std::mem::swap(src, &mut out.hierarchies[0][0]);
+    let input = std::mem::replace(&mut out.hierarchies[0][0], FloatImage::new(0, 0));
+    reduce_hierarchies(&input, out, &sizes, 1);
+    out.hierarchies[0][0] = input;
+}
+
+/// Levels 1.. of the four hierarchies of `src` into `out`, leaving each
+/// level 0 (shaped to the input's size) with unspecified values instead of
+/// four copies of `src`: for a caller that keeps the hierarchies where no
+/// one reads their level 0, which is the input it holds anyway.
+pub(crate) fn cpf_cpu_coarser_levels(src: &FloatImage, out: &mut CpfPyramids) {
+    let sizes = level_sizes(src.width(), src.height());
+    for levels in &mut out.hierarchies {
+        shape_levels(levels, &sizes);
+    }
+    reduce_hierarchies(src, out, &sizes, HIERARCHIES);
+}
+
+/// Levels 1.. of the four hierarchies of `src`, whose level sizes are
+/// `sizes` (levels already shaped), and `src` copied into level 0 of the
+/// hierarchies `copy_from..`.
+fn reduce_hierarchies(src: &FloatImage, out: &mut CpfPyramids, sizes: &[(usize, usize)], copy_from: usize) {
     let [h0, h1, h2, h3] = &mut out.hierarchies;
-    cpf_first_level(src, [&mut h0[1], &mut h1[1], &mut h2[1], &mut h3[1]]);
+    let ([l0, r0 @ ..], [l1, r1 @ ..], [l2, r2 @ ..], [l3, r3 @ ..]) =
+        (&mut h0[..], &mut h1[..], &mut h2[..], &mut h3[..])
+    else {
+        return;
+    };
+    let mut level0 = [l0, l1, l2, l3];
+    let copies = &mut level0[copy_from..];
+    let ([n0, ..], [n1, ..], [n2, ..], [n3, ..]) = (r0, r1, r2, r3) else {
+        for c in copies.iter_mut() {
+            c.data_mut().copy_from_slice(src.data());
+        }
+        return;
+    };
+    cpf_first_level(src, [n0, n1, n2, n3], copies);
     for (m, levels) in out.hierarchies.iter_mut().enumerate() {
         for k in 2..sizes.len() {
             let (coarser, finer) = levels.split_at_mut(k);
@@ -253,7 +318,7 @@ pub fn cpf_to_level(src: &FloatImage, levels_down: usize) -> Result<[FloatImage;
     let (w, h) = sizes[1];
     let mut cur: [FloatImage; HIERARCHIES] = std::array::from_fn(|_| FloatImage::new(w, h));
     let [c0, c1, c2, c3] = &mut cur;
-    cpf_first_level(src, [c0, c1, c2, c3]);
+    cpf_first_level(src, [c0, c1, c2, c3], &mut []);
     let mut next: [FloatImage; HIERARCHIES] = std::array::from_fn(|_| FloatImage::new(0, 0));
     for &(w, h) in &sizes[2..=levels_down] {
         for (m, (c, n)) in cur.iter().zip(next.iter_mut()).enumerate() {

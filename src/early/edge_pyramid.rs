@@ -55,12 +55,37 @@ pub fn edge_pyramid_cpu(horizontal: &FloatImage, vertical: &FloatImage, out: &mu
     for (levels, base) in [(&mut out.horizontal, horizontal), (&mut out.vertical, vertical)] {
         shape_levels(levels, &sizes);
         levels[0].data_mut().copy_from_slice(base.data());
-        for k in 1..sizes.len() {
-            let (coarser, finer) = levels.split_at_mut(k);
-            reduce_level(&coarser[k - 1], &mut finer[0], mean_row);
-        }
+        reduce_means(levels);
     }
     Ok(())
+}
+
+/// [`edge_pyramid_cpu`] for a caller done with its inputs: they become the
+/// two level-0 images without a copy, and each of `horizontal` and
+/// `vertical` is left holding an image of the same size whose values are
+/// unspecified (the buffer that level held). The hierarchies are those
+/// [`edge_pyramid_cpu`] gives.
+pub fn edge_pyramid_cpu_taking(
+    horizontal: &mut FloatImage,
+    vertical: &mut FloatImage,
+    out: &mut EdgePyramids,
+) -> Result<()> {
+    horizontal.check_same_size(vertical, "edge pyramid inputs")?;
+    let sizes = level_sizes(horizontal.width(), horizontal.height());
+    for (levels, base) in [(&mut out.horizontal, horizontal), (&mut out.vertical, vertical)] {
+        shape_levels(levels, &sizes);
+        std::mem::swap(base, &mut levels[0]);
+        reduce_means(levels);
+    }
+    Ok(())
+}
+
+/// Levels 1.. of one averaged hierarchy from its level 0 (levels already shaped).
+fn reduce_means(levels: &mut [FloatImage]) {
+    for k in 1..levels.len() {
+        let (coarser, finer) = levels.split_at_mut(k);
+        reduce_level(&coarser[k - 1], &mut finer[0], mean_row);
+    }
 }
 
 /// CPU twin, allocating: the averaged edge hierarchies of `horizontal` and `vertical`.

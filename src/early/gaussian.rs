@@ -8,7 +8,7 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::rows::for_each_row;
+use super::rows::{RowStore, for_each_row, parallel};
 
 use crate::Result;
 use crate::bounds::Interval;
@@ -112,47 +112,106 @@ fn blur_row_body(src: &[f32], dst: &mut [f32], half: &[f32]) {
         return;
     }
     (0..r).for_each(|x| edge(x, dst));
-    // Interior, tap-major so the inner loop runs along the row over
-    // equal-length slices and vectorises; each pixel still sums its taps in
-    // the order k = 0, 1, …, r, like the shader.
     let inner = &mut dst[r..n - r];
-    for (d, &c) in inner.iter_mut().zip(&src[r..n - r]) {
-        *d = half[0] * c;
-    }
-    for (k, &w) in half.iter().enumerate().skip(1) {
-        let (left, right) = (&src[r - k..n - r - k], &src[r + k..n - r + k]);
-        for ((d, &l), &rr) in inner.iter_mut().zip(left).zip(right) {
-            *d += w * (l + rr);
-        }
+    match half.len() {
+        2 => blur_interior::<2>(src, inner, half),
+        3 => blur_interior::<3>(src, inner, half),
+        4 => blur_interior::<4>(src, inner, half),
+        5 => blur_interior::<5>(src, inner, half),
+        _ => blur_interior_any(src, inner, half),
     }
     (n - r..n).for_each(|x| edge(x, dst));
 }
 
-simd_dispatch!(fn blur_col_row(src: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], half: &[f32]) => blur_col_row_body);
-
-/// One output row of the vertical pass: `dst = w0·row(y) + Σ w_k (row(y−k) + row(y+k))`.
+/// The interior `dst = src[r..n − r]` blurred, for a half kernel of `N`
+/// taps known at compile time: every pixel sums its taps in registers, in
+/// the order k = 0, 1, …, r like the shader, over shifted views of the row
+/// (no bounds checks in the loop, so it vectorises).
 #[inline(always)]
-fn blur_col_row_body(src: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], half: &[f32]) {
-    let last = height as isize - 1;
-    let row = |yy: isize| {
-        let yy = yy.clamp(0, last) as usize;
-        &src[yy * width..(yy + 1) * width]
-    };
-    let centre = row(y as isize);
-    for (d, &c) in dst.iter_mut().zip(centre) {
+fn blur_interior<const N: usize>(src: &[f32], inner: &mut [f32], half: &[f32]) {
+    let (r, n) = (N - 1, inner.len());
+    let w: [f32; N] = std::array::from_fn(|k| half[k]);
+    let left: [&[f32]; N] = std::array::from_fn(|k| &src[r - k..r - k + n]);
+    let right: [&[f32]; N] = std::array::from_fn(|k| &src[r + k..r + k + n]);
+    for (i, d) in inner.iter_mut().enumerate() {
+        let mut sum = w[0] * left[0][i];
+        for k in 1..N {
+            sum += w[k] * (left[k][i] + right[k][i]);
+        }
+        *d = sum;
+    }
+}
+
+/// [`blur_interior`] for any kernel length: tap-major, so the inner loop
+/// runs along the row over equal-length slices and vectorises; each pixel
+/// still sums its taps in the order k = 0, 1, …, r.
+#[inline(always)]
+fn blur_interior_any(src: &[f32], inner: &mut [f32], half: &[f32]) {
+    let (r, n) = (half.len() - 1, inner.len());
+    for (d, &c) in inner.iter_mut().zip(&src[r..r + n]) {
         *d = half[0] * c;
     }
     for (k, &w) in half.iter().enumerate().skip(1) {
-        let up = row(y as isize - k as isize);
-        let down = row(y as isize + k as isize);
-        for ((d, &u), &v) in dst.iter_mut().zip(up).zip(down) {
-            *d += w * (u + v);
+        let (left, right) = (&src[r - k..r - k + n], &src[r + k..r + k + n]);
+        for ((d, &l), &rr) in inner.iter_mut().zip(left).zip(right) {
+            *d += w * (l + rr);
         }
     }
 }
 
+simd_dispatch!(fn blur_col_row(src: &[f32], rows: RowStore, y: usize, dst: &mut [f32], half: &[f32]) => blur_col_row_body);
+
+/// One output row of the vertical pass: `dst = w0·row(y) + Σ w_k (row(y−k) + row(y+k))`.
+#[inline(always)]
+fn blur_col_row_body(src: &[f32], rows: RowStore, y: usize, dst: &mut [f32], half: &[f32]) {
+    let row = |yy: isize| rows.row(src, yy);
+    let rows_at = |k: usize| (row(y as isize - k as isize), row(y as isize + k as isize));
+    match half.len() {
+        2 => blur_col_fixed::<2>(dst, half, rows_at),
+        3 => blur_col_fixed::<3>(dst, half, rows_at),
+        4 => blur_col_fixed::<4>(dst, half, rows_at),
+        5 => blur_col_fixed::<5>(dst, half, rows_at),
+        _ => {
+            let centre = row(y as isize);
+            for (d, &c) in dst.iter_mut().zip(centre) {
+                *d = half[0] * c;
+            }
+            for (k, &w) in half.iter().enumerate().skip(1) {
+                let (up, down) = rows_at(k);
+                for ((d, &u), &v) in dst.iter_mut().zip(up).zip(down) {
+                    *d += w * (u + v);
+                }
+            }
+        }
+    }
+}
+
+/// One output row of the vertical pass for a half kernel of `N` taps known
+/// at compile time, the taps summed in registers in the order k = 0, 1, …, r;
+/// `rows_at(k)` gives the rows k above and k below (clamped).
+#[inline(always)]
+fn blur_col_fixed<'a, const N: usize>(
+    dst: &mut [f32],
+    half: &[f32],
+    rows_at: impl Fn(usize) -> (&'a [f32], &'a [f32]),
+) {
+    let n = dst.len();
+    let w: [f32; N] = std::array::from_fn(|k| half[k]);
+    let up: [&[f32]; N] = std::array::from_fn(|k| &rows_at(k).0[..n]);
+    let down: [&[f32]; N] = std::array::from_fn(|k| &rows_at(k).1[..n]);
+    for (i, d) in dst.iter_mut().enumerate() {
+        let mut sum = w[0] * up[0][i];
+        for k in 1..N {
+            sum += w[k] * (up[k][i] + down[k][i]);
+        }
+        *d = sum;
+    }
+}
+
 /// CPU twin: smooth `src` into `dst` (resized to match), using `tmp` as the
-/// intermediate of the row pass. No allocation once the buffers have grown.
+/// intermediate of the row pass (the whole image when rows run on several
+/// threads, a ring of a few rows otherwise). No allocation once the buffers
+/// have grown.
 pub fn gaussian_cpu(
     src: &FloatImage,
     params: &GaussianParams,
@@ -161,15 +220,96 @@ pub fn gaussian_cpu(
 ) -> Result<()> {
     let half = half_kernel(params.sigma)?;
     let (w, h) = src.size();
-    tmp.resize(w, h);
     dst.resize(w, h);
     if w == 0 || h == 0 {
+        tmp.resize(w, h);
         return Ok(());
     }
+    if !parallel(w * h) {
+        blur_through_ring(src, &half, tmp, dst);
+        return Ok(());
+    }
+    tmp.resize(w, h);
     for_each_row(w * h, src.data().par_chunks(w).zip(tmp.data_mut().par_chunks_mut(w)), |(s, d)| blur_row(s, d, &half));
-    let t = tmp.data();
-    for_each_row(w * h, dst.data_mut().par_chunks_mut(w).enumerate(), |(y, d)| blur_col_row(t, w, h, y, d, &half));
+    let (t, rows) = (tmp.data(), RowStore { width: w, height: h, slots: h });
+    for_each_row(w * h, dst.data_mut().par_chunks_mut(w).enumerate(), |(y, d)| blur_col_row(t, rows, y, d, &half));
     Ok(())
+}
+
+/// Both passes on this thread, row by row: the row pass fills a ring of the
+/// `2r + 1` rows (fewer on a short image) that the next output row of the
+/// vertical pass reads, so the intermediate stays in the fastest cache
+/// instead of making a round trip through memory. Same arithmetic as the
+/// two whole-image passes, so the same bits.
+fn blur_through_ring(src: &FloatImage, half: &[f32], ring: &mut FloatImage, dst: &mut FloatImage) {
+    let (w, h) = src.size();
+    let r = half.len() - 1;
+    // Two output rows at a time read the 2r + 2 rows around them.
+    let rows = RowStore { width: w, height: h, slots: (2 * r + 2).min(h) };
+    ring.resize(w, rows.slots);
+    let mut done = 0;
+    for (pair, d) in dst.data_mut().chunks_mut(2 * w).enumerate() {
+        let y = 2 * pair;
+        // Rows up to y + 1 + r (clamped) must have been through the row pass.
+        while done <= (y + 1 + r).min(h - 1) {
+            let slot = done % rows.slots;
+            blur_row(src.row(done), &mut ring.data_mut()[slot * w..(slot + 1) * w], half);
+            done += 1;
+        }
+        match d.split_at_mut_checked(w) {
+            Some((d0, d1)) if !d1.is_empty() => blur_col_row_pair(ring.data(), rows, y, d0, d1, half),
+            _ => blur_col_row(ring.data(), rows, y, d, half),
+        }
+    }
+}
+
+simd_dispatch!(fn blur_col_row_pair(src: &[f32], rows: RowStore, y: usize, dst0: &mut [f32], dst1: &mut [f32], half: &[f32]) => blur_col_row_pair_body);
+
+/// Output rows `y` and `y + 1` of the vertical pass together, each exactly
+/// as [`blur_col_row`] computes it: the two rows share all but two of their
+/// input rows, so each input value is loaded once for both.
+#[inline(always)]
+fn blur_col_row_pair_body(src: &[f32], rows: RowStore, y: usize, dst0: &mut [f32], dst1: &mut [f32], half: &[f32]) {
+    // Row y − r + m (clamped).
+    let rows_from = |m: usize| rows.row(src, y as isize - (half.len() as isize - 1) + m as isize);
+    match half.len() {
+        2 => blur_col_pair_fixed::<2, 4>(dst0, dst1, half, rows_from),
+        3 => blur_col_pair_fixed::<3, 6>(dst0, dst1, half, rows_from),
+        4 => blur_col_pair_fixed::<4, 8>(dst0, dst1, half, rows_from),
+        5 => blur_col_pair_fixed::<5, 10>(dst0, dst1, half, rows_from),
+        _ => {
+            blur_col_row_body(src, rows, y, dst0, half);
+            blur_col_row_body(src, rows, y + 1, dst1, half);
+        }
+    }
+}
+
+/// Two output rows of the vertical pass for a half kernel of `N` taps
+/// (`M = 2N` input rows, `rows_from(m)` = row `y − r + m`), each row's taps
+/// summed in the order of [`blur_col_fixed`].
+#[inline(always)]
+fn blur_col_pair_fixed<'a, const N: usize, const M: usize>(
+    dst0: &mut [f32],
+    dst1: &mut [f32],
+    half: &[f32],
+    rows_from: impl Fn(usize) -> &'a [f32],
+) {
+    let n = dst0.len();
+    let r = N - 1;
+    let w: [f32; N] = std::array::from_fn(|k| half[k]);
+    let rows: [&[f32]; M] = std::array::from_fn(|m| &rows_from(m)[..n]);
+    let dst1 = &mut dst1[..n];
+    for (i, (d0, d1)) in dst0.iter_mut().zip(dst1.iter_mut()).enumerate() {
+        let v: [f32; M] = std::array::from_fn(|m| rows[m][i]);
+        // Row y is at index r, row y + 1 at r + 1.
+        let (mut s0, mut s1) = (w[0] * v[r], w[0] * v[r + 1]);
+        for k in 1..N {
+            s0 += w[k] * (v[r - k] + v[r + k]);
+            s1 += w[k] * (v[r + 1 - k] + v[r + 1 + k]);
+        }
+        *d0 = s0;
+        *d1 = s1;
+    }
 }
 
 /// CPU twin, allocating its outputs: the smoothed image.
@@ -236,6 +376,33 @@ mod tests {
         assert!((s.get(7, 7) - h[0] * h[0]).abs() < 1e-7);
         assert!((s.get(9, 6) - h[2] * h[1]).abs() < 1e-7);
         assert_eq!(s.get(11, 7), 0.0); // beyond radius 3
+    }
+
+    /// The ring of rows gives the bits of the two whole-image passes, for
+    /// radii with and without a specialised loop and images shorter than
+    /// the kernel.
+    #[test]
+    fn ring_equals_two_whole_image_passes_bitwise() {
+        for (w, h) in [(37, 29), (23, 3), (40, 1)] {
+            let src = crate::testimage::natural(w, h, 11).to_f32();
+            for sigma in [0.3, 1.0, 1.2, 2.5, 4.0] {
+                let half = half_kernel(sigma).unwrap();
+                let mut ring = FloatImage::new(0, 0);
+                let mut fused = FloatImage::new(w, h);
+                blur_through_ring(&src, &half, &mut ring, &mut fused);
+                let mut tmp = FloatImage::new(w, h);
+                for y in 0..h {
+                    blur_row(src.row(y), &mut tmp.data_mut()[y * w..(y + 1) * w], &half);
+                }
+                let rows = RowStore { width: w, height: h, slots: h };
+                let mut two_pass = FloatImage::new(w, h);
+                for y in 0..h {
+                    blur_col_row(tmp.data(), rows, y, &mut two_pass.data_mut()[y * w..(y + 1) * w], &half);
+                }
+                let bits = |i: &FloatImage| i.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&fused), bits(&two_pass), "{w}x{h}, sigma {sigma}");
+            }
+        }
     }
 
     #[test]

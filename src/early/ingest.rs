@@ -145,14 +145,17 @@ pub fn ingest_texture_cpu(
 /// Bytes of `frame` packed four to a u32 word (zero-padded), as `from_bytes` reads them.
 #[must_use]
 pub(crate) fn pack_bytes(bytes: &[u8]) -> Vec<u32> {
-    bytes
-        .chunks(4)
-        .map(|c| {
-            let mut w = [0u8; 4];
-            w[..c.len()].copy_from_slice(c);
-            u32::from_le_bytes(w)
-        })
-        .collect()
+    let words = bytes.chunks_exact(4);
+    let tail = words.remainder();
+    let mut packed = Vec::with_capacity(bytes.len().div_ceil(4));
+    // Whole words in a loop without per-word length checks (it vectorises).
+    packed.extend(words.map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])));
+    if !tail.is_empty() {
+        let mut w = [0u8; 4];
+        w[..tail.len()].copy_from_slice(tail);
+        packed.push(u32::from_le_bytes(w));
+    }
+    packed
 }
 
 /// Record `from_bytes`: `packed` (a storage buffer of packed bytes) into `dst`.

@@ -24,7 +24,7 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::rows::for_each_row;
+use super::rows::{RowStore, for_each_row, parallel};
 use crate::bounds::Interval;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
@@ -168,11 +168,19 @@ fn log_row_body(src: &[f32], tg: &mut [f32], td: &mut [f32], k: &LogKernels) {
         return;
     }
     (0..r).for_each(|x| edge(x, tg, td));
+    (n - r..n).for_each(|x| edge(x, tg, td));
+    let inner = r..n - r;
+    let (tg_in, td_in) = (&mut tg[inner.clone()], &mut td[inner.clone()]);
+    match r {
+        1 => return log_row_interior::<2>(src, tg_in, td_in, k),
+        2 => return log_row_interior::<3>(src, tg_in, td_in, k),
+        3 => return log_row_interior::<4>(src, tg_in, td_in, k),
+        4 => return log_row_interior::<5>(src, tg_in, td_in, k),
+        _ => {}
+    }
     // Interior, tap-major so the inner loop runs along the row and vectorises;
     // each pixel still sums its taps in the order k = 0, 1, …, r.
-    let inner = r..n - r;
-    let centre = &src[inner.clone()];
-    let (tg_in, td_in) = (&mut tg[inner.clone()], &mut td[inner]);
+    let centre = &src[inner];
     for ((a, b), &c) in tg_in.iter_mut().zip(td_in.iter_mut()).zip(centre) {
         *a = g[0] * c;
         *b = d[0] * c;
@@ -187,23 +195,53 @@ fn log_row_body(src: &[f32], tg: &mut [f32], td: &mut [f32], k: &LogKernels) {
             *b += dj * pair;
         }
     }
-    (n - r..n).for_each(|x| edge(x, tg, td));
 }
 
-simd_dispatch!(fn log_col_row(tg: &[f32], td: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], k: &LogKernels) => log_col_row_body);
+/// The row pass's interior for kernels of `N` taps (radius `N − 1`) known at
+/// compile time: each pixel sums its taps in registers, in the order
+/// k = 0, 1, …, r, over shifted views of the row (no bounds checks in the
+/// loop, so it vectorises).
+#[inline(always)]
+fn log_row_interior<const N: usize>(src: &[f32], tg: &mut [f32], td: &mut [f32], k: &LogKernels) {
+    let (r, n) = (N - 1, tg.len());
+    let g: [f32; N] = std::array::from_fn(|j| k.gauss[j]);
+    let d: [f32; N] = std::array::from_fn(|j| k.second[j]);
+    let left: [&[f32]; N] = std::array::from_fn(|j| &src[r - j..r - j + n]);
+    let right: [&[f32]; N] = std::array::from_fn(|j| &src[r + j..r + j + n]);
+    for (i, (a, b)) in tg.iter_mut().zip(td.iter_mut()).enumerate() {
+        let c = left[0][i];
+        let (mut sum_g, mut sum_d) = (g[0] * c, d[0] * c);
+        for j in 1..N {
+            let pair = left[j][i] + right[j][i];
+            sum_g += g[j] * pair;
+            sum_d += d[j] * pair;
+        }
+        *a = sum_g;
+        *b = sum_d;
+    }
+}
+
+simd_dispatch!(fn log_col_row(tg: &[f32], td: &[f32], rows: RowStore, y: usize, dst: &mut [f32], k: &LogKernels) => log_col_row_body);
 
 /// Column pass for output row `y`: `dst = Σ d_k (tg(y−k) + tg(y+k)) + Σ g_k (td(y−k) + td(y+k))`,
 /// each sum accumulated separately (k = 0, 1, …, r) and added last, like the shader.
 #[inline(always)]
-fn log_col_row_body(tg: &[f32], td: &[f32], width: usize, height: usize, y: usize, dst: &mut [f32], k: &LogKernels) {
+fn log_col_row_body(tg: &[f32], td: &[f32], rows: RowStore, y: usize, dst: &mut [f32], k: &LogKernels) {
     let (g, d) = (&k.gauss, &k.second);
-    let last = height as isize - 1;
     // Columns x0..x0+n of row yy (clamped to the image).
-    fn row_of(img: &[f32], width: usize, last: isize, yy: isize, x0: usize, n: usize) -> &[f32] {
-        let start = yy.clamp(0, last) as usize * width + x0;
-        &img[start..start + n]
+    let row_of = |img, yy, x0: usize, n: usize| &rows.row(img, yy)[x0..x0 + n];
+    let n = dst.len();
+    let rows_at = |j: usize| {
+        let (up, down) = (y as isize - j as isize, y as isize + j as isize);
+        [row_of(tg, up, 0, n), row_of(tg, down, 0, n), row_of(td, up, 0, n), row_of(td, down, 0, n)]
+    };
+    match k.radius() {
+        1 => return log_col_fixed::<2>(dst, k, rows_at),
+        2 => return log_col_fixed::<3>(dst, k, rows_at),
+        3 => return log_col_fixed::<4>(dst, k, rows_at),
+        4 => return log_col_fixed::<5>(dst, k, rows_at),
+        _ => {}
     }
-    let row_of = |img, yy, x0, n| row_of(img, width, last, yy, x0, n);
     let mut acc_gd = [0.0f32; COL_BLOCK];
     for (block, out) in dst.chunks_mut(COL_BLOCK).enumerate() {
         let (x0, n) = (block * COL_BLOCK, out.len());
@@ -231,8 +269,30 @@ fn log_col_row_body(tg: &[f32], td: &[f32], width: usize, height: usize, y: usiz
     }
 }
 
-/// CPU twin: the LoG of `src` into `out`, using `tmp_g` and `tmp_d` as the
-/// intermediates of the row pass (all resized to match `src`). No allocation
+/// The column pass of one output row for kernels of `N` taps known at
+/// compile time: both sums in registers, each in the order k = 0, 1, …, r,
+/// added last, like the shader. `rows_at(j)` gives the rows j above and j
+/// below (clamped) of `tg` and then of `td`.
+#[inline(always)]
+fn log_col_fixed<'a, const N: usize>(dst: &mut [f32], k: &LogKernels, rows_at: impl Fn(usize) -> [&'a [f32]; 4]) {
+    let n = dst.len();
+    let g: [f32; N] = std::array::from_fn(|j| k.gauss[j]);
+    let d: [f32; N] = std::array::from_fn(|j| k.second[j]);
+    let rows: [[&[f32]; 4]; N] = std::array::from_fn(|j| rows_at(j).map(|r| &r[..n]));
+    for (i, o) in dst.iter_mut().enumerate() {
+        let (mut sum_dg, mut sum_gd) = (d[0] * rows[0][0][i], g[0] * rows[0][2][i]);
+        for j in 1..N {
+            let [tg_u, tg_v, td_u, td_v] = rows[j];
+            sum_dg += d[j] * (tg_u[i] + tg_v[i]);
+            sum_gd += g[j] * (td_u[i] + td_v[i]);
+        }
+        *o = sum_dg + sum_gd;
+    }
+}
+
+/// CPU twin: the LoG of `src` into `out` (resized to match `src`), using
+/// `tmp_g` and `tmp_d` as the intermediates of the row pass (the whole image
+/// when rows run on several threads, rings of a few rows otherwise). No allocation
 /// once the buffers have grown, apart from the two small kernels.
 pub fn log_cpu(
     src: &FloatImage,
@@ -243,18 +303,124 @@ pub fn log_cpu(
 ) -> Result<()> {
     let k = log_kernels(params.sigma)?;
     let (w, h) = src.size();
-    tmp_g.resize(w, h);
-    tmp_d.resize(w, h);
     out.resize(w, h);
     if w == 0 || h == 0 {
+        tmp_g.resize(w, h);
+        tmp_d.resize(w, h);
         return Ok(());
     }
+    if !parallel(w * h) {
+        log_through_ring(src, &k, tmp_g, tmp_d, out);
+        return Ok(());
+    }
+    tmp_g.resize(w, h);
+    tmp_d.resize(w, h);
     let row_pass =
         src.data().par_chunks(w).zip(tmp_g.data_mut().par_chunks_mut(w)).zip(tmp_d.data_mut().par_chunks_mut(w));
     for_each_row(w * h, row_pass, |((s, a), b)| log_row(s, a, b, &k));
-    let (tg, td) = (tmp_g.data(), tmp_d.data());
-    for_each_row(w * h, out.data_mut().par_chunks_mut(w).enumerate(), |(y, o)| log_col_row(tg, td, w, h, y, o, &k));
+    let (tg, td, rows) = (tmp_g.data(), tmp_d.data(), RowStore { width: w, height: h, slots: h });
+    for_each_row(w * h, out.data_mut().par_chunks_mut(w).enumerate(), |(y, o)| log_col_row(tg, td, rows, y, o, &k));
     Ok(())
+}
+
+/// Both passes on this thread, row by row: the row pass fills rings of the
+/// `2r + 1` rows (fewer on a short image) that the next output row of the
+/// column pass reads, so the intermediates stay in the fastest cache instead
+/// of making a round trip through memory. Same arithmetic as the two
+/// whole-image passes, so the same bits.
+fn log_through_ring(
+    src: &FloatImage,
+    k: &LogKernels,
+    ring_g: &mut FloatImage,
+    ring_d: &mut FloatImage,
+    out: &mut FloatImage,
+) {
+    let (w, h) = src.size();
+    let r = k.radius();
+    // Two output rows at a time read the 2r + 2 rows around them.
+    let rows = RowStore { width: w, height: h, slots: (2 * r + 2).min(h) };
+    ring_g.resize(w, rows.slots);
+    ring_d.resize(w, rows.slots);
+    let mut done = 0;
+    for (pair, o) in out.data_mut().chunks_mut(2 * w).enumerate() {
+        let y = 2 * pair;
+        // Rows up to y + 1 + r (clamped) must have been through the row pass.
+        while done <= (y + 1 + r).min(h - 1) {
+            let slot = (done % rows.slots) * w..(done % rows.slots + 1) * w;
+            log_row(src.row(done), &mut ring_g.data_mut()[slot.clone()], &mut ring_d.data_mut()[slot], k);
+            done += 1;
+        }
+        match o.split_at_mut_checked(w) {
+            Some((o0, o1)) if !o1.is_empty() => log_col_row_pair(ring_g.data(), ring_d.data(), rows, y, o0, o1, k),
+            _ => log_col_row(ring_g.data(), ring_d.data(), rows, y, o, k),
+        }
+    }
+}
+
+simd_dispatch!(fn log_col_row_pair(tg: &[f32], td: &[f32], rows: RowStore, y: usize, dst0: &mut [f32], dst1: &mut [f32], k: &LogKernels) => log_col_row_pair_body);
+
+/// The column pass of output rows `y` and `y + 1` together, each exactly as
+/// [`log_col_row`] computes it: the two rows share all but two of their
+/// input rows, so each input value is loaded once for both.
+#[inline(always)]
+fn log_col_row_pair_body(
+    tg: &[f32],
+    td: &[f32],
+    rows: RowStore,
+    y: usize,
+    dst0: &mut [f32],
+    dst1: &mut [f32],
+    k: &LogKernels,
+) {
+    // Rows y − r ..= y + 1 + r (clamped) of both intermediates.
+    let rows_from = |m: usize| {
+        let v = y as isize - k.radius() as isize + m as isize;
+        [rows.row(tg, v), rows.row(td, v)]
+    };
+    match k.radius() {
+        1 => log_col_pair_fixed::<2, 4>(dst0, dst1, k, rows_from),
+        2 => log_col_pair_fixed::<3, 6>(dst0, dst1, k, rows_from),
+        3 => log_col_pair_fixed::<4, 8>(dst0, dst1, k, rows_from),
+        4 => log_col_pair_fixed::<5, 10>(dst0, dst1, k, rows_from),
+        _ => {
+            log_col_row_body(tg, td, rows, y, dst0, k);
+            log_col_row_body(tg, td, rows, y + 1, dst1, k);
+        }
+    }
+}
+
+/// Two output rows of the column pass for kernels of `N` taps (`M = 2N`
+/// input rows, `rows_from(m)` = row `y − r + m` of `tg` and of `td`), each
+/// row's sums in the order of [`log_col_fixed`].
+#[inline(always)]
+fn log_col_pair_fixed<'a, const N: usize, const M: usize>(
+    dst0: &mut [f32],
+    dst1: &mut [f32],
+    k: &LogKernels,
+    rows_from: impl Fn(usize) -> [&'a [f32]; 2],
+) {
+    let n = dst0.len();
+    let r = N - 1;
+    let g: [f32; N] = std::array::from_fn(|j| k.gauss[j]);
+    let d: [f32; N] = std::array::from_fn(|j| k.second[j]);
+    let tg: [&[f32]; M] = std::array::from_fn(|m| &rows_from(m)[0][..n]);
+    let td: [&[f32]; M] = std::array::from_fn(|m| &rows_from(m)[1][..n]);
+    let dst1 = &mut dst1[..n];
+    for (i, (o0, o1)) in dst0.iter_mut().zip(dst1.iter_mut()).enumerate() {
+        let a: [f32; M] = std::array::from_fn(|m| tg[m][i]);
+        let b: [f32; M] = std::array::from_fn(|m| td[m][i]);
+        // Row y is at index r, row y + 1 at r + 1.
+        let (mut dg0, mut gd0) = (d[0] * a[r], g[0] * b[r]);
+        let (mut dg1, mut gd1) = (d[0] * a[r + 1], g[0] * b[r + 1]);
+        for j in 1..N {
+            dg0 += d[j] * (a[r - j] + a[r + j]);
+            gd0 += g[j] * (b[r - j] + b[r + j]);
+            dg1 += d[j] * (a[r + 1 - j] + a[r + 1 + j]);
+            gd1 += g[j] * (b[r + 1 - j] + b[r + 1 + j]);
+        }
+        *o0 = dg0 + gd0;
+        *o1 = dg1 + gd1;
+    }
 }
 
 /// CPU twin, allocating its outputs: the LoG image.
@@ -397,6 +563,34 @@ mod tests {
                 }
             }
             assert!(worst < 1e-3, "{w}x{h}: worst |cpu − f64| = {worst}");
+        }
+    }
+
+    /// The rings of rows give the bits of the two whole-image passes, for
+    /// radii with and without a specialised loop and images shorter than
+    /// the kernel.
+    #[test]
+    fn ring_equals_two_whole_image_passes_bitwise() {
+        for (w, h) in [(37, 29), (23, 3), (40, 1)] {
+            let src = natural(w, h, 13).to_f32();
+            for sigma in [0.3, 1.2, 2.0, 3.0] {
+                let k = log_kernels(sigma).unwrap();
+                let (mut ring_g, mut ring_d) = (FloatImage::new(0, 0), FloatImage::new(0, 0));
+                let mut fused = FloatImage::new(w, h);
+                log_through_ring(&src, &k, &mut ring_g, &mut ring_d, &mut fused);
+                let (mut tg, mut td) = (FloatImage::new(w, h), FloatImage::new(w, h));
+                for y in 0..h {
+                    let r = y * w..(y + 1) * w;
+                    log_row(src.row(y), &mut tg.data_mut()[r.clone()], &mut td.data_mut()[r], &k);
+                }
+                let rows = RowStore { width: w, height: h, slots: h };
+                let mut two_pass = FloatImage::new(w, h);
+                for y in 0..h {
+                    log_col_row(tg.data(), td.data(), rows, y, &mut two_pass.data_mut()[y * w..(y + 1) * w], &k);
+                }
+                let bits = |i: &FloatImage| i.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&fused), bits(&two_pass), "{w}x{h}, sigma {sigma}");
+            }
         }
     }
 

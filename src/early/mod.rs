@@ -6,11 +6,12 @@
 //! convenience `<stage>` over it, its GPU recording `encode`, and the
 //! standalone `<stage>_gpu` (upload, run, read back) for tests and benches.
 
-/// `fn $name(args)` that runs `$body(args)` compiled for AVX2 where the CPU
-/// has it (std caches the detection) and for the baseline target otherwise.
-/// The row loops of the twins vectorise either way; AVX2 doubles the lanes.
-/// Results are bit-identical: the same IEEE operations in the same order,
-/// only wider (FMA is not enabled, and Rust never contracts `a * b + c`).
+/// `fn $name(args)` that runs `$body(args)` compiled for AVX-512 or AVX2
+/// where the CPU has them (std caches the detection) and for the baseline
+/// target otherwise. The row loops of the twins vectorise either way; AVX2
+/// doubles the lanes and AVX-512 doubles them again. Results are
+/// bit-identical: the same IEEE operations in the same order, only wider
+/// (Rust never contracts `a * b + c` into a fused multiply-add).
 /// `$body` should be `#[inline(always)]` so it is compiled inside the AVX2
 /// function.
 macro_rules! simd_dispatch {
@@ -19,6 +20,18 @@ macro_rules! simd_dispatch {
         fn $name($($arg: $ty),*) {
             #[cfg(target_arch = "x86_64")]
             {
+                #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
+                fn widest($($arg: $ty),*) {
+                    $body($($arg),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512bw")
+                    && std::arch::is_x86_feature_detected!("avx512dq")
+                    && std::arch::is_x86_feature_detected!("avx512vl")
+                {
+                    // SAFETY: `widest` only needs these AVX-512 subsets, which the CPU was just found to have.
+                    return unsafe { widest($($arg),*) };
+                }
                 #[target_feature(enable = "avx2")]
                 fn wide($($arg: $ty),*) {
                     $body($($arg),*)

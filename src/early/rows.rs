@@ -13,21 +13,52 @@ use rayon::iter::{IndexedParallelIterator, ParallelIterator};
 /// several threads.
 pub(crate) const PARALLEL_PIXELS: usize = 1 << 16;
 
+/// Whether an image of `pixels` pixels has its rows spread over threads:
+/// at least [`PARALLEL_PIXELS`] of them, and a pool of more than one thread
+/// (a pool of one would only add a hand-over to it and a wake-up of the
+/// caller per call).
+pub(crate) fn parallel(pixels: usize) -> bool {
+    pixels >= PARALLEL_PIXELS && rayon::current_num_threads() > 1
+}
+
 /// Run `body` on every item of `rows` (one item per row or band of rows,
 /// e.g. zipped `par_chunks_mut(width)` of the output planes), spread over
-/// rayon's pool when the image has at least [`PARALLEL_PIXELS`] `pixels`, in
-/// order on the calling thread otherwise.
+/// rayon's pool when [`parallel`] says so for `pixels`, in order on the
+/// calling thread otherwise.
 pub(crate) fn for_each_row<I>(pixels: usize, rows: I, body: impl Fn(I::Item) + Sync + Send)
 where
     I: IndexedParallelIterator,
 {
-    if pixels >= PARALLEL_PIXELS {
+    if parallel(pixels) {
         rows.for_each(body);
     } else {
         // A minimum piece length above the item count keeps rayon from
         // splitting: the whole iterator runs as one sequential piece on
         // this thread.
         rows.with_min_len(usize::MAX).for_each(body);
+    }
+}
+
+/// Where the row pass's output rows of a `height`-row image sit in a buffer
+/// of `width`-wide rows: row `v` (clamped to the image) in slot `v % slots`.
+/// `slots = height` is the whole image; fewer slots make a ring of the rows
+/// the vertical pass still needs.
+#[derive(Clone, Copy)]
+pub(crate) struct RowStore {
+    /// Row length.
+    pub(crate) width: usize,
+    /// Rows of the image.
+    pub(crate) height: usize,
+    /// Rows the buffer holds.
+    pub(crate) slots: usize,
+}
+
+impl RowStore {
+    /// Row `v` (clamped to the image) of `buf`.
+    #[inline(always)]
+    pub(crate) fn row(self, buf: &[f32], v: isize) -> &[f32] {
+        let s = v.clamp(0, self.height as isize - 1) as usize % self.slots;
+        &buf[s * self.width..(s + 1) * self.width]
     }
 }
 

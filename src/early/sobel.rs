@@ -26,7 +26,8 @@
 //! write `direction = 0` and `theta = π/2` (`atan(0) + π/2`) there, never
 //! evaluating `atan2(0, 0)`, which is not portable across GPUs.
 //!
-//! Both twins compute the angles the same way, from one `a = atan(gy / gx)`:
+//! Both twins compute the angles the same way, from one `a = atan(gy / gx)`
+//! ([`super::angle::fast_atan_quotient`], one division):
 //! `θ = a + π/2` (a result that rounds to below 0 or to π or above becomes
 //! 0); `direction = a` for `gx > 0`, `a + π` for `gx < 0 ≤ gy`, `a − π` for
 //! `gx < 0, gy < 0` (a result that rounds to `−π` becomes `π`); `±π/2` for
@@ -40,7 +41,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::angle::fast_atan;
+use super::angle::fast_atan_quotient;
 use super::rows::for_each_row;
 use crate::Result;
 use crate::gpu::{
@@ -164,7 +165,7 @@ struct SobelUniform {
 #[inline]
 #[must_use]
 pub fn gradient_angles(gx: f32, gy: f32) -> (f32, f32) {
-    let a = fast_atan(gy / gx);
+    let a = fast_atan_quotient(gy, gx);
     // 000 eq. 2: θ = atan(∇y/∇x) + π/2, folded into [0, π).
     let theta = a + FRAC_PI_2;
     #[allow(clippy::manual_range_contains)] // the shader's comparison, NaN kept as it keeps it
@@ -198,6 +199,51 @@ fn gradient_at(up: &[f32], mid: &[f32], down: &[f32], xl: usize, xc: usize, xr: 
     let d_c = down[xc] - up[xc];
     let d_r = down[xr] - up[xr];
     (sum_r - sum_l, (d_l + 2.0 * d_c) + d_r)
+}
+
+/// The Sobel stage's five values at one pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SobelPixel {
+    /// Horizontal derivative.
+    pub gx: f32,
+    /// Vertical derivative.
+    pub gy: f32,
+    /// Gradient magnitude.
+    pub magnitude: f32,
+    /// Gradient direction in `(−π, π]`.
+    pub direction: f32,
+    /// Edge orientation of 000 eq. 2 in `[0, π)`.
+    pub theta: f32,
+}
+
+/// The five Sobel values of `src` at pixel `(x, y)` alone, equal bit for bit
+/// to that pixel of [`sobel_cpu`]'s planes (the same operations in the same
+/// order): for callers that need the gradient at a few listed pixels only.
+/// Panics when `(x, y)` lies outside `src`.
+#[must_use]
+pub fn sobel_at(src: &FloatImage, x: usize, y: usize) -> SobelPixel {
+    let (gx, gy) = gradient_at_pixel(src, x, y);
+    sobel_of_gradient(gx, gy)
+}
+
+/// `(gx, gy)` of `src` at pixel `(x, y)`, as [`sobel_at`] has them.
+/// Panics when `(x, y)` lies outside `src`.
+#[inline]
+#[must_use]
+pub fn gradient_at_pixel(src: &FloatImage, x: usize, y: usize) -> (f32, f32) {
+    let (w, h) = src.size();
+    assert!(x < w && y < h, "pixel ({x}, {y}) outside a {w}x{h} image");
+    let (up, mid, down) = (src.row(y.saturating_sub(1)), src.row(y), src.row((y + 1).min(h - 1)));
+    gradient_at(up, mid, down, x.saturating_sub(1), x, (x + 1).min(w - 1))
+}
+
+/// The five Sobel values of a pixel from its gradient `(gx, gy)`: the
+/// magnitude and angles as [`sobel_cpu`] computes them.
+#[inline]
+#[must_use]
+pub fn sobel_of_gradient(gx: f32, gy: f32) -> SobelPixel {
+    let (direction, theta) = gradient_angles(gx, gy);
+    SobelPixel { gx, gy, magnitude: (gx * gx + gy * gy).sqrt(), direction, theta }
 }
 
 /// The five output rows of one image row.
@@ -336,6 +382,22 @@ mod tests {
                 .collect()
         };
         assert_eq!(bits(&fast), bits(&base));
+    }
+
+    /// `sobel_at` gives every pixel's five values bit for bit as the planes
+    /// do, borders and interior, on an image with values of both signs.
+    #[test]
+    fn one_pixel_equals_the_planes_bitwise() {
+        let (w, h) = (23, 7);
+        let src = FloatImage::from_fn(w, h, |x, y| ((x * 37 + y * 91) % 53) as f32 * 1.7 - 40.0);
+        let s = sobel(&src);
+        for y in 0..h {
+            for x in 0..w {
+                let p = sobel_at(&src, x, y);
+                let planes = [&s.gx, &s.gy, &s.magnitude, &s.direction, &s.theta].map(|i| i.get(x, y).to_bits());
+                assert_eq!([p.gx, p.gy, p.magnitude, p.direction, p.theta].map(f32::to_bits), planes, "({x}, {y})");
+            }
+        }
     }
 
     fn close(a: f32, b: f32) -> bool {

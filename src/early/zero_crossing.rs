@@ -191,16 +191,35 @@ struct RowOut<'a> {
 }
 
 simd_dispatch!(fn edgel_row(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: RowOut<'_>) => edgel_row_body);
+simd_dispatch!(fn edgel_row_without_offsets(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: RowOut<'_>) => edgel_row_without_offsets_body);
+
+/// One output row, all four planes.
+#[inline(always)]
+fn edgel_row_body(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: RowOut<'_>) {
+    edgel_row_planes::<true>(up, cur, down, min_slope, out);
+}
+
+/// One output row, strength and direction only (`out`'s offset rows are
+/// left alone): the same values without the two divisions of the offsets.
+#[inline(always)]
+fn edgel_row_without_offsets_body(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: RowOut<'_>) {
+    edgel_row_planes::<false>(up, cur, down, min_slope, out);
+}
 
 /// One output row: the interior columns in one straight, vectorisable loop
 /// over equal-length slices (no clamping, no bounds checks), then the two
-/// border columns with their clamped neighbours.
+/// border columns with their clamped neighbours. The offset planes are
+/// written only with `OFFSETS`.
 #[inline(always)]
-fn edgel_row_body(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: RowOut<'_>) {
+fn edgel_row_planes<const OFFSETS: bool>(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: RowOut<'_>) {
     let w = cur.len();
     let RowOut { strength, direction, offset_x, offset_y } = out;
     let mut put = |x: usize, left: f32, right: f32| {
-        (strength[x], direction[x], offset_x[x], offset_y[x]) = edgel(cur[x], left, right, up[x], down[x], min_slope);
+        let (s, d, ox, oy) = edgel(cur[x], left, right, up[x], down[x], min_slope);
+        (strength[x], direction[x]) = (s, d);
+        if OFFSETS {
+            (offset_x[x], offset_y[x]) = (ox, oy);
+        }
     };
     if w == 1 {
         put(0, cur[0], cur[0]);
@@ -215,9 +234,16 @@ fn edgel_row_body(up: &[f32], cur: &[f32], down: &[f32], min_slope: f32, out: Ro
     let (l, c, r) = (&cur[..n], &cur[1..=n], &cur[2..n + 2]);
     let (u, d) = (&up[1..=n], &down[1..=n]);
     let (s, dir) = (&mut strength[1..=n], &mut direction[1..=n]);
-    let (ox, oy) = (&mut offset_x[1..=n], &mut offset_y[1..=n]);
-    for i in 0..n {
-        (s[i], dir[i], ox[i], oy[i]) = edgel(c[i], l[i], r[i], u[i], d[i], min_slope);
+    if OFFSETS {
+        let (ox, oy) = (&mut offset_x[1..=n], &mut offset_y[1..=n]);
+        for i in 0..n {
+            (s[i], dir[i], ox[i], oy[i]) = edgel(c[i], l[i], r[i], u[i], d[i], min_slope);
+        }
+    } else {
+        for i in 0..n {
+            let (strength, direction, _, _) = edgel(c[i], l[i], r[i], u[i], d[i], min_slope);
+            (s[i], dir[i]) = (strength, direction);
+        }
     }
 }
 
@@ -244,6 +270,31 @@ pub fn zero_crossing_cpu(log: &FloatImage, params: &ZeroCrossingParams, out: &mu
     );
     for_each_row(w * h, planes.into_par_iter().enumerate(), |(y, (s, d, ox, oy))| {
         one_row(y, RowOut { strength: s, direction: d, offset_x: ox, offset_y: oy })
+    });
+}
+
+/// The `strength` and `direction` planes of [`zero_crossing_cpu`] alone,
+/// bit for bit, into images resized to match `log`: for callers that list
+/// edgels and never read their sub-pixel offsets (it skips their divisions).
+pub fn zero_crossing_strength_direction_cpu(
+    log: &FloatImage,
+    params: &ZeroCrossingParams,
+    strength: &mut FloatImage,
+    direction: &mut FloatImage,
+) {
+    let (w, h) = log.size();
+    strength.resize(w, h);
+    direction.resize(w, h);
+    if w == 0 || h == 0 {
+        return;
+    }
+    let min_slope = params.effective_min_slope();
+    let l = log.data();
+    let row = |y: usize| &l[y * w..(y + 1) * w];
+    let planes = (strength.data_mut().par_chunks_mut(w), direction.data_mut().par_chunks_mut(w));
+    for_each_row(w * h, planes.into_par_iter().enumerate(), |(y, (s, d))| {
+        let out = RowOut { strength: s, direction: d, offset_x: &mut [], offset_y: &mut [] };
+        edgel_row_without_offsets(row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)), min_slope, out);
     });
 }
 
@@ -457,6 +508,20 @@ mod tests {
             zero_crossing(&FloatImage::from_vec(3, 1, vec![4.0, -1.0, 9.0]).unwrap(), &ZeroCrossingParams::default());
         assert_eq!(e.strength.data(), &[0.0, 10.0, 0.0]);
         assert!((e.offset_x.get(1, 0) - 0.1).abs() < 1e-7);
+    }
+
+    #[test]
+    fn strength_and_direction_alone_equal_the_full_planes_bitwise() {
+        for (w, h) in [(41, 11), (1, 1), (2, 5), (300, 250)] {
+            let l = log(&crate::testimage::natural(w, h, 8).to_f32(), &LogParams::default()).unwrap();
+            let p = ZeroCrossingParams::default();
+            let full = zero_crossing(&l, &p);
+            let (mut s, mut d) = (FloatImage::new(0, 0), FloatImage::new(0, 0));
+            zero_crossing_strength_direction_cpu(&l, &p, &mut s, &mut d);
+            let bits = |i: &FloatImage| i.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&s), bits(&full.strength), "{w}x{h}");
+            assert_eq!(bits(&d), bits(&full.direction), "{w}x{h}");
+        }
     }
 
     #[test]

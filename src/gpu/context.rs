@@ -215,8 +215,20 @@ impl GpuContext {
     /// nothing else is waited for. If that submission is still running, this
     /// falls back to waiting for all submitted work.
     pub(crate) fn read_buffer(&self, buffer: &wgpu::Buffer, range: std::ops::Range<u64>) -> Result<Vec<u8>> {
+        self.read_mapped(buffer, range, <[u8]>::to_vec)
+    }
+
+    /// Like [`GpuContext::read_buffer`], but hands the mapped bytes to `read`
+    /// instead of copying them out: one copy less for a caller that decodes
+    /// them into its own values.
+    pub(crate) fn read_mapped<T>(
+        &self,
+        buffer: &wgpu::Buffer,
+        range: std::ops::Range<u64>,
+        read: impl FnOnce(&[u8]) -> T,
+    ) -> Result<T> {
         if range.is_empty() {
-            return Ok(Vec::new());
+            return Ok(read(&[]));
         }
         let (tx, rx) = std::sync::mpsc::channel();
         buffer.map_async(wgpu::MapMode::Read, range.clone(), move |r| {
@@ -234,9 +246,9 @@ impl GpuContext {
             }
         };
         mapped?;
-        let bytes = buffer.get_mapped_range(range)?.to_vec();
+        let value = read(&buffer.get_mapped_range(range)?);
         buffer.unmap();
-        Ok(bytes)
+        Ok(value)
     }
 }
 
