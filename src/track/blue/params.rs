@@ -157,6 +157,11 @@ pub struct BlueParams {
     /// the frame is measured (module doc, "Verification").
     /// Range: 1 ..= [`MAX_SEARCH_AFTER`].
     pub search_after: usize,
+    /// [`BlueParams::min_support`] of a frame measured where the
+    /// whole-image search put the model: the search picks the best of many
+    /// places, so chance support is higher there than around a prediction.
+    /// Range: [0, 1].
+    pub search_min_support: f64,
 }
 
 /// Upper bound of the distances, margins and pixel-sized tolerances and
@@ -237,6 +242,7 @@ impl Default for BlueParams {
             min_support: 0.26,
             support_distance: 3.0,
             search_after: 3,
+            search_min_support: 0.35,
         }
     }
 }
@@ -269,6 +275,7 @@ impl BlueParams {
             ("prior_acceleration", self.prior_acceleration, POSITIVE_PX, " px/frame²"),
             ("support_distance", self.support_distance, POSITIVE_PX, " px"),
             ("min_support", self.min_support, Interval::closed(0.0, 1.0), ""),
+            ("search_min_support", self.search_min_support, Interval::closed(0.0, 1.0), ""),
         ];
         for (name, v, range, unit) in reals {
             range.check(WHO, name, v, unit)?;

@@ -338,6 +338,16 @@ impl MotionEdgeTracker {
         })
     }
 
+    /// This tracker in its present state with `lag_correction` off: it
+    /// reports the corners where the fitted lines put them (the paper's
+    /// extracted corners).
+    #[must_use]
+    pub fn without_lag_correction(&self) -> Self {
+        let mut twin = self.clone();
+        twin.params.lag_correction = false;
+        twin
+    }
+
     /// The parameters.
     #[must_use]
     pub fn params(&self) -> &MotionEdgeParams {

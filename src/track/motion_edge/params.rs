@@ -234,7 +234,8 @@ impl MotionEdgeParams {
     /// eq. 5–8 regression fits, one labelling pass with the fixed ζ of eq. 4,
     /// eq. 12 predictions throughout, corners reported where the lines fitted
     /// to the motion band put them (no half-frame lag correction), loss by
-    /// eq. 9 only (no contradicted-line or vanished-motion loss). A corner
+    /// eq. 9 only (no contradicted-line or vanished-motion loss, no
+    /// verification against the image's edges). A corner
     /// without motion pixels feeds its last measurement to eq. 10–11, so its
     /// predictions slow down (paper §2, Fig. 2).
     ///
@@ -255,6 +256,7 @@ impl MotionEdgeParams {
             line_fit: LineFitMethod::Regression,
             refine_iterations: 0,
             prediction: Prediction::Smoothed,
+            verify: false,
             ..Self::default()
         }
     }
