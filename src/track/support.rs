@@ -113,12 +113,15 @@ impl EdgeMap {
                     let hit = (-reach..=reach).any(|j| {
                         (-reach..=reach).any(|i| {
                             let (x, y) = (cx + i, cy + j);
-                            let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
-                            let along = rx * ux + ry * uy;
-                            let across = rx * uy - ry * ux;
-                            across.abs() <= distance
-                                && along.abs() <= 0.5 * SAMPLE_STEP_PX + 0.5
-                                && self.at(x, y).is_some_and(|o| orientation_difference(o, orientation) < angle)
+                            // Most cells hold no edge pixel: look first, measure after.
+                            self.at(x, y).is_some_and(|o| {
+                                let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
+                                let along = rx * ux + ry * uy;
+                                let across = rx * uy - ry * ux;
+                                across.abs() <= distance
+                                    && along.abs() <= 0.5 * SAMPLE_STEP_PX + 0.5
+                                    && orientation_difference(o, orientation) < angle
+                            })
                         })
                     });
                     if hit {

@@ -130,6 +130,26 @@ fn edge_orientation(feature: &Feature) -> f64 {
     wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2)
 }
 
+/// `x.round() as i64` (halves away from zero), without a call into libm
+/// where the fraction is exact (|x| < 2⁵²): truncate, then step by the fraction.
+#[inline]
+fn round_to_i64(x: f64) -> i64 {
+    const EXACT_FRACTION: f64 = 4_503_599_627_370_496.0;
+    if x.abs() < EXACT_FRACTION {
+        let truncated = x as i64;
+        let fraction = x - truncated as f64;
+        if fraction >= 0.5 {
+            truncated + 1
+        } else if fraction <= -0.5 {
+            truncated - 1
+        } else {
+            truncated
+        }
+    } else {
+        x.round() as i64
+    }
+}
+
 /// Whether an edge pixel is one of the binary edge image's (§2.3): at least
 /// the threshold, with a defined direction.
 #[must_use]
@@ -257,12 +277,12 @@ impl BlueTracker {
                 if a.abs() >= b.abs() {
                     for iy in -r..=r {
                         let sx = (d - b * step * iy as f64) / a;
-                        vote((sx / step).round() as i64, iy);
+                        vote(round_to_i64(sx / step), iy);
                     }
                 } else {
                     for ix in -r..=r {
                         let sy = (d - a * step * ix as f64) / b;
-                        vote(ix, (sy / step).round() as i64);
+                        vote(ix, round_to_i64(sy / step));
                     }
                 }
             }
@@ -778,6 +798,19 @@ mod tests {
                 && (location.cy - other.cy).abs() < 1e-4
                 && (location.cz - other.cz).abs() < 1e-6;
             assert!(close, "estimate {location:?}, expected {other:?}");
+        }
+    }
+
+    /// The rounding short cut agrees with `f64::round` at halves, just
+    /// below them, at the exact-fraction bound and beyond.
+    #[test]
+    fn round_to_i64_is_round_as_i64() {
+        let below = |x: f64| f64::from_bits(x.to_bits() - 1);
+        let mut values = vec![0.0, -0.0, 0.5, -0.5, below(0.5), -below(0.5), 2.5, -2.5, 1e15 + 0.5, -1e15 - 0.5];
+        values.extend([4_503_599_627_370_496.0, below(4_503_599_627_370_496.0), 1e19, -1e19, f64::NAN]);
+        values.extend((-3000..=3000).map(|k| f64::from(k) * 0.25 + f64::from(k % 7) * 1e-13));
+        for x in values {
+            assert_eq!(round_to_i64(x), x.round() as i64, "x = {x:e}");
         }
     }
 
