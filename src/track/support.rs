@@ -14,11 +14,14 @@
 
 use crate::early::Feature;
 use crate::estimate::line_fit::orientation_difference;
+use crate::track::round_to_i64;
 
 /// Distance between contour samples, px.
 pub const SAMPLE_STEP_PX: f64 = 1.0;
 /// Samples closer than this to a segment's end points are not taken, px.
 pub const END_MARGIN_PX: f64 = 2.0;
+/// Slack of the box of cells searched around a sample, px.
+const BOX_MARGIN_PX: f64 = 1e-6;
 
 /// Edge pixels indexed by position: the strongest pixel's edge orientation
 /// per cell (NaN where there is none).
@@ -94,6 +97,11 @@ impl EdgeMap {
         angle: f64,
     ) -> Vec<(usize, usize)> {
         let reach = distance.ceil() as i64 + 1;
+        // Cells around a sample, nearest first: a supported sample usually
+        // finds its edge pixel among the first few.
+        let mut cells: Vec<(i64, i64)> = (-reach..=reach).flat_map(|j| (-reach..=reach).map(move |i| (i, j))).collect();
+        cells.sort_by_key(|&(i, j)| i * i + j * j);
+        let half_along = 0.5 * SAMPLE_STEP_PX + 0.5;
         segments
             .iter()
             .map(|&(p, q)| {
@@ -105,24 +113,29 @@ impl EdgeMap {
                 }
                 let (ux, uy) = (dx / length, dy / length);
                 let orientation = dy.atan2(dx).rem_euclid(std::f64::consts::PI);
+                // A pixel within `distance` across and `half_along` along lies
+                // at most this far from the rounded sample in x and in y (half
+                // a pixel of rounding, and a margin far above float error).
+                let box_x = (half_along * ux.abs() + distance * uy.abs() + 0.5 + BOX_MARGIN_PX).floor() as i64;
+                let box_y = (half_along * uy.abs() + distance * ux.abs() + 0.5 + BOX_MARGIN_PX).floor() as i64;
                 let mut s = END_MARGIN_PX;
                 while s <= length - END_MARGIN_PX {
                     samples += 1;
                     let c = [p[0] + s * ux, p[1] + s * uy];
-                    let (cx, cy) = (c[0].round() as i64, c[1].round() as i64);
-                    let hit = (-reach..=reach).any(|j| {
-                        (-reach..=reach).any(|i| {
-                            let (x, y) = (cx + i, cy + j);
-                            // Most cells hold no edge pixel: look first, measure after.
-                            self.at(x, y).is_some_and(|o| {
+                    let (cx, cy) = (round_to_i64(c[0]), round_to_i64(c[1]));
+                    let hit = cells.iter().any(|&(i, j)| {
+                        let (x, y) = (cx + i, cy + j);
+                        // Most cells hold no edge pixel: look first, measure after.
+                        i.abs() <= box_x
+                            && j.abs() <= box_y
+                            && self.at(x, y).is_some_and(|o| {
                                 let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
                                 let along = rx * ux + ry * uy;
                                 let across = rx * uy - ry * ux;
                                 across.abs() <= distance
-                                    && along.abs() <= 0.5 * SAMPLE_STEP_PX + 0.5
+                                    && along.abs() <= half_along
                                     && orientation_difference(o, orientation) < angle
                             })
-                        })
                     });
                     if hit {
                         supported += 1;

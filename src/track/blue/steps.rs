@@ -23,9 +23,15 @@ use crate::Result;
 use crate::early::Feature;
 use crate::estimate::line_fit::{Line, LineSums, fit_x_on_y, fit_y_on_x, orientation_difference, wrap_orientation};
 use crate::estimate::{BlueProblem, BlueSolution, Corner, LineLocation, PolynomialSrif, intersect_lines};
+use crate::track::round_to_i64;
 
 /// Prior standard deviation of the init location at the start, px.
 const INIT_PRIOR_PX: f64 = 2.0;
+/// The mantissa bits of an f64: zero for a power of two.
+const F64_MANTISSA: u64 = (1 << 52) - 1;
+/// Slack, far above float error, of the foot positions a grid of shifts
+/// can reach along a segment, px.
+const SPREAD_SLACK_PX: f64 = 1e-6;
 /// Slack of the corner gate beyond d/sin(angle), px.
 const CORNER_GATE_SLACK_PX: f64 = 2.0;
 
@@ -130,26 +136,6 @@ fn edge_orientation(feature: &Feature) -> f64 {
     wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2)
 }
 
-/// `x.round() as i64` (halves away from zero), without a call into libm
-/// where the fraction is exact (|x| < 2⁵²): truncate, then step by the fraction.
-#[inline]
-fn round_to_i64(x: f64) -> i64 {
-    const EXACT_FRACTION: f64 = 4_503_599_627_370_496.0;
-    if x.abs() < EXACT_FRACTION {
-        let truncated = x as i64;
-        let fraction = x - truncated as f64;
-        if fraction >= 0.5 {
-            truncated + 1
-        } else if fraction <= -0.5 {
-            truncated - 1
-        } else {
-            truncated
-        }
-    } else {
-        x.round() as i64
-    }
-}
-
 /// Whether an edge pixel is one of the binary edge image's (§2.3): at least
 /// the threshold, with a defined direction.
 #[must_use]
@@ -245,6 +231,12 @@ impl BlueTracker {
         let r = (radius / step).ceil() as i64;
         let n = (2 * r + 1) as usize;
         let mut votes = vec![0u32; n * n];
+        // Shift in px to grid cells: x / step, as a product where that is
+        // exact (a power-of-two step, such as 1).
+        let inverse = 1.0 / step;
+        let exact_inverse = inverse * step == 1.0 && inverse.to_bits() & F64_MANTISSA == 0;
+        let to_cells = |shift: f64| round_to_i64(if exact_inverse { shift * inverse } else { shift / step });
+        let reach = radius * std::f64::consts::SQRT_2 + step;
         // A coarse grid needs fewer voters: every `step`-th edge pixel.
         for feature in edges.iter().step_by(step.max(1.0) as usize) {
             if !is_edge(p, feature) {
@@ -257,32 +249,39 @@ impl BlueTracker {
                     continue;
                 }
                 let d = line.line.signed_distance(point);
-                if d.abs() > radius * std::f64::consts::SQRT_2 + step {
+                if d.abs() > reach {
                     continue;
                 }
                 let s = line.along(point);
                 let (a, b) = (line.line.a, line.line.b);
                 let [ux, uy] = line.direction;
+                let (first, last) = (p.end_margin, line.length - p.end_margin);
+                // No shift of the grid brings the foot inside the segment:
+                // |u·(i_x, i_y)| ≤ r·(|u_x| + |u_y|).
+                let spread = step * r as f64 * (ux.abs() + uy.abs()) + SPREAD_SLACK_PX;
+                if s + spread < first || s - spread > last {
+                    continue;
+                }
                 let mut vote = |ix: i64, iy: i64| {
                     if ix.abs() > r || iy.abs() > r {
                         return;
                     }
                     // The foot of the pixel on the shifted segment.
                     let along = s - step * (ux * ix as f64 + uy * iy as f64);
-                    if along >= p.end_margin && along <= line.length - p.end_margin {
+                    if along >= first && along <= last {
                         votes[(iy + r) as usize * n + (ix + r) as usize] += 1;
                     }
                 };
                 // Shifted line: a·(x − s_x) + b·(y − s_y) + c = 0 ⇔ a·s_x + b·s_y = d.
                 if a.abs() >= b.abs() {
+                    let b_step = b * step;
                     for iy in -r..=r {
-                        let sx = (d - b * step * iy as f64) / a;
-                        vote(round_to_i64(sx / step), iy);
+                        vote(to_cells((d - b_step * iy as f64) / a), iy);
                     }
                 } else {
+                    let a_step = a * step;
                     for ix in -r..=r {
-                        let sy = (d - a * step * ix as f64) / b;
-                        vote(ix, round_to_i64(sy / step));
+                        vote(ix, to_cells((d - a_step * ix as f64) / b));
                     }
                 }
             }
@@ -341,6 +340,10 @@ pub(super) fn associate_edge_pixels(
         lines.iter().map(|l| l.map_or_else(LineSums::new, |l| LineSums::with_origin(l.start))).collect();
     let mut labelled = vec![Vec::new(); lines.len()];
     let mut unexplained = 0;
+    // The visible lines in model edge order, with the last foot position
+    // inside each segment.
+    let visible: Vec<(usize, &PredictedLine, f64)> =
+        lines.iter().enumerate().filter_map(|(k, l)| l.as_ref().map(|l| (k, l, l.length - p.end_margin))).collect();
     for feature in edges {
         if !is_edge(p, feature) {
             continue;
@@ -349,17 +352,17 @@ pub(super) fn associate_edge_pixels(
         let orientation = edge_orientation(feature);
         let mut best: Option<(usize, f64)> = None;
         let mut compatible = false;
-        for (k, line) in lines.iter().enumerate() {
-            let Some(line) = line else { continue };
+        for &(k, line, last) in &visible {
             if orientation_difference(orientation, line.orientation) >= p.angle_tolerance {
                 continue;
             }
             compatible = true;
             let d = line.line.distance(point);
-            let s = line.along(point);
-            if d < distance && s >= p.end_margin && s <= line.length - p.end_margin && best.is_none_or(|(_, bd)| d < bd)
-            {
-                best = Some((k, d));
+            if d < distance && best.is_none_or(|(_, bd)| d < bd) {
+                let s = line.along(point);
+                if s >= p.end_margin && s <= last {
+                    best = Some((k, d));
+                }
             }
         }
         match best {
@@ -798,19 +801,6 @@ mod tests {
                 && (location.cy - other.cy).abs() < 1e-4
                 && (location.cz - other.cz).abs() < 1e-6;
             assert!(close, "estimate {location:?}, expected {other:?}");
-        }
-    }
-
-    /// The rounding short cut agrees with `f64::round` at halves, just
-    /// below them, at the exact-fraction bound and beyond.
-    #[test]
-    fn round_to_i64_is_round_as_i64() {
-        let below = |x: f64| f64::from_bits(x.to_bits() - 1);
-        let mut values = vec![0.0, -0.0, 0.5, -0.5, below(0.5), -below(0.5), 2.5, -2.5, 1e15 + 0.5, -1e15 - 0.5];
-        values.extend([4_503_599_627_370_496.0, below(4_503_599_627_370_496.0), 1e19, -1e19, f64::NAN]);
-        values.extend((-3000..=3000).map(|k| f64::from(k) * 0.25 + f64::from(k % 7) * 1e-13));
-        for x in values {
-            assert_eq!(round_to_i64(x), x.round() as i64, "x = {x:e}");
         }
     }
 
