@@ -136,6 +136,53 @@ fn edge_orientation(feature: &Feature) -> f64 {
     wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2)
 }
 
+/// Orientation buckets over [0, π) of [`LinesByOrientation`].
+const ORIENTATION_BUCKETS: usize = 90;
+/// Slack of a bucket's reach beyond the angle tolerance, far above float error, rad.
+const BUCKET_SLACK_RAD: f64 = 1e-9;
+
+/// Lines indexed by orientation: for an edge orientation, the lines whose
+/// orientation may be within the angle tolerance of it (a superset, in the
+/// lines' order), so that a pixel tests only those instead of every line.
+struct LinesByOrientation {
+    /// Bucket j's lines are `lines[starts[j]..starts[j + 1]]`.
+    starts: Vec<usize>,
+    lines: Vec<usize>,
+}
+
+impl LinesByOrientation {
+    /// Index `orientations` (line index, orientation mod π) for `tolerance`:
+    /// bucket j, centred on (j + ½)·w with w = π / [`ORIENTATION_BUCKETS`],
+    /// holds every line within `tolerance` + w/2 of its centre, so that an
+    /// orientation in the bucket within `tolerance` of a line finds it there.
+    /// A line with no finite orientation is in every bucket.
+    fn new(orientations: &[(usize, f64)], tolerance: f64) -> Self {
+        let width = std::f64::consts::PI / ORIENTATION_BUCKETS as f64;
+        let reach = tolerance + 0.5 * width + BUCKET_SLACK_RAD;
+        let mut starts = Vec::with_capacity(ORIENTATION_BUCKETS + 1);
+        let mut lines = Vec::new();
+        for j in 0..ORIENTATION_BUCKETS {
+            starts.push(lines.len());
+            let centre = (j as f64 + 0.5) * width;
+            lines.extend(
+                orientations
+                    .iter()
+                    .filter(|&&(_, o)| !o.is_finite() || orientation_difference(o, centre) < reach)
+                    .map(|&(k, _)| k),
+            );
+        }
+        starts.push(lines.len());
+        Self { starts, lines }
+    }
+
+    /// The lines that may be within the tolerance of `orientation` (in [0, π)).
+    fn near(&self, orientation: f64) -> &[usize] {
+        let width = std::f64::consts::PI / ORIENTATION_BUCKETS as f64;
+        let j = ((orientation / width) as usize).min(ORIENTATION_BUCKETS - 1);
+        &self.lines[self.starts[j]..self.starts[j + 1]]
+    }
+}
+
 /// Whether an edge pixel is one of the binary edge image's (§2.3): at least
 /// the threshold, with a defined direction.
 #[must_use]
@@ -237,6 +284,8 @@ impl BlueTracker {
         let exact_inverse = inverse * step == 1.0 && inverse.to_bits() & F64_MANTISSA == 0;
         let to_cells = |shift: f64| round_to_i64(if exact_inverse { shift * inverse } else { shift / step });
         let reach = radius * std::f64::consts::SQRT_2 + step;
+        let orientations: Vec<(usize, f64)> = lines.iter().map(|l| l.orientation).enumerate().collect();
+        let by_orientation = LinesByOrientation::new(&orientations, p.angle_tolerance);
         // A coarse grid needs fewer voters: every `step`-th edge pixel.
         for feature in edges.iter().step_by(step.max(1.0) as usize) {
             if !is_edge(p, feature) {
@@ -244,7 +293,7 @@ impl BlueTracker {
             }
             let point = [f64::from(feature.x), f64::from(feature.y)];
             let orientation = edge_orientation(feature);
-            for line in &lines {
+            for line in by_orientation.near(orientation).iter().map(|&i| &lines[i]) {
                 if orientation_difference(orientation, line.orientation) >= p.angle_tolerance {
                     continue;
                 }
@@ -344,6 +393,8 @@ pub(super) fn associate_edge_pixels(
     // inside each segment.
     let visible: Vec<(usize, &PredictedLine, f64)> =
         lines.iter().enumerate().filter_map(|(k, l)| l.as_ref().map(|l| (k, l, l.length - p.end_margin))).collect();
+    let orientations: Vec<(usize, f64)> = visible.iter().enumerate().map(|(i, (_, l, _))| (i, l.orientation)).collect();
+    let by_orientation = LinesByOrientation::new(&orientations, p.angle_tolerance);
     for feature in edges {
         if !is_edge(p, feature) {
             continue;
@@ -352,7 +403,8 @@ pub(super) fn associate_edge_pixels(
         let orientation = edge_orientation(feature);
         let mut best: Option<(usize, f64)> = None;
         let mut compatible = false;
-        for &(k, line, last) in &visible {
+        for &i in by_orientation.near(orientation) {
+            let (k, line, last) = visible[i];
             if orientation_difference(orientation, line.orientation) >= p.angle_tolerance {
                 continue;
             }
