@@ -311,26 +311,27 @@ impl BlueTracker {
                 if s + spread < first || s - spread > last {
                     continue;
                 }
-                let mut vote = |ix: i64, iy: i64| {
-                    if ix.abs() > r || iy.abs() > r {
-                        return;
-                    }
-                    // The foot of the pixel on the shifted segment.
+                // The foot of the pixel on the segment shifted by cell (i_x, i_y).
+                let foot_inside = |ix: i64, iy: i64| {
                     let along = s - step * (ux * ix as f64 + uy * iy as f64);
-                    if along >= first && along <= last {
-                        votes[(iy + r) as usize * n + (ix + r) as usize] += 1;
-                    }
+                    along >= first && along <= last
                 };
                 // Shifted line: a·(x − s_x) + b·(y − s_y) + c = 0 ⇔ a·s_x + b·s_y = d.
                 if a.abs() >= b.abs() {
                     let b_step = b * step;
-                    for iy in -r..=r {
-                        vote(to_cells((d - b_step * iy as f64) / a), iy);
+                    for (iy, row) in (-r..=r).zip(votes.chunks_exact_mut(n)) {
+                        let ix = to_cells((d - b_step * iy as f64) / a);
+                        if ix.abs() <= r && foot_inside(ix, iy) {
+                            row[(ix + r) as usize] += 1;
+                        }
                     }
                 } else {
                     let a_step = a * step;
                     for ix in -r..=r {
-                        vote(ix, to_cells((d - a_step * ix as f64) / b));
+                        let iy = to_cells((d - a_step * ix as f64) / b);
+                        if iy.abs() <= r && foot_inside(ix, iy) {
+                            votes[(iy + r) as usize * n + (ix + r) as usize] += 1;
+                        }
                     }
                 }
             }
@@ -350,11 +351,19 @@ impl BlueTracker {
         // Cells by summed votes, highest first; ties go to the smaller shift
         // (the prediction is a prior).
         let cell = |i: usize| (i as i64 % n as i64 - r, i as i64 / n as i64 - r);
-        let mut order: Vec<usize> = (0..n * n).filter(|&i| summed[i] > 0).collect();
-        order.sort_by_key(|&i| {
+        let rank = |&i: &usize| {
             let (ix, iy) = cell(i);
             (std::cmp::Reverse(summed[i]), ix * ix + iy * iy)
-        });
+        };
+        let voted = (0..n * n).filter(|&i| summed[i] > 0);
+        let order: Vec<usize> = if count == 1 {
+            // The first cell of the stable order below.
+            voted.min_by_key(rank).into_iter().collect()
+        } else {
+            let mut order: Vec<usize> = voted.collect();
+            order.sort_by_key(rank);
+            order
+        };
         let mut peaks: Vec<(u32, i64, i64)> = Vec::with_capacity(count);
         for i in order {
             if peaks.len() == count {
