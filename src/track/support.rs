@@ -102,6 +102,7 @@ impl EdgeMap {
         let mut cells: Vec<(i64, i64)> = (-reach..=reach).flat_map(|j| (-reach..=reach).map(move |i| (i, j))).collect();
         cells.sort_by_key(|&(i, j)| i * i + j * j);
         let half_along = 0.5 * SAMPLE_STEP_PX + 0.5;
+        let mut near = Vec::with_capacity(cells.len());
         segments
             .iter()
             .map(|&(p, q)| {
@@ -118,24 +119,24 @@ impl EdgeMap {
                 // a pixel of rounding, and a margin far above float error).
                 let box_x = (half_along * ux.abs() + distance * uy.abs() + 0.5 + BOX_MARGIN_PX).floor() as i64;
                 let box_y = (half_along * uy.abs() + distance * ux.abs() + 0.5 + BOX_MARGIN_PX).floor() as i64;
+                near.clear();
+                near.extend(cells.iter().filter(|&&(i, j)| i.abs() <= box_x && j.abs() <= box_y));
                 let mut s = END_MARGIN_PX;
                 while s <= length - END_MARGIN_PX {
                     samples += 1;
                     let c = [p[0] + s * ux, p[1] + s * uy];
                     let (cx, cy) = (round_to_i64(c[0]), round_to_i64(c[1]));
-                    let hit = cells.iter().any(|&(i, j)| {
+                    let hit = near.iter().any(|&(i, j)| {
                         let (x, y) = (cx + i, cy + j);
                         // Most cells hold no edge pixel: look first, measure after.
-                        i.abs() <= box_x
-                            && j.abs() <= box_y
-                            && self.at(x, y).is_some_and(|o| {
-                                let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
-                                let along = rx * ux + ry * uy;
-                                let across = rx * uy - ry * ux;
-                                across.abs() <= distance
-                                    && along.abs() <= half_along
-                                    && orientation_difference(o, orientation) < angle
-                            })
+                        self.at(x, y).is_some_and(|o| {
+                            let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
+                            let along = rx * ux + ry * uy;
+                            let across = rx * uy - ry * ux;
+                            across.abs() <= distance
+                                && along.abs() <= half_along
+                                && orientation_difference(o, orientation) < angle
+                        })
                     });
                     if hit {
                         supported += 1;

@@ -865,6 +865,29 @@ mod tests {
         }
     }
 
+    /// Every line within the tolerance of an orientation is among the
+    /// bucket's lines, in line order, also across the wrap at 0 and π.
+    #[test]
+    fn orientation_buckets_hold_every_compatible_line_in_order() {
+        use std::f64::consts::PI;
+        let mut orientations: Vec<(usize, f64)> =
+            (0..40).map(|k| (k, (f64::from(k as u32) * 0.7853).rem_euclid(PI))).collect();
+        orientations.extend([(40, 0.0), (41, PI - 1e-12), (42, 1e-12), (43, f64::NAN), (44, 0.5 * PI)]);
+        for tolerance in [1e-3, 0.05, 10f64.to_radians(), 1.0, 2.0] {
+            let index = LinesByOrientation::new(&orientations, tolerance);
+            for step in 0..=4000 {
+                let o = wrap_orientation(f64::from(step) * PI / 4000.0 - 1e-13);
+                let near = index.near(o);
+                assert!(near.windows(2).all(|w| w[0] < w[1]), "lines in order");
+                for &(k, line) in &orientations {
+                    if !(orientation_difference(o, line) >= tolerance) {
+                        assert!(near.contains(&k), "line {k} at {line} missing for {o} (tolerance {tolerance})");
+                    }
+                }
+            }
+        }
+    }
+
     /// Eq. 9 reports which corners its blocks are: a corner with a NaN
     /// position gets no block.
     #[test]
