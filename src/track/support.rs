@@ -80,6 +80,15 @@ impl EdgeMap {
         o.is_finite().then_some(f64::from(o))
     }
 
+    /// Index of pixel (x, y) in the map when every pixel within `box_x` of
+    /// it in x and `box_y` in y is inside the map.
+    fn index_of_box(&self, x: i64, y: i64, box_x: i64, box_y: i64) -> Option<i64> {
+        let (cx, cy) = (x - self.x0, y - self.y0);
+        let inside =
+            cx - box_x >= 0 && cy - box_y >= 0 && cx + box_x < self.width as i64 && cy + box_y < self.height as i64;
+        inside.then_some(cy * self.width as i64 + cx)
+    }
+
     /// Support of the segments `segments` (module doc): `(supported, samples)`.
     #[must_use]
     pub fn support(&self, segments: &[([f64; 2], [f64; 2])], distance: f64, angle: f64) -> (usize, usize) {
@@ -103,6 +112,7 @@ impl EdgeMap {
         cells.sort_by_key(|&(i, j)| i * i + j * j);
         let half_along = 0.5 * SAMPLE_STEP_PX + 0.5;
         let mut near = Vec::with_capacity(cells.len());
+        let mut near_offsets = Vec::with_capacity(cells.len());
         segments
             .iter()
             .map(|&(p, q)| {
@@ -121,23 +131,29 @@ impl EdgeMap {
                 let box_y = (half_along * uy.abs() + distance * ux.abs() + 0.5 + BOX_MARGIN_PX).floor() as i64;
                 near.clear();
                 near.extend(cells.iter().filter(|&&(i, j)| i.abs() <= box_x && j.abs() <= box_y));
+                near_offsets.clear();
+                near_offsets.extend(near.iter().map(|&(i, j)| j * self.width as i64 + i));
                 let mut s = END_MARGIN_PX;
                 while s <= length - END_MARGIN_PX {
                     samples += 1;
                     let c = [p[0] + s * ux, p[1] + s * uy];
                     let (cx, cy) = (round_to_i64(c[0]), round_to_i64(c[1]));
-                    let hit = near.iter().any(|&(i, j)| {
-                        let (x, y) = (cx + i, cy + j);
-                        // Most cells hold no edge pixel: look first, measure after.
-                        self.at(x, y).is_some_and(|o| {
-                            let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
-                            let along = rx * ux + ry * uy;
-                            let across = rx * uy - ry * ux;
-                            across.abs() <= distance
-                                && along.abs() <= half_along
-                                && orientation_difference(o, orientation) < angle
-                        })
-                    });
+                    let supports = |(i, j): (i64, i64), o: f64| {
+                        let (rx, ry) = ((cx + i) as f64 - c[0], (cy + j) as f64 - c[1]);
+                        let along = rx * ux + ry * uy;
+                        let across = rx * uy - ry * ux;
+                        across.abs() <= distance
+                            && along.abs() <= half_along
+                            && orientation_difference(o, orientation) < angle
+                    };
+                    // Most cells hold no edge pixel: look first, measure after.
+                    let hit = match self.index_of_box(cx, cy, box_x, box_y) {
+                        Some(centre) => near.iter().zip(&near_offsets).any(|(&cell, &offset)| {
+                            let o = self.orientation[(centre + offset) as usize];
+                            o.is_finite() && supports(cell, f64::from(o))
+                        }),
+                        None => near.iter().any(|&(i, j)| self.at(cx + i, cy + j).is_some_and(|o| supports((i, j), o))),
+                    };
                     if hit {
                         supported += 1;
                     }
