@@ -8,12 +8,14 @@ use pipetrack::cli::tracker_bench::time_trackers;
 const PASSES: usize = 15;
 
 fn main() -> pipetrack::Result<()> {
-    // `cargo bench -- <filter>` passes extra arguments; this bench takes none.
+    // `cargo bench --bench trackers -- blue` times only the trackers named;
+    // cargo adds flags of its own (`--bench`).
+    let names: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with('-')).collect();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .map_err(|e| pipetrack::Error::Parameter(format!("cannot build a one-thread pool: {e}")))?;
-    let timings = pool.install(|| time_trackers(PASSES))?;
+    let timings = pool.install(|| time_trackers(&names, PASSES))?;
     println!(
         "{:<12} {:<11} {:>8} {:>7} {:>8} {:>10} {:>9} {:>8}",
         "tracker", "scene", "size", "frames", "tracked", "median ms", "mean ms", "max ms"

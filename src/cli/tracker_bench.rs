@@ -5,7 +5,7 @@
 //! the replay asks for the same features frame by frame (checked: a request
 //! that differs from the recorded one is an error).
 //!
-//! `cargo bench --bench trackers` prints the table.
+//! `cargo bench --bench trackers` prints the table (`-- blue` for one tracker).
 
 use std::time::Instant;
 
@@ -121,10 +121,12 @@ pub fn time_replay(
     })
 }
 
-/// Time every tracker of [`CASES`] on its scene at the scene's defaults.
-pub fn time_trackers(passes: usize) -> Result<Vec<TrackerTiming>> {
+/// Time the trackers of [`CASES`] named in `names` (all when it is empty)
+/// on their scenes at the scenes' defaults.
+pub fn time_trackers(names: &[String], passes: usize) -> Result<Vec<TrackerTiming>> {
     CASES
         .iter()
+        .filter(|(tracker, _)| names.is_empty() || names.iter().any(|n| n == tracker))
         .map(|&(tracker, scene)| {
             let seq = render_scene(scene, None, 0, &[])?;
             let recorded = record_features(tracker, &seq)?;

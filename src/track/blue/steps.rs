@@ -871,7 +871,7 @@ mod tests {
     fn orientation_buckets_hold_every_compatible_line_in_order() {
         use std::f64::consts::PI;
         let mut orientations: Vec<(usize, f64)> =
-            (0..40).map(|k| (k, (f64::from(k as u32) * 0.7853).rem_euclid(PI))).collect();
+            (0..40).map(|k| (k, (f64::from(k as u32) * 0.611).rem_euclid(PI))).collect();
         orientations.extend([(40, 0.0), (41, PI - 1e-12), (42, 1e-12), (43, f64::NAN), (44, 0.5 * PI)]);
         for tolerance in [1e-3, 0.05, 10f64.to_radians(), 1.0, 2.0] {
             let index = LinesByOrientation::new(&orientations, tolerance);
