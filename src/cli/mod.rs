@@ -8,3 +8,4 @@ pub mod demo;
 pub mod plot;
 pub mod reproduce;
 pub mod score;
+pub mod tracker_bench;

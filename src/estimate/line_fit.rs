@@ -110,7 +110,7 @@ const PARALLEL_SINE: f64 = 1e-9;
 /// An angle wrapped into [0, π): the undirected orientation of a line.
 #[must_use]
 pub fn wrap_orientation(theta: f64) -> f64 {
-    let t = theta.rem_euclid(std::f64::consts::PI);
+    let t = rem_pi(theta);
     // rem_euclid can return π itself for tiny negative inputs.
     if t >= std::f64::consts::PI { 0.0 } else { t }
 }
@@ -119,8 +119,25 @@ pub fn wrap_orientation(theta: f64) -> f64 {
 /// orientations modulo π, as 000 eq. 3 must (θ and θ + π are the same line).
 #[must_use]
 pub fn orientation_difference(a: f64, b: f64) -> f64 {
-    let d = (a - b).rem_euclid(std::f64::consts::PI);
+    let d = rem_pi(a - b);
     d.min(std::f64::consts::PI - d)
+}
+
+/// `x.rem_euclid(π)`, bit for bit, without the division for −π < x < 2π
+/// (the difference of two orientations, an edge direction turned by π/2):
+/// for |x| < π the remainder is `x` itself, and `rem_euclid` adds π to a
+/// negative one; for π ≤ x < 2π it is x − π, which is exact there
+/// (Sterbenz).
+#[inline]
+fn rem_pi(x: f64) -> f64 {
+    use std::f64::consts::PI;
+    if x.abs() < PI {
+        if x < 0.0 { x + PI } else { x }
+    } else if (PI..2.0 * PI).contains(&x) {
+        x - PI
+    } else {
+        x.rem_euclid(PI)
+    }
 }
 
 /// Weighted sums of points for a least-squares line fit, relative to an
@@ -496,6 +513,22 @@ const SPREAD_EPSILON: f64 = 1e-12;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The remainder's short cut gives `rem_euclid`'s bits, at and around
+    /// its bounds and the values where `rem_euclid` rounds (tiny negatives).
+    #[test]
+    fn rem_pi_is_rem_euclid_bit_for_bit() {
+        use std::f64::consts::PI;
+        let below = |x: f64| f64::from_bits(x.to_bits() - 1);
+        let mut values = vec![0.0, -0.0, 1e-300, -1e-300, -1e-17, 1e-17, PI, -PI, below(PI), -below(PI), 7.5, -7.5];
+        values.extend([2.0 * PI, -2.0 * PI, below(2.0 * PI), -below(2.0 * PI), 1.5 * PI, PI + 1e-15]);
+        values.extend([1e20, -1e20, f64::NAN, f64::INFINITY, f64::NEG_INFINITY]);
+        values.extend((0..=1000).map(|k| PI + f64::from(k) * PI / 1000.0));
+        values.extend((-400..=400).map(|k| f64::from(k) * 0.01 + 1e-9));
+        for x in values {
+            assert_eq!(rem_pi(x).to_bits(), x.rem_euclid(PI).to_bits(), "x = {x:e}");
+        }
+    }
 
     fn sums_of(points: &[[f64; 2]]) -> LineSums {
         let mut s = LineSums::new();

@@ -66,6 +66,26 @@ pub(crate) fn hold_finite_corners(corners: &mut [[f64; 2]], last: &mut [[f64; 2]
     first
 }
 
+/// `x.round() as i64` (halves away from zero), without a call into libm
+/// where the fraction is exact (|x| < 2⁵²): truncate, then step by the fraction.
+#[inline]
+pub(crate) fn round_to_i64(x: f64) -> i64 {
+    const EXACT_FRACTION: f64 = 4_503_599_627_370_496.0;
+    if x.abs() < EXACT_FRACTION {
+        let truncated = x as i64;
+        let fraction = x - truncated as f64;
+        if fraction >= 0.5 {
+            truncated + 1
+        } else if fraction <= -0.5 {
+            truncated - 1
+        } else {
+            truncated
+        }
+    } else {
+        x.round() as i64
+    }
+}
+
 /// `reason` appended to a frame's lost reason, if it has one.
 pub(crate) fn add_lost_reason(lost_reason: Option<String>, reason: String) -> String {
     match lost_reason {
@@ -178,4 +198,22 @@ pub trait Tracker {
 
     /// Take the features of frame `frame` and report the frame's outcome.
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rounding short cut agrees with `f64::round` at halves, just
+    /// below them, at the exact-fraction bound and beyond.
+    #[test]
+    fn round_to_i64_is_round_as_i64() {
+        let below = |x: f64| f64::from_bits(x.to_bits() - 1);
+        let mut values = vec![0.0, -0.0, 0.5, -0.5, below(0.5), -below(0.5), 2.5, -2.5, 1e15 + 0.5, -1e15 - 0.5];
+        values.extend([4_503_599_627_370_496.0, below(4_503_599_627_370_496.0), 1e19, -1e19, f64::NAN]);
+        values.extend((-3000..=3000).map(|k| f64::from(k) * 0.25 + f64::from(k % 7) * 1e-13));
+        for x in values {
+            assert_eq!(round_to_i64(x), x.round() as i64, "x = {x:e}");
+        }
+    }
 }

@@ -14,11 +14,14 @@
 
 use crate::early::Feature;
 use crate::estimate::line_fit::orientation_difference;
+use crate::track::round_to_i64;
 
 /// Distance between contour samples, px.
 pub const SAMPLE_STEP_PX: f64 = 1.0;
 /// Samples closer than this to a segment's end points are not taken, px.
 pub const END_MARGIN_PX: f64 = 2.0;
+/// Slack of the box of cells searched around a sample, px.
+const BOX_MARGIN_PX: f64 = 1e-6;
 
 /// Edge pixels indexed by position: the strongest pixel's edge orientation
 /// per cell (NaN where there is none).
@@ -77,6 +80,15 @@ impl EdgeMap {
         o.is_finite().then_some(f64::from(o))
     }
 
+    /// Index of pixel (x, y) in the map when every pixel within `box_x` of
+    /// it in x and `box_y` in y is inside the map.
+    fn index_of_box(&self, x: i64, y: i64, box_x: i64, box_y: i64) -> Option<i64> {
+        let (cx, cy) = (x - self.x0, y - self.y0);
+        let inside =
+            cx - box_x >= 0 && cy - box_y >= 0 && cx + box_x < self.width as i64 && cy + box_y < self.height as i64;
+        inside.then_some(cy * self.width as i64 + cx)
+    }
+
     /// Support of the segments `segments` (module doc): `(supported, samples)`.
     #[must_use]
     pub fn support(&self, segments: &[([f64; 2], [f64; 2])], distance: f64, angle: f64) -> (usize, usize) {
@@ -94,6 +106,13 @@ impl EdgeMap {
         angle: f64,
     ) -> Vec<(usize, usize)> {
         let reach = distance.ceil() as i64 + 1;
+        // Cells around a sample, nearest first: a supported sample usually
+        // finds its edge pixel among the first few.
+        let mut cells: Vec<(i64, i64)> = (-reach..=reach).flat_map(|j| (-reach..=reach).map(move |i| (i, j))).collect();
+        cells.sort_by_key(|&(i, j)| i * i + j * j);
+        let half_along = 0.5 * SAMPLE_STEP_PX + 0.5;
+        let mut near = Vec::with_capacity(cells.len());
+        let mut near_offsets = Vec::with_capacity(cells.len());
         segments
             .iter()
             .map(|&(p, q)| {
@@ -105,22 +124,36 @@ impl EdgeMap {
                 }
                 let (ux, uy) = (dx / length, dy / length);
                 let orientation = dy.atan2(dx).rem_euclid(std::f64::consts::PI);
+                // A pixel within `distance` across and `half_along` along lies
+                // at most this far from the rounded sample in x and in y (half
+                // a pixel of rounding, and a margin far above float error).
+                let box_x = (half_along * ux.abs() + distance * uy.abs() + 0.5 + BOX_MARGIN_PX).floor() as i64;
+                let box_y = (half_along * uy.abs() + distance * ux.abs() + 0.5 + BOX_MARGIN_PX).floor() as i64;
+                near.clear();
+                near.extend(cells.iter().filter(|&&(i, j)| i.abs() <= box_x && j.abs() <= box_y));
+                near_offsets.clear();
+                near_offsets.extend(near.iter().map(|&(i, j)| j * self.width as i64 + i));
                 let mut s = END_MARGIN_PX;
                 while s <= length - END_MARGIN_PX {
                     samples += 1;
                     let c = [p[0] + s * ux, p[1] + s * uy];
-                    let (cx, cy) = (c[0].round() as i64, c[1].round() as i64);
-                    let hit = (-reach..=reach).any(|j| {
-                        (-reach..=reach).any(|i| {
-                            let (x, y) = (cx + i, cy + j);
-                            let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
-                            let along = rx * ux + ry * uy;
-                            let across = rx * uy - ry * ux;
-                            across.abs() <= distance
-                                && along.abs() <= 0.5 * SAMPLE_STEP_PX + 0.5
-                                && self.at(x, y).is_some_and(|o| orientation_difference(o, orientation) < angle)
-                        })
-                    });
+                    let (cx, cy) = (round_to_i64(c[0]), round_to_i64(c[1]));
+                    let supports = |(i, j): (i64, i64), o: f64| {
+                        let (rx, ry) = ((cx + i) as f64 - c[0], (cy + j) as f64 - c[1]);
+                        let along = rx * ux + ry * uy;
+                        let across = rx * uy - ry * ux;
+                        across.abs() <= distance
+                            && along.abs() <= half_along
+                            && orientation_difference(o, orientation) < angle
+                    };
+                    // Most cells hold no edge pixel: look first, measure after.
+                    let hit = match self.index_of_box(cx, cy, box_x, box_y) {
+                        Some(centre) => near.iter().zip(&near_offsets).any(|(&cell, &offset)| {
+                            let o = self.orientation[(centre + offset) as usize];
+                            o.is_finite() && supports(cell, f64::from(o))
+                        }),
+                        None => near.iter().any(|&(i, j)| self.at(cx + i, cy + j).is_some_and(|o| supports((i, j), o))),
+                    };
                     if hit {
                         supported += 1;
                     }

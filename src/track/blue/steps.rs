@@ -23,9 +23,15 @@ use crate::Result;
 use crate::early::Feature;
 use crate::estimate::line_fit::{Line, LineSums, fit_x_on_y, fit_y_on_x, orientation_difference, wrap_orientation};
 use crate::estimate::{BlueProblem, BlueSolution, Corner, LineLocation, PolynomialSrif, intersect_lines};
+use crate::track::round_to_i64;
 
 /// Prior standard deviation of the init location at the start, px.
 const INIT_PRIOR_PX: f64 = 2.0;
+/// The mantissa bits of an f64: zero for a power of two.
+const F64_MANTISSA: u64 = (1 << 52) - 1;
+/// Slack, far above float error, of the foot positions a grid of shifts
+/// can reach along a segment, px.
+const SPREAD_SLACK_PX: f64 = 1e-6;
 /// Slack of the corner gate beyond d/sin(angle), px.
 const CORNER_GATE_SLACK_PX: f64 = 2.0;
 
@@ -130,6 +136,53 @@ fn edge_orientation(feature: &Feature) -> f64 {
     wrap_orientation(f64::from(feature.theta) + std::f64::consts::FRAC_PI_2)
 }
 
+/// Orientation buckets over [0, π) of [`LinesByOrientation`].
+const ORIENTATION_BUCKETS: usize = 90;
+/// Slack of a bucket's reach beyond the angle tolerance, far above float error, rad.
+const BUCKET_SLACK_RAD: f64 = 1e-9;
+
+/// Lines indexed by orientation: for an edge orientation, the lines whose
+/// orientation may be within the angle tolerance of it (a superset, in the
+/// lines' order), so that a pixel tests only those instead of every line.
+struct LinesByOrientation {
+    /// Bucket j's lines are `lines[starts[j]..starts[j + 1]]`.
+    starts: Vec<usize>,
+    lines: Vec<usize>,
+}
+
+impl LinesByOrientation {
+    /// Index `orientations` (line index, orientation mod π) for `tolerance`:
+    /// bucket j, centred on (j + ½)·w with w = π / [`ORIENTATION_BUCKETS`],
+    /// holds every line within `tolerance` + w/2 of its centre, so that an
+    /// orientation in the bucket within `tolerance` of a line finds it there.
+    /// A line with no finite orientation is in every bucket.
+    fn new(orientations: &[(usize, f64)], tolerance: f64) -> Self {
+        let width = std::f64::consts::PI / ORIENTATION_BUCKETS as f64;
+        let reach = tolerance + 0.5 * width + BUCKET_SLACK_RAD;
+        let mut starts = Vec::with_capacity(ORIENTATION_BUCKETS + 1);
+        let mut lines = Vec::new();
+        for j in 0..ORIENTATION_BUCKETS {
+            starts.push(lines.len());
+            let centre = (j as f64 + 0.5) * width;
+            lines.extend(
+                orientations
+                    .iter()
+                    .filter(|&&(_, o)| !o.is_finite() || orientation_difference(o, centre) < reach)
+                    .map(|&(k, _)| k),
+            );
+        }
+        starts.push(lines.len());
+        Self { starts, lines }
+    }
+
+    /// The lines that may be within the tolerance of `orientation` (in [0, π)).
+    fn near(&self, orientation: f64) -> &[usize] {
+        let width = std::f64::consts::PI / ORIENTATION_BUCKETS as f64;
+        let j = ((orientation / width) as usize).min(ORIENTATION_BUCKETS - 1);
+        &self.lines[self.starts[j]..self.starts[j + 1]]
+    }
+}
+
 /// Whether an edge pixel is one of the binary edge image's (§2.3): at least
 /// the threshold, with a defined direction.
 #[must_use]
@@ -225,6 +278,14 @@ impl BlueTracker {
         let r = (radius / step).ceil() as i64;
         let n = (2 * r + 1) as usize;
         let mut votes = vec![0u32; n * n];
+        // Shift in px to grid cells: x / step, as a product where that is
+        // exact (a power-of-two step, such as 1).
+        let inverse = 1.0 / step;
+        let exact_inverse = inverse * step == 1.0 && inverse.to_bits() & F64_MANTISSA == 0;
+        let to_cells = |shift: f64| round_to_i64(if exact_inverse { shift * inverse } else { shift / step });
+        let reach = radius * std::f64::consts::SQRT_2 + step;
+        let orientations: Vec<(usize, f64)> = lines.iter().map(|l| l.orientation).enumerate().collect();
+        let by_orientation = LinesByOrientation::new(&orientations, p.angle_tolerance);
         // A coarse grid needs fewer voters: every `step`-th edge pixel.
         for feature in edges.iter().step_by(step.max(1.0) as usize) {
             if !is_edge(p, feature) {
@@ -232,37 +293,45 @@ impl BlueTracker {
             }
             let point = [f64::from(feature.x), f64::from(feature.y)];
             let orientation = edge_orientation(feature);
-            for line in &lines {
+            for line in by_orientation.near(orientation).iter().map(|&i| &lines[i]) {
                 if orientation_difference(orientation, line.orientation) >= p.angle_tolerance {
                     continue;
                 }
                 let d = line.line.signed_distance(point);
-                if d.abs() > radius * std::f64::consts::SQRT_2 + step {
+                if d.abs() > reach {
                     continue;
                 }
                 let s = line.along(point);
                 let (a, b) = (line.line.a, line.line.b);
                 let [ux, uy] = line.direction;
-                let mut vote = |ix: i64, iy: i64| {
-                    if ix.abs() > r || iy.abs() > r {
-                        return;
-                    }
-                    // The foot of the pixel on the shifted segment.
+                let (first, last) = (p.end_margin, line.length - p.end_margin);
+                // No shift of the grid brings the foot inside the segment:
+                // |u·(i_x, i_y)| ≤ r·(|u_x| + |u_y|).
+                let spread = step * r as f64 * (ux.abs() + uy.abs()) + SPREAD_SLACK_PX;
+                if s + spread < first || s - spread > last {
+                    continue;
+                }
+                // The foot of the pixel on the segment shifted by cell (i_x, i_y).
+                let foot_inside = |ix: i64, iy: i64| {
                     let along = s - step * (ux * ix as f64 + uy * iy as f64);
-                    if along >= p.end_margin && along <= line.length - p.end_margin {
-                        votes[(iy + r) as usize * n + (ix + r) as usize] += 1;
-                    }
+                    along >= first && along <= last
                 };
                 // Shifted line: a·(x − s_x) + b·(y − s_y) + c = 0 ⇔ a·s_x + b·s_y = d.
                 if a.abs() >= b.abs() {
-                    for iy in -r..=r {
-                        let sx = (d - b * step * iy as f64) / a;
-                        vote((sx / step).round() as i64, iy);
+                    let b_step = b * step;
+                    for (iy, row) in (-r..=r).zip(votes.chunks_exact_mut(n)) {
+                        let ix = to_cells((d - b_step * iy as f64) / a);
+                        if ix.abs() <= r && foot_inside(ix, iy) {
+                            row[(ix + r) as usize] += 1;
+                        }
                     }
                 } else {
+                    let a_step = a * step;
                     for ix in -r..=r {
-                        let sy = (d - a * step * ix as f64) / b;
-                        vote(ix, (sy / step).round() as i64);
+                        let iy = to_cells((d - a_step * ix as f64) / b);
+                        if iy.abs() <= r && foot_inside(ix, iy) {
+                            votes[(iy + r) as usize * n + (ix + r) as usize] += 1;
+                        }
                     }
                 }
             }
@@ -282,11 +351,19 @@ impl BlueTracker {
         // Cells by summed votes, highest first; ties go to the smaller shift
         // (the prediction is a prior).
         let cell = |i: usize| (i as i64 % n as i64 - r, i as i64 / n as i64 - r);
-        let mut order: Vec<usize> = (0..n * n).filter(|&i| summed[i] > 0).collect();
-        order.sort_by_key(|&i| {
+        let rank = |&i: &usize| {
             let (ix, iy) = cell(i);
             (std::cmp::Reverse(summed[i]), ix * ix + iy * iy)
-        });
+        };
+        let voted = (0..n * n).filter(|&i| summed[i] > 0);
+        let order: Vec<usize> = if count == 1 {
+            // The first cell of the stable order below.
+            voted.min_by_key(rank).into_iter().collect()
+        } else {
+            let mut order: Vec<usize> = voted.collect();
+            order.sort_by_key(rank);
+            order
+        };
         let mut peaks: Vec<(u32, i64, i64)> = Vec::with_capacity(count);
         for i in order {
             if peaks.len() == count {
@@ -321,6 +398,12 @@ pub(super) fn associate_edge_pixels(
         lines.iter().map(|l| l.map_or_else(LineSums::new, |l| LineSums::with_origin(l.start))).collect();
     let mut labelled = vec![Vec::new(); lines.len()];
     let mut unexplained = 0;
+    // The visible lines in model edge order, with the last foot position
+    // inside each segment.
+    let visible: Vec<(usize, &PredictedLine, f64)> =
+        lines.iter().enumerate().filter_map(|(k, l)| l.as_ref().map(|l| (k, l, l.length - p.end_margin))).collect();
+    let orientations: Vec<(usize, f64)> = visible.iter().enumerate().map(|(i, (_, l, _))| (i, l.orientation)).collect();
+    let by_orientation = LinesByOrientation::new(&orientations, p.angle_tolerance);
     for feature in edges {
         if !is_edge(p, feature) {
             continue;
@@ -329,17 +412,18 @@ pub(super) fn associate_edge_pixels(
         let orientation = edge_orientation(feature);
         let mut best: Option<(usize, f64)> = None;
         let mut compatible = false;
-        for (k, line) in lines.iter().enumerate() {
-            let Some(line) = line else { continue };
+        for &i in by_orientation.near(orientation) {
+            let (k, line, last) = visible[i];
             if orientation_difference(orientation, line.orientation) >= p.angle_tolerance {
                 continue;
             }
             compatible = true;
             let d = line.line.distance(point);
-            let s = line.along(point);
-            if d < distance && s >= p.end_margin && s <= line.length - p.end_margin && best.is_none_or(|(_, bd)| d < bd)
-            {
-                best = Some((k, d));
+            if d < distance && best.is_none_or(|(_, bd)| d < bd) {
+                let s = line.along(point);
+                if s >= p.end_margin && s <= last {
+                    best = Some((k, d));
+                }
             }
         }
         match best {
@@ -778,6 +862,29 @@ mod tests {
                 && (location.cy - other.cy).abs() < 1e-4
                 && (location.cz - other.cz).abs() < 1e-6;
             assert!(close, "estimate {location:?}, expected {other:?}");
+        }
+    }
+
+    /// Every line within the tolerance of an orientation is among the
+    /// bucket's lines, in line order, also across the wrap at 0 and π.
+    #[test]
+    fn orientation_buckets_hold_every_compatible_line_in_order() {
+        use std::f64::consts::PI;
+        let mut orientations: Vec<(usize, f64)> =
+            (0..40).map(|k| (k, (f64::from(k as u32) * 0.611).rem_euclid(PI))).collect();
+        orientations.extend([(40, 0.0), (41, PI - 1e-12), (42, 1e-12), (43, f64::NAN), (44, 0.5 * PI)]);
+        for tolerance in [1e-3, 0.05, 10f64.to_radians(), 1.0, 2.0] {
+            let index = LinesByOrientation::new(&orientations, tolerance);
+            for step in 0..=4000 {
+                let o = wrap_orientation(f64::from(step) * PI / 4000.0 - 1e-13);
+                let near = index.near(o);
+                assert!(near.windows(2).all(|w| w[0] < w[1]), "lines in order");
+                for &(k, line) in &orientations {
+                    if !(orientation_difference(o, line) >= tolerance) {
+                        assert!(near.contains(&k), "line {k} at {line} missing for {o} (tolerance {tolerance})");
+                    }
+                }
+            }
         }
     }
 
