@@ -4,15 +4,16 @@
 //! computing and reading back successive frames overlap.
 
 use super::plan::{EdgelPart, FramePlan, List, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
-use super::{EarlyVision, FrameFeatures, FrameRequest};
+use super::{EarlyVision, FrameFeatures, FrameRequest, WindowRequest};
 use crate::early::compaction::{self, CompactionGpu};
 use crate::early::cpf::{self, CpfGpu};
 use crate::early::edge_pyramid::{self, EdgePyramidGpu};
 use crate::early::sobel::{self, SobelGpu};
+use crate::early::window_energy::{self, WindowEnergyGpu};
 use crate::early::zero_crossing::{self, EdgelsGpu};
 use crate::early::{frame_sum, gaussian, ingest, log, temporal_diff};
 use crate::gpu::{FrameArena, GpuContext, GpuImage, Recorder};
-use crate::image::GrayImage;
+use crate::image::{GrayImage, RgbImage};
 use crate::{Error, Result};
 
 /// Frame slots in the ring: up to `SLOTS` frames may be submitted and not yet
@@ -62,6 +63,7 @@ struct Slot {
     motion_list: Option<CompactionGpu>,
     edge_list: Option<CompactionGpu>,
     crossing_list: Option<CompactionGpu>,
+    windows: Option<WindowEnergyGpu>,
     /// The submitted frame's plan and submission (None when the slot is free).
     pending: Option<(FramePlan, wgpu::SubmissionIndex)>,
 }
@@ -93,12 +95,14 @@ impl Slot {
             motion_list: None,
             edge_list: None,
             crossing_list: None,
+            windows: None,
             pending: None,
         }
     }
 
-    /// Allocate every buffer `plan` uses that the slot does not have yet.
-    fn allocate(&mut self, ctx: &GpuContext, plan: &FramePlan) -> Result<()> {
+    /// Allocate every buffer `plan` uses that the slot does not have yet;
+    /// `window_len` is the floats of one filtered sample window.
+    fn allocate(&mut self, ctx: &GpuContext, plan: &FramePlan, window_len: usize) -> Result<()> {
         let (w, h) = (self.width, self.height);
         for step in plan.steps() {
             match *step {
@@ -124,6 +128,11 @@ impl Slot {
                 }
                 Step::Pyramids { .. } => {
                     self.cpf.get_or_insert_with(|| (CpfGpu::new(ctx, w, h), EdgePyramidGpu::new(ctx, w, h)));
+                }
+                Step::Windows { count, .. } => {
+                    if !self.windows.as_ref().is_some_and(|b| b.fits(w * h, count, window_len)) {
+                        self.windows = Some(WindowEnergyGpu::new(ctx, w * h, count, window_len));
+                    }
                 }
             }
         }
@@ -261,6 +270,18 @@ impl GpuBackend {
     /// Submit a grey frame; the GPU starts on it at once. Collect the result
     /// with [`GpuBackend::finish`]; up to three frames may be in flight.
     pub fn submit(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<Ticket> {
+        self.submit_bytes(frame, None, request)
+    }
+
+    /// Submit a colour frame: the grey stages read its luma
+    /// ([`RgbImage::to_gray`]), the sample windows its colour.
+    pub fn submit_rgb(&mut self, frame: &RgbImage, request: &FrameRequest) -> Result<Ticket> {
+        self.submit_bytes(&frame.to_gray(), Some(frame), request)
+    }
+
+    /// Upload a grey frame (and, when the plan has sample windows, its
+    /// colour, or the grey frame as colour) and submit it.
+    fn submit_bytes(&mut self, frame: &GrayImage, colour: Option<&RgbImage>, request: &FrameRequest) -> Result<Ticket> {
         let (w, h) = frame.size();
         let (slot, plan) = self.prepare_slot(w, h, request)?;
         let s = self.slots[slot].as_ref().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
@@ -268,8 +289,19 @@ impl GpuBackend {
         if !packed.is_empty() {
             self.ctx.queue.write_buffer(&s.packed, 0, bytemuck::cast_slice(&packed));
         }
-        self.stats.bytes_uploaded = (packed.len() * 4) as u64;
-        self.record_and_submit(slot, plan, |rec, s| ingest::encode(rec, &s.packed, &s.luma))
+        let mut uploaded = packed.len() * 4;
+        if let Some(windows) = &s.windows
+            && request.windows.is_some()
+        {
+            let rgb = match colour {
+                Some(c) => window_energy::pack_rgb(c),
+                None => window_energy::pack_rgb(&RgbImage::from_gray(frame)),
+            };
+            windows.write_frame(&self.ctx, &rgb);
+            uploaded += rgb.len() * 4;
+        }
+        self.stats.bytes_uploaded = uploaded as u64;
+        self.record_and_submit(slot, plan, request.windows.as_ref(), |rec, s| ingest::encode(rec, &s.packed, &s.luma))
     }
 
     /// Submit a frame that is already a texture on this backend's device (a
@@ -277,9 +309,14 @@ impl GpuBackend {
     /// `TEXTURE_BINDING` usage; colour is reduced to luma as that module says).
     pub fn submit_texture(&mut self, texture: &wgpu::Texture, request: &FrameRequest) -> Result<Ticket> {
         let (w, h) = (texture.width() as usize, texture.height() as usize);
+        if request.windows.is_some() {
+            return Err(Error::Parameter(
+                "sample windows read a frame's colour bytes: submit the frame as bytes, not as a texture".into(),
+            ));
+        }
         let (slot, plan) = self.prepare_slot(w, h, request)?;
         self.stats.bytes_uploaded = 0;
-        self.record_and_submit(slot, plan, |rec, s| ingest::encode_texture(rec, texture, &s.luma))
+        self.record_and_submit(slot, plan, None, |rec, s| ingest::encode_texture(rec, texture, &s.luma))
     }
 
     /// Process a texture frame and wait for its features.
@@ -327,7 +364,8 @@ impl GpuBackend {
         let previous = self.previous.filter(|&(p, _)| p != slot).map(|(_, kept)| kept);
         let plan = FramePlan::new(request, w, h, previous.as_ref());
         let s = self.slots[slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
-        s.allocate(&self.ctx, &plan)?;
+        let window_len = request.windows.as_ref().map_or(0, |w| w.params().window_len());
+        s.allocate(&self.ctx, &plan, window_len)?;
         Ok((slot, plan))
     }
 
@@ -336,6 +374,7 @@ impl GpuBackend {
         &mut self,
         slot: usize,
         plan: FramePlan,
+        windows: Option<&WindowRequest>,
         ingest: impl FnOnce(&mut Recorder<'_>, &Slot) -> Result<()>,
     ) -> Result<Ticket> {
         let previous_slot = self.previous.map(|(p, _)| p).filter(|&p| p != slot && plan.reads_previous());
@@ -378,6 +417,20 @@ impl GpuBackend {
                     cpf::encode(&mut rec, &s.luma, c)?;
                     edge_pyramid::encode(&mut rec, &g.gx, &g.gy, e)?;
                 }
+                Step::Windows { count, .. } => {
+                    let buffers = opt(&s.windows)?;
+                    let size = (s.width, s.height);
+                    match windows {
+                        _ if count == 0 => {}
+                        Some(WindowRequest::Features { params, windows }) => {
+                            buffers.encode_features(&mut rec, &self.ctx, size, params, windows)?;
+                        }
+                        Some(WindowRequest::Energies { windows, template }) => {
+                            buffers.encode_energies(&mut rec, &self.ctx, size, windows, template)?;
+                        }
+                        None => return Err(Error::Gpu("plan has sample windows the request has not".into())),
+                    }
+                }
             }
         }
         self.stats.dispatches = rec.dispatch_count();
@@ -416,6 +469,23 @@ impl GpuBackend {
                             as u64;
                     out.pyramids = Some((pyr, edges));
                 }
+                Step::Windows { count, params, energies } => {
+                    let buffers = opt(&s.windows)?;
+                    if energies {
+                        let e = if count == 0 {
+                            window_energy::normalise_cpu(&[])
+                        } else {
+                            buffers.read_energies(&self.ctx, count)?
+                        };
+                        bytes += 4 * (count as u64 + 2);
+                        out.window_energies = Some(e);
+                    } else {
+                        let f =
+                            if count == 0 { Vec::new() } else { buffers.read_features(&self.ctx, &params, count)? };
+                        bytes += 4 * (count * params.window_len()) as u64;
+                        out.window_features = Some(f);
+                    }
+                }
                 _ => {}
             }
         }
@@ -446,6 +516,11 @@ impl EarlyVision for GpuBackend {
 
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {
         let t = self.submit(frame, request)?;
+        self.finish(t)
+    }
+
+    fn process_rgb(&mut self, frame: &RgbImage, request: &FrameRequest) -> Result<FrameFeatures> {
+        let t = self.submit_rgb(frame, request)?;
         self.finish(t)
     }
 

@@ -19,7 +19,7 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use crate::image::GrayImage;
+use crate::image::{GrayImage, RgbImage};
 use crate::io::StagedDir;
 use crate::io::formats::{Camera, InitState, Model, TruthFrame};
 use crate::{Error, Result};
@@ -44,8 +44,12 @@ pub struct SyntheticSequence {
     pub init: InitState,
     /// Ground truth, one entry per frame (`truth.jsonl`).
     pub truth: Vec<TruthFrame>,
-    /// The frames, 8-bit grey (`frames/000000.png`, ...).
+    /// The frames, 8-bit grey (`frames/000000.png`, ...); the luma of
+    /// `rgb_frames` for a colour scene.
     pub frames: Vec<GrayImage>,
+    /// The frames in colour, for a colour scene (then written instead of
+    /// `frames`); empty for a grey one.
+    pub rgb_frames: Vec<RgbImage>,
     /// Scene parameters for people reading the folder (`meta.json`, ignored by readers).
     pub meta: serde_json::Value,
 }
@@ -78,6 +82,22 @@ impl SyntheticSequence {
         }
         let truth_path = dir.join("truth.jsonl");
         std::fs::write(&truth_path, truth).map_err(|e| Error::io(&truth_path, e))?;
+        self.rgb_frames.par_iter().enumerate().try_for_each(|(k, frame)| {
+            let path = frames_dir.join(format!("{k:06}.png"));
+            let bytes: Vec<u8> = frame.data().iter().flatten().copied().collect();
+            image::save_buffer_with_format(
+                &path,
+                &bytes,
+                frame.width() as u32,
+                frame.height() as u32,
+                image::ColorType::Rgb8,
+                image::ImageFormat::Png,
+            )
+            .map_err(|e| Error::io(&path, std::io::Error::other(e)))
+        })?;
+        if !self.rgb_frames.is_empty() {
+            return Ok(());
+        }
         self.frames.par_iter().enumerate().try_for_each(|(k, frame)| {
             let path = frames_dir.join(format!("{k:06}.png"));
             image::save_buffer_with_format(

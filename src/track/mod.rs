@@ -21,6 +21,7 @@ pub use run::{
 };
 
 use crate::backend::{FrameFeatures, FrameRequest};
+use crate::early::window_energy::{WindowEnergies, WindowTemplate};
 use crate::early::{Feature, Window};
 use crate::io::formats::{FrameResult, Pose, Status};
 
@@ -34,6 +35,10 @@ pub struct Observations<'a> {
     pub edges: Option<&'a [Feature]>,
     /// Zero crossings of the LoG (001).
     pub zero_crossings: Option<&'a [Feature]>,
+    /// Filtered sample windows (004), when the request asked for them.
+    pub window_features: Option<&'a [WindowTemplate]>,
+    /// Energies of the sample windows (004), when the request asked for them.
+    pub window_energies: Option<&'a WindowEnergies>,
 }
 
 impl<'a> From<&'a FrameFeatures> for Observations<'a> {
@@ -43,6 +48,8 @@ impl<'a> From<&'a FrameFeatures> for Observations<'a> {
             motion: features.motion.as_deref(),
             edges: features.edges.as_deref(),
             zero_crossings: features.zero_crossings.as_deref(),
+            window_features: features.window_features.as_deref(),
+            window_energies: features.window_energies.as_ref(),
         }
     }
 }
@@ -170,4 +177,11 @@ pub trait Tracker {
 
     /// Take the features of frame `frame` and report the frame's outcome.
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome;
+
+    /// Whether the tracker reads colour (its requests have sample windows
+    /// that compare hue): colour frames then reach the backend as colour.
+    /// Grey otherwise (the default).
+    fn wants_colour(&self) -> bool {
+        false
+    }
 }

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use crate::backend::{BackendKind, EarlyVision, make_backend};
 use crate::geometry::{ModelGeometry, check_simple_polygon};
-use crate::image::GrayImage;
+use crate::image::{GrayImage, RgbImage};
 use crate::io::formats::{FrameResult, Status};
 use crate::io::json::one_short_line;
 use crate::io::sequence::CAMERA_FILE;
@@ -178,31 +178,48 @@ fn track_named(
     let bar = progress_bar(opts.progress, frames.len_hint());
     let start = Instant::now();
     let (mut count, mut tracked) = (0, 0);
-    track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), |frame, outcome, result| {
+    let mut sink = |frame: Frame<'_>, outcome: &FrameOutcome, result: &FrameResult| -> Result<()> {
         serde_json::to_writer(&mut *out, result).map_err(|e| Error::io(out_name, e.into()))?;
         writeln!(out).map_err(|e| Error::io(out_name, e))?;
-        if let (Some(dir), Some(frame)) = (&overlay, frame.gray()) {
-            let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
-            let visible = match (&model_geometry, &outcome.pose) {
-                (Some(g), Some(pose)) => {
-                    g.visible_edges_at(&(*pose).into(), outcome.params.as_deref().unwrap_or(&[])).ok()
+        if let Some(dir) = &overlay {
+            let luma_of_colour;
+            let gray = match frame {
+                Frame::Rgb(c) => {
+                    luma_of_colour = c.to_gray();
+                    Some(&luma_of_colour)
                 }
-                _ => None,
+                Frame::Gray(g) => Some(g),
+                Frame::Texture(_) => None,
             };
-            let edges: std::borrow::Cow<'_, [[usize; 2]]> = match visible {
-                Some(v) => seq.model.edges.iter().zip(v).filter(|(_, on)| *on).map(|(e, _)| *e).collect(),
-                None => (&seq.model.edges[..]).into(),
-            };
-            let img = crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
-            let path = dir.path().join(format!("{:06}.png", outcome.frame));
-            img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
+            if let Some(frame) = gray {
+                let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
+                let visible = match (&model_geometry, &outcome.pose) {
+                    (Some(g), Some(pose)) => {
+                        g.visible_edges_at(&(*pose).into(), outcome.params.as_deref().unwrap_or(&[])).ok()
+                    }
+                    _ => None,
+                };
+                let edges: std::borrow::Cow<'_, [[usize; 2]]> = match visible {
+                    Some(v) => seq.model.edges.iter().zip(v).filter(|(_, on)| *on).map(|(e, _)| *e).collect(),
+                    None => (&seq.model.edges[..]).into(),
+                };
+                let img =
+                    crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
+                let path = dir.path().join(format!("{:06}.png", outcome.frame));
+                img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
+            }
         }
         tracked += usize::from(result.status == Status::Tracking);
         count += 1;
         on_result(result);
         bar.inc(1);
         Ok(())
-    })?;
+    };
+    if tracker.wants_colour() {
+        track_frames(tracker.as_mut(), backend.as_mut(), frames.colour(), (w, h), &mut sink)?;
+    } else {
+        track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), &mut sink)?;
+    }
     bar.finish_and_clear();
     // The output first: a run whose lines could not all be written publishes no overlays.
     out.flush().map_err(|e| Error::io(out_name, e))?;
@@ -224,6 +241,9 @@ fn track_named(
 pub enum Frame<'a> {
     /// An 8-bit grey frame in memory (any backend).
     Gray(&'a GrayImage),
+    /// An 8-bit colour frame in memory (any backend): the grey stages see
+    /// its luma, sample windows its colour.
+    Rgb(&'a RgbImage),
     /// A texture on the device of a [`crate::backend::GpuBackend`]; a CPU
     /// backend answers [`Error::TextureOnCpu`].
     Texture(&'a wgpu::Texture),
@@ -235,16 +255,17 @@ impl Frame<'_> {
     pub fn size(&self) -> (usize, usize) {
         match self {
             Frame::Gray(g) => g.size(),
+            Frame::Rgb(c) => c.size(),
             Frame::Texture(t) => (t.width() as usize, t.height() as usize),
         }
     }
 
-    /// The grey image, for a byte frame.
+    /// The grey image, for a grey byte frame.
     #[must_use]
     pub fn gray(&self) -> Option<&GrayImage> {
         match self {
             Frame::Gray(g) => Some(g),
-            Frame::Texture(_) => None,
+            Frame::Rgb(_) | Frame::Texture(_) => None,
         }
     }
 }
@@ -265,6 +286,12 @@ impl AsFrame for GrayImage {
 impl AsFrame for &GrayImage {
     fn as_frame(&self) -> Frame<'_> {
         Frame::Gray(self)
+    }
+}
+
+impl AsFrame for RgbImage {
+    fn as_frame(&self) -> Frame<'_> {
+        Frame::Rgb(self)
     }
 }
 
@@ -299,6 +326,7 @@ pub fn track_step(
     let request = tracker.request(w, h);
     let features = match frame {
         Frame::Gray(g) => backend.process(g, &request)?,
+        Frame::Rgb(c) => backend.process_rgb(c, &request)?,
         Frame::Texture(t) => backend.process_texture(t, &request)?,
     };
     let obs = Observations::from(&features);
