@@ -41,7 +41,7 @@ enum Command {
     Track {
         /// Sequence folder (camera.json, model.json or model.cao, init.json, frames/).
         seq_dir: PathBuf,
-        /// Tracker: motion-edge (000) or blue (002).
+        /// Tracker: motion-edge (000), blue (002) or condensation (004).
         #[arg(long)]
         tracker: String,
         /// Early-vision backend.
@@ -62,7 +62,7 @@ enum Command {
     },
     /// Render a synthetic sequence with exact ground truth.
     Synth {
-        /// Scene name: pendulum (000) or target3dof (002).
+        /// Scene name: pendulum (000), target3dof (002) or textured-plane (004).
         scene: String,
         /// Output folder (must be absent or empty).
         out_dir: PathBuf,

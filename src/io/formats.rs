@@ -220,6 +220,13 @@ pub struct FrameResult {
     /// Covariance of the tracker's state, row-major, where it has one (not part of the contract's required fields).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub covariance: Option<Vec<f64>>,
+    /// Velocity screw estimate (T_x, T_y, T_z, ω_x, ω_y, ω_z), where the
+    /// tracker has one (Condensation; a tracker's own key).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_screw: Option<[f64; 6]>,
+    /// Effective sample size of the particle weights (Condensation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub effective_sample_size: Option<f64>,
     /// Milliseconds spent on this frame.
     pub ms: f64,
 }

@@ -7,13 +7,16 @@
 //!
 //! [`scene_names`] lists them, [`render_scene`] renders one in memory and
 //! [`generate`] renders and writes a sequence folder (SPEC §4). Today:
-//! `pendulum` ([`pendulum`], paper 000) and `target3dof` ([`target3dof`],
-//! paper 002: the back of a truck translating in front of a bookshelf).
+//! `pendulum` ([`pendulum`], paper 000), `target3dof` ([`target3dof`],
+//! paper 002: the back of a truck translating in front of a bookshelf) and
+//! `textured-plane` ([`textured_plane`], paper 004: a camera moving with a
+//! velocity screw in front of a colourful plane).
 
 pub mod background;
 pub mod canvas;
 pub mod pendulum;
 pub mod target3dof;
+pub mod textured_plane;
 
 use std::path::Path;
 
@@ -30,6 +33,7 @@ pub use background::{
 pub use canvas::{Canvas, DEFAULT_SUPERSAMPLE, ELLIPSE_SEGMENTS, Face, FillRule, MAX_SUPERSAMPLE, ellipse_points};
 pub use pendulum::{PendulumMotion, PendulumOptions, PendulumSwing, render_pendulum};
 pub use target3dof::{Target3dofOptions, Target3dofScene, render_target3dof};
+pub use textured_plane::{PlaneMotion, TexturedPlaneOptions, render_textured_plane};
 
 /// A rendered sequence held in memory: what a sequence folder (SPEC §4) holds.
 #[derive(Clone, Debug)]
@@ -150,7 +154,7 @@ pub(crate) fn check_frames(frames: usize, max: usize) -> Result<()> {
 /// The scenes [`render_scene`] and [`generate`] know.
 #[must_use]
 pub fn scene_names() -> &'static [&'static str] {
-    &["pendulum", "target3dof"]
+    &["pendulum", "target3dof", "textured-plane"]
 }
 
 /// Render scene `scene` in memory. `frames` overrides the scene's default
@@ -184,6 +188,16 @@ pub fn render_scene(
                 opts.set(key, value)?;
             }
             render_target3dof(&opts)
+        }
+        "textured-plane" => {
+            let mut opts = TexturedPlaneOptions { seed, ..TexturedPlaneOptions::default() };
+            if let Some(n) = frames {
+                opts.frames = n;
+            }
+            for (key, value) in extra {
+                opts.set(key, value)?;
+            }
+            render_textured_plane(&opts)
         }
         _ => Err(Error::Parameter(format!("unknown scene '{scene}' (known scenes: {})", scene_names().join(", ")))),
     }

@@ -10,10 +10,12 @@
 //! line of SPEC §4.
 
 pub mod blue;
+pub mod condensation;
 pub mod motion_edge;
 pub mod run;
 
 pub use blue::{BlueParams, BlueTracker, TargetLocation, TargetPrediction};
+pub use condensation::{CondensationParams, CondensationTracker};
 pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker, Prediction};
 pub use run::{
     RunSummary, TRACKERS, TrackOptions, make_tracker, read_config, track_frames, track_sequence, track_to_file,
@@ -157,6 +159,8 @@ impl FrameOutcome {
             pose,
             params,
             covariance: self.covariance.clone().filter(|c| finite(c)),
+            velocity_screw: None,
+            effective_sample_size: None,
             ms: if ms.is_finite() { ms } else { 0.0 },
         }
     }
@@ -184,4 +188,20 @@ pub trait Tracker {
     fn wants_colour(&self) -> bool {
         false
     }
+
+    /// The extra keys of the last frame's output line (none by default).
+    fn extras(&self) -> FrameExtras {
+        FrameExtras::default()
+    }
+}
+
+/// Numbers a tracker reports beyond the common ones (SPEC §4 lets trackers
+/// add keys; readers ignore them).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameExtras {
+    /// The velocity screw estimate (T_x, T_y, T_z, ω_x, ω_y, ω_z) over the
+    /// last frame interval (Condensation).
+    pub velocity_screw: Option<[f64; 6]>,
+    /// The effective sample size of a particle filter's weights.
+    pub effective_sample_size: Option<f64>,
 }

@@ -17,11 +17,11 @@ use crate::io::formats::{FrameResult, Status};
 use crate::io::json::one_short_line;
 use crate::io::sequence::CAMERA_FILE;
 use crate::io::{AtomicFile, Sequence, StagedDir};
-use crate::track::{BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
+use crate::track::{BlueParams, BlueTracker, CondensationParams, CondensationTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
 use crate::{Error, Result};
 
 /// The `--tracker` names pipetrack knows.
-pub const TRACKERS: &[&str] = &["motion-edge", "blue"];
+pub const TRACKERS: &[&str] = &["motion-edge", "blue", "condensation"];
 
 /// Largest config file read, bytes: a tracker has a few dozen parameters.
 pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
@@ -95,6 +95,13 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             let params: BlueParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
             let tracker = BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), params)
+                .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
+            Ok(Box::new(tracker))
+        }
+        "condensation" => {
+            let params: CondensationParams = read_config(config, name)?;
+            params.validate().map_err(|e| config_error(config, e))?;
+            let tracker = CondensationTracker::new(seq.camera, &seq.model, &seq.init, params)
                 .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
             Ok(Box::new(tracker))
         }
@@ -332,7 +339,10 @@ pub fn track_step(
     let obs = Observations::from(&features);
     let outcome = tracker.track(index, &obs);
     backend.recycle(features);
-    let result = outcome.to_result(t0.elapsed().as_secs_f64() * 1e3);
+    let mut result = outcome.to_result(t0.elapsed().as_secs_f64() * 1e3);
+    let extras = tracker.extras();
+    result.velocity_screw = extras.velocity_screw.filter(|s| s.iter().all(|v| v.is_finite()));
+    result.effective_sample_size = extras.effective_sample_size.filter(|v| v.is_finite());
     Ok((outcome, result))
 }
 
