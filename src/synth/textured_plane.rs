@@ -327,10 +327,7 @@ fn render(texture: &Texture, cam: &Camera, pose: &Pose, noise: f64, seed: u64, k
         .collect();
     let mut rng = frame_rng(seed, k);
     let mut gauss = move || -> f64 { StandardNormal.sample(&mut rng) };
-    let data = clean
-        .into_iter()
-        .map(|c| c.map(|v| (v + noise * gauss()).clamp(0.0, 255.0).round() as u8))
-        .collect();
+    let data = clean.into_iter().map(|c| c.map(|v| (v + noise * gauss()).clamp(0.0, 255.0).round() as u8)).collect();
     RgbImage::from_vec(w, h, data)
 }
 
@@ -400,7 +397,8 @@ mod tests {
 
     #[test]
     fn the_first_motion_and_the_truth_agree() {
-        let seq = render_textured_plane(&TexturedPlaneOptions { frames: 3, ..TexturedPlaneOptions::default() }).unwrap();
+        let seq =
+            render_textured_plane(&TexturedPlaneOptions { frames: 3, ..TexturedPlaneOptions::default() }).unwrap();
         let m = seq.init.camera_motion.unwrap();
         let camera1 = Pose::from_axis_angle(DVec3::new(m[3], m[4], m[5]), DVec3::new(m[0], m[1], m[2]));
         let start: Pose = seq.init.pose.unwrap().into();

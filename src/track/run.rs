@@ -17,7 +17,10 @@ use crate::io::formats::{FrameResult, Status};
 use crate::io::json::one_short_line;
 use crate::io::sequence::CAMERA_FILE;
 use crate::io::{AtomicFile, Sequence, StagedDir};
-use crate::track::{BlueParams, BlueTracker, CondensationParams, CondensationTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
+use crate::track::{
+    BlueParams, BlueTracker, CondensationParams, CondensationTracker, FrameOutcome, MotionEdgeParams,
+    MotionEdgeTracker, Observations, Tracker,
+};
 use crate::{Error, Result};
 
 /// The `--tracker` names pipetrack knows.
@@ -210,8 +213,7 @@ fn track_named(
                     Some(v) => seq.model.edges.iter().zip(v).filter(|(_, on)| *on).map(|(e, _)| *e).collect(),
                     None => (&seq.model.edges[..]).into(),
                 };
-                let img =
-                    crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
+                let img = crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
                 let path = dir.path().join(format!("{:06}.png", outcome.frame));
                 img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
             }

@@ -207,7 +207,9 @@ impl CondensationTracker {
                 self.phase = Phase::Tracking;
                 self.outcome(frame, Status::Tracking, corners.to_vec(), None)
             }
-            _ => self.outcome(frame, Status::Lost, corners.to_vec(), Some("no template window from the backend".into())),
+            _ => {
+                self.outcome(frame, Status::Lost, corners.to_vec(), Some("no template window from the backend".into()))
+            }
         }
     }
 
@@ -238,13 +240,17 @@ impl CondensationTracker {
 
         // The claim of tracking, checked against the image.
         let side = self.params.window().level_side();
-        let residual = steps::residual_bound(energies.energies[best], energies.intensity_total, HIERARCHIES * side * side);
+        let residual =
+            steps::residual_bound(energies.energies[best], energies.intensity_total, HIERARCHIES * side * side);
         let (status, reason) = if residual <= self.params.max_residual {
             self.phase = Phase::Tracking;
             (Status::Tracking, None)
         } else {
             self.phase = Phase::Lost;
-            (Status::Lost, Some(format!("best window's residual {residual:.1} grey levels exceeds {}", self.params.max_residual)))
+            (
+                Status::Lost,
+                Some(format!("best window's residual {residual:.1} grey levels exceeds {}", self.params.max_residual)),
+            )
         };
         let mut outcome = self.outcome(frame, status, corners, reason);
         outcome.covariance = Some(screw_covariance(&self.samples, &weights));
@@ -301,7 +307,8 @@ impl Tracker for CondensationTracker {
     }
 
     fn window_of_interest(&self, width: usize, height: usize) -> Window {
-        let corners: Vec<[f64; 2]> = self.windows.iter().flatten().map(|c| [f64::from(c[0]), f64::from(c[1])]).collect();
+        let corners: Vec<[f64; 2]> =
+            self.windows.iter().flatten().map(|c| [f64::from(c[0]), f64::from(c[1])]).collect();
         Window::around(&corners, INTEREST_MARGIN_PX, width, height).unwrap_or_else(|| Window::full(width, height))
     }
 
@@ -321,7 +328,11 @@ impl Tracker for CondensationTracker {
 
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {
         self.extras = FrameExtras::default();
-        if self.template.is_none() { self.take_template(frame, observations) } else { self.track_frame(frame, observations) }
+        if self.template.is_none() {
+            self.take_template(frame, observations)
+        } else {
+            self.track_frame(frame, observations)
+        }
     }
 
     fn wants_colour(&self) -> bool {

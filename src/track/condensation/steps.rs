@@ -23,7 +23,8 @@ pub type Screw = [f64; 6];
 /// `C⁻¹·P`, so the screw is the translation and axis-angle of `C⁻¹`.
 #[must_use]
 pub fn screw_of_camera_motion(motion: &[f64; 6]) -> Screw {
-    let camera = Pose::from_axis_angle(DVec3::new(motion[3], motion[4], motion[5]), DVec3::new(motion[0], motion[1], motion[2]));
+    let camera =
+        Pose::from_axis_angle(DVec3::new(motion[3], motion[4], motion[5]), DVec3::new(motion[0], motion[1], motion[2]));
     let scene = camera.inverse();
     let (t, r) = (scene.translation, scene.axis_angle());
     [t.x, t.y, t.z, r.x, r.y, r.z]
@@ -77,7 +78,12 @@ pub fn component_sigmas(camera: &Camera, corners: &[[f64; 2]], depths: &[f64], p
 /// Fig. 2 step 1, eq. 20–21: the sample window of each screw, `f' = f + J(f, Z)·s`
 /// at each vertex `f` of the reference window and its depth `Z`.
 #[must_use]
-pub fn project_sample_windows(camera: &Camera, corners: &[[f64; 2]; 4], depths: &[f64; 4], samples: &[Screw]) -> Vec<Quad> {
+pub fn project_sample_windows(
+    camera: &Camera,
+    corners: &[[f64; 2]; 4],
+    depths: &[f64; 4],
+    samples: &[Screw],
+) -> Vec<Quad> {
     let jacobians: [[[f64; 6]; 2]; 4] = std::array::from_fn(|i| camera.image_jacobian(corners[i], depths[i]));
     samples
         .iter()
@@ -266,7 +272,10 @@ mod tests {
         unit[2] = sigma[2];
         let moved = project_sample_windows(&cam, &corners, &depths, &[unit]);
         let rms = (0..4)
-            .map(|i| (f64::from(moved[0][i][0]) - corners[i][0]).powi(2) + (f64::from(moved[0][i][1]) - corners[i][1]).powi(2))
+            .map(|i| {
+                (f64::from(moved[0][i][0]) - corners[i][0]).powi(2)
+                    + (f64::from(moved[0][i][1]) - corners[i][1]).powi(2)
+            })
             .sum::<f64>()
             / 4.0;
         assert!((rms.sqrt() - 2.0).abs() < 1e-3, "{}", rms.sqrt());
