@@ -99,7 +99,8 @@ enum Command {
     Demo,
     /// Regenerate a paper's result tables on synthetic sequences (markdown on stdout).
     Reproduce {
-        /// Tracker whose paper to reproduce: motion-edge (Tables 1–3 of 000).
+        /// Tracker whose paper to reproduce: motion-edge (Tables 1–3 of 000)
+        /// or condensation (Fig. 4 of 004, written to --out).
         tracker: String,
         /// `default` (pipetrack's parameters), `paper` (the method as printed), or `both`.
         #[arg(long, default_value = "both")]
@@ -107,6 +108,9 @@ enum Command {
         /// Seeds, comma-separated: each renders its own sequence per velocity.
         #[arg(long, value_delimiter = ',', default_values_t = pipetrack::cli::reproduce::SEEDS)]
         seeds: Vec<u64>,
+        /// Folder for figures (condensation: fig4.csv and fig4_l<l>.png).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Compare every early-vision stage and the whole chain on the CPU and the GPU.
     Bench {
@@ -274,11 +278,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             pipetrack::cli::demo::run_demo(&pipetrack::cli::demo::default_root(), &mut std::io::stdout().lock())?;
             Ok(())
         }
-        Command::Reproduce { tracker, config, seeds } => {
+        Command::Reproduce { tracker, config, seeds, out } => {
             use pipetrack::cli::reproduce::{Config, Setup, markdown, run_tables};
+            if tracker == "condensation" {
+                let out = out.ok_or_else(|| {
+                    pipetrack::Error::Parameter("reproduce condensation writes figures: give --out DIR".into())
+                })?;
+                let seed = seeds.first().copied().unwrap_or(0);
+                let summary = pipetrack::cli::reproduce_condensation::reproduce_fig4(&out, seed)?;
+                note(format_args!("reproduce: wrote fig4.csv and fig4_l1..6.png to {}", out.display()));
+                return say(format_args!("{summary}"));
+            }
             if tracker != "motion-edge" {
                 return Err(pipetrack::Error::Parameter(format!(
-                    "no tables to reproduce for tracker {tracker:?} (motion-edge)"
+                    "no tables to reproduce for tracker {tracker:?} (motion-edge, condensation)"
                 ))
                 .into());
             }

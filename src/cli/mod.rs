@@ -5,4 +5,5 @@
 pub mod bench;
 pub mod demo;
 pub mod reproduce;
+pub mod reproduce_condensation;
 pub mod score;

@@ -481,6 +481,56 @@ pub fn window_energy_cpu(frame: &RgbImage, quads: &[Quad], template: &WindowTemp
     Ok(normalise_cpu(&window_terms_cpu(frame, quads, template)?))
 }
 
+// ------------------------------------------------ pixel-match energy (CPU)
+
+/// The coefficients of the pixel-match energy (004 Table II).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelMatchCoefficients {
+    /// ψ of eq. 9: weight of the hue/saturation term (0.0125).
+    pub psi: f32,
+    /// λ of eq. 13: weight of the intensity-and-colour term C (1).
+    pub lambda: f32,
+    /// θ of eq. 13: weight of the edge term E (2).
+    pub theta: f32,
+}
+
+impl Default for PixelMatchCoefficients {
+    fn default() -> Self {
+        Self { psi: 0.0125, lambda: 1.0, theta: 2.0 }
+    }
+}
+
+/// One pixel of a CPF hierarchy as the pixel-match energy sees it: its
+/// intensity, its colour, and the averaged horizontal and vertical edge
+/// values at its level (eq. 10–11).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MatchPixel {
+    /// Intensity I.
+    pub intensity: f32,
+    /// (R, G, B), for hue and saturation (eq. 7–8).
+    pub rgb: [f32; 3],
+    /// (edge^h, edge^v) of eq. 10–11.
+    pub edge: [f32; 2],
+}
+
+/// The energy of matching source pixel `p` with destination pixel `q` at one
+/// level of one hierarchy (004 §II-B, eq. 5–13):
+/// `U = λ(C_I + ψ C_HS) + θ E` with `C_I = (I(p) − I(q))²` (eq. 5), `C_HS`
+/// the squared distance of the chroma vectors (eq. 6, read as eq. 24 is;
+/// see the module documentation) and
+/// `E = ¼[(edge^h_p − edge^h_q)² + (edge^v_p − edge^v_q)²]` (eq. 12). The
+/// window energy drops the edge term (§III-B.2); point matching keeps it.
+#[must_use]
+pub fn pixel_match_energy(p: &MatchPixel, q: &MatchPixel, k: &PixelMatchCoefficients) -> f32 {
+    let di = p.intensity - q.intensity;
+    let c_i = di * di;
+    let (cp, cq) = (chroma(p.rgb), chroma(q.rgb));
+    let c_hs = (cp[0] - cq[0]).powi(2) + (cp[1] - cq[1]).powi(2);
+    let c = c_i + k.psi * c_hs;
+    let e = 0.25 * ((p.edge[0] - q.edge[0]).powi(2) + (p.edge[1] - q.edge[1]).powi(2));
+    k.lambda * c + k.theta * e
+}
+
 // ---------------------------------------------------------------- GPU
 
 /// Uniform block of `window_energy.wgsl`; kept in sync with its `Params`.
@@ -786,6 +836,22 @@ mod tests {
         assert!(e.energies[1] > 0.0 && e.intensity_total > 0.0 && e.colour_total > 0.0);
         let total: f32 = e.energies.iter().sum();
         assert!((total - 2.0).abs() < 1e-5, "{total}");
+    }
+
+    /// Eq. 5–13 by hand: intensities 10 and 13 (C_I = 9), pure red against
+    /// pure green (chroma (1, 0) and (−½, √3/2): C_HS = 2.25 + 0.75 = 3),
+    /// edges (4, −2) against (2, 0) (E = ¼(4 + 4) = 2):
+    /// U = 1·(9 + 0.0125·3) + 2·2 = 13.0375.
+    #[test]
+    fn pixel_match_energy_by_hand() {
+        let p = MatchPixel { intensity: 10.0, rgb: [200.0, 0.0, 0.0], edge: [4.0, -2.0] };
+        let q = MatchPixel { intensity: 13.0, rgb: [0.0, 90.0, 0.0], edge: [2.0, 0.0] };
+        let u = pixel_match_energy(&p, &q, &PixelMatchCoefficients::default());
+        assert!((u - 13.0375).abs() < 1e-4, "{u}");
+        assert_eq!(pixel_match_energy(&p, &p, &PixelMatchCoefficients::default()), 0.0);
+        // θ weighs the edge term alone.
+        let no_edges = PixelMatchCoefficients { theta: 0.0, ..PixelMatchCoefficients::default() };
+        assert!((pixel_match_energy(&p, &q, &no_edges) - 9.0375).abs() < 1e-4);
     }
 
     #[test]

@@ -331,6 +331,13 @@ fn render(texture: &Texture, cam: &Camera, pose: &Pose, noise: f64, seed: u64, k
     RgbImage::from_vec(w, h, data)
 }
 
+/// One view of the scene's plane (the texture of `seed`) from the
+/// camera-from-plane `pose`, with noise seeded by `seed` and `frame`: what
+/// 004's experiments take as source and destination images.
+pub fn render_view(seed: u64, noise_sigma: f64, pose: &Pose, frame: usize) -> Result<RgbImage> {
+    render(&Texture::new(seed), &camera(), pose, noise_sigma, seed, frame)
+}
+
 /// Render the scene.
 pub fn render_textured_plane(opts: &TexturedPlaneOptions) -> Result<SyntheticSequence> {
     opts.validate()?;
