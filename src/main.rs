@@ -126,6 +126,10 @@ enum Command {
         /// Seconds of timing per stage, size and backend.
         #[arg(long, default_value_t = 0.5)]
         seconds: f64,
+        /// Instead of the stages: the window energy with these numbers of
+        /// sample windows (comma-separated), e.g. 200,1000,5000.
+        #[arg(long, value_delimiter = ',')]
+        windows: Vec<usize>,
     },
 }
 
@@ -302,8 +306,45 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             note(format_args!(""));
             say(format_args!("{}", markdown(&tables)))
         }
-        Command::Bench { sizes, json, stages, seconds } => bench(&sizes.0, json, &stages, seconds),
+        Command::Bench { windows, json, seconds, .. } if !windows.is_empty() => bench_windows(&windows, json, seconds),
+        Command::Bench { sizes, json, stages, seconds, .. } => bench(&sizes.0, json, &stages, seconds),
     }
+}
+
+fn bench_windows(counts: &[usize], json: bool, seconds: f64) -> anyhow::Result<()> {
+    if !(seconds > 0.0 && seconds < 60.0) {
+        return Err(pipetrack::Error::Parameter(format!("--seconds {seconds} must be in (0, 60)")).into());
+    }
+    if let Some(&n) = counts.iter().find(|&&n| n == 0 || n > pipetrack::early::window_energy::MAX_WINDOWS) {
+        return Err(pipetrack::Error::Parameter(format!(
+            "--windows {n} must be in 1..={}",
+            pipetrack::early::window_energy::MAX_WINDOWS
+        ))
+        .into());
+    }
+    if !json {
+        say(format_args!("{:<22} {:>8} {:>12} {:>12} {:>9}", "stage", "windows", "cpu ms", "gpu ms", "cpu/gpu"))?;
+    }
+    let mut write_error = None;
+    let rows = pipetrack::cli::bench_windows::bench_windows(counts, Duration::from_secs_f64(seconds), |r| {
+        if !json && write_error.is_none() {
+            let gpu = r.gpu_ms.map_or("-".to_string(), |g| format!("{g:.2}"));
+            let ratio = r.cpu_over_gpu.map_or("-".to_string(), |x| format!("{x:.2}"));
+            write_error = say(format_args!(
+                "{:<22} {:>8} {:>12.2} {:>12} {:>9}",
+                "window_energy 64/16", r.windows, r.cpu_ms, gpu, ratio
+            ))
+            .err();
+        }
+    })
+    .context("benchmark failed")?;
+    if let Some(e) = write_error {
+        return Err(e);
+    }
+    if json {
+        say(format_args!("{}", serde_json::to_string_pretty(&rows)?))?;
+    }
+    Ok(())
 }
 
 fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64) -> anyhow::Result<()> {

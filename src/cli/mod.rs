@@ -3,6 +3,7 @@
 //! paper's tables. `src/main.rs` parses the command line and calls these.
 
 pub mod bench;
+pub mod bench_windows;
 pub mod demo;
 pub mod reproduce;
 pub mod reproduce_condensation;

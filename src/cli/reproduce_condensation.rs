@@ -79,9 +79,11 @@ pub fn fig4_points(seed: u64) -> Result<Vec<Fig4Point>> {
         let params = WindowEnergyParams { side_log2: WINDOW_LEVEL, cpf_log2: level };
         let template = window_features_cpu(&source, &params, &[source_quad])?.remove(0);
         let energies = window_energy_cpu(&destination, &windows, &template)?;
-        points.extend(
-            errors.iter().zip(&energies.energies).map(|(&e, &u)| Fig4Point { level, error_mm: e, energy: f64::from(u) }),
-        );
+        points.extend(errors.iter().zip(&energies.energies).map(|(&e, &u)| Fig4Point {
+            level,
+            error_mm: e,
+            energy: f64::from(u),
+        }));
     }
     Ok(points)
 }
