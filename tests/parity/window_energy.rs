@@ -147,3 +147,68 @@ fn parity_window_energy_refuses_what_the_twin_refuses() {
     let too_many = vec![[[0.0f32, 0.0]; 4]; window_energy::MAX_WINDOWS + 1];
     assert!(window_energy_gpu(ctx, &frame, &too_many, &template).is_err());
 }
+
+/// The stage inside a frame: both backends answer a frame's window request
+/// (take a template, then score N windows) alike, on colour and on grey
+/// frames; the GPU records the scoring as two dispatches in the frame's one
+/// submission (after the frame's ingest) and reads back N energies and two sums.
+#[test]
+fn parity_window_energy_through_the_backends() {
+    use pipetrack::backend::{CpuBackend, EarlyVision, FrameRequest, GpuBackend, WindowRequest};
+    let Some((ctx, _g)) = common::gpu("parity_window_energy_through_the_backends") else { return };
+    let frame = colour_frame(257, 243, 77);
+    let params = WindowEnergyParams { side_log2: 5, cpf_log2: 3 };
+    let template_quad: Quad = [[92.0, 81.0], [151.0, 79.5], [149.0, 141.0], [89.0, 139.0]];
+    let features = FrameRequest {
+        windows: Some(WindowRequest::Features { params, windows: vec![template_quad] }),
+        ..FrameRequest::default()
+    };
+    let (mut cpu, mut gpu) = (CpuBackend::new(), GpuBackend::new(ctx.clone()));
+    let c = cpu.process_rgb(&frame, &features).unwrap().window_features.unwrap().remove(0);
+    let g = gpu.process_rgb(&frame, &features).unwrap().window_features.unwrap().remove(0);
+    check_features("backend template", &c.values, &g.values);
+
+    let n = 123;
+    let energies = FrameRequest {
+        windows: Some(WindowRequest::Energies { windows: windows(n, 3), template: std::sync::Arc::new(c) }),
+        ..FrameRequest::default()
+    };
+    for grey in [false, true] {
+        let (c, g) = if grey {
+            let frame = frame.to_gray();
+            (cpu.process(&frame, &energies).unwrap(), gpu.process(&frame, &energies).unwrap())
+        } else {
+            (cpu.process_rgb(&frame, &energies).unwrap(), gpu.process_rgb(&frame, &energies).unwrap())
+        };
+        let (c, g) = (c.window_energies.unwrap(), g.window_energies.unwrap());
+        let largest = c.energies.iter().cloned().fold(0.0f32, f32::max);
+        for (i, (a, b)) in c.energies.iter().zip(&g.energies).enumerate() {
+            assert!((a - b).abs() <= ENERGY_RTOL * largest, "grey {grey}: window {i}: cpu {a} gpu {b}");
+        }
+        if grey {
+            assert_eq!((c.colour_total, g.colour_total), (0.0, 0.0), "grey frames have no hue");
+        }
+        let stats = gpu.last_frame_stats();
+        // The frame's ingest, then window_terms and normalise.
+        assert_eq!(stats.dispatches, 3, "grey {grey}");
+        assert_eq!(stats.bytes_read_back, 4 * (n as u64 + 2), "grey {grey}");
+    }
+}
+
+/// A colour frame's grey stages see exactly the luma a grey reading of it
+/// gives: the features of any grey request are the same.
+#[test]
+fn colour_frames_leave_the_grey_stages_unchanged() {
+    use pipetrack::backend::{CpuBackend, EarlyVision, FrameRequest, GpuBackend};
+    let frame = colour_frame(64, 48, 3);
+    let request = FrameRequest::full_chain(64, 48);
+    let (mut a, mut b) = (CpuBackend::new(), CpuBackend::new());
+    for _ in 0..2 {
+        assert_eq!(a.process_rgb(&frame, &request).unwrap(), b.process(&frame.to_gray(), &request).unwrap());
+    }
+    let Some((ctx, _g)) = common::gpu("colour_frames_leave_the_grey_stages_unchanged") else { return };
+    let (mut a, mut b) = (GpuBackend::new(ctx.clone()), GpuBackend::new(ctx.clone()));
+    for _ in 0..2 {
+        assert_eq!(a.process_rgb(&frame, &request).unwrap(), b.process(&frame.to_gray(), &request).unwrap());
+    }
+}
