@@ -185,9 +185,7 @@ fn parity_window_energy_through_the_backends() {
         for (i, (a, b)) in c.energies.iter().zip(&g.energies).enumerate() {
             assert!((a - b).abs() <= ENERGY_RTOL * largest, "grey {grey}: window {i}: cpu {a} gpu {b}");
         }
-        if grey {
-            assert_eq!((c.colour_total, g.colour_total), (0.0, 0.0), "grey frames have no hue");
-        }
+        assert!((c.colour_total - g.colour_total).abs() <= ENERGY_RTOL * c.colour_total, "grey {grey}");
         let stats = gpu.last_frame_stats();
         // The frame's ingest, then window_terms and normalise.
         assert_eq!(stats.dispatches, 3, "grey {grey}");
