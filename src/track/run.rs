@@ -104,6 +104,15 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
         "condensation" => {
             let params: CondensationParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
+            if seq.model.vertices.len() != 4 {
+                return Err(Error::input(
+                    seq.model_path(),
+                    format!(
+                        "condensation tracks a window of 4 vertices (top-left, top-right, bottom-right, bottom-left); the model has {}",
+                        seq.model.vertices.len()
+                    ),
+                ));
+            }
             let tracker = CondensationTracker::new(seq.camera, &seq.model, &seq.init, params)
                 .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
             Ok(Box::new(tracker))

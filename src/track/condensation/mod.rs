@@ -123,7 +123,6 @@ impl CondensationTracker {
             return Err(Error::Parameter("a window vertex is not in front of the camera at the initial pose".into()));
         }
         let motion = params.camera_motion.or(init.camera_motion).unwrap_or([0.0; 6]);
-        let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
         let mut tracker = Self {
             camera,
             vertices,
@@ -132,7 +131,7 @@ impl CondensationTracker {
             samples: Vec::new(),
             windows: Vec::new(),
             template: None,
-            rng: rng.clone(),
+            rng: ChaCha8Rng::seed_from_u64(params.seed),
             extras: FrameExtras::default(),
             phase: Phase::Acquiring,
             params,
@@ -149,9 +148,8 @@ impl CondensationTracker {
             &steps::screw_of_camera_motion(&motion),
             &sigma,
             tracker.params.samples,
-            &mut rng,
+            &mut tracker.rng,
         );
-        tracker.rng = rng;
         tracker.windows = steps::project_sample_windows(&camera, &corners, &depths, &tracker.samples);
         Ok(tracker)
     }
