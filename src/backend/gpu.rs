@@ -100,9 +100,8 @@ impl Slot {
         }
     }
 
-    /// Allocate every buffer `plan` uses that the slot does not have yet;
-    /// `window_len` is the floats of one filtered sample window.
-    fn allocate(&mut self, ctx: &GpuContext, plan: &FramePlan, window_len: usize) -> Result<()> {
+    /// Allocate every buffer `plan` uses that the slot does not have yet.
+    fn allocate(&mut self, ctx: &GpuContext, plan: &FramePlan) -> Result<()> {
         let (w, h) = (self.width, self.height);
         for step in plan.steps() {
             match *step {
@@ -129,9 +128,10 @@ impl Slot {
                 Step::Pyramids { .. } => {
                     self.cpf.get_or_insert_with(|| (CpfGpu::new(ctx, w, h), EdgePyramidGpu::new(ctx, w, h)));
                 }
-                Step::Windows { count, .. } => {
-                    if !self.windows.as_ref().is_some_and(|b| b.fits(w * h, count, window_len)) {
-                        self.windows = Some(WindowEnergyGpu::new(ctx, w * h, count, window_len));
+                Step::Windows { count, params, energies } => {
+                    let (len, features) = (params.window_len(), !energies);
+                    if !self.windows.as_ref().is_some_and(|b| b.fits(w * h, count, len, features)) {
+                        self.windows = Some(WindowEnergyGpu::new(ctx, w * h, count, len, features));
                     }
                 }
             }
@@ -364,8 +364,7 @@ impl GpuBackend {
         let previous = self.previous.filter(|&(p, _)| p != slot).map(|(_, kept)| kept);
         let plan = FramePlan::new(request, w, h, previous.as_ref());
         let s = self.slots[slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
-        let window_len = request.windows.as_ref().map_or(0, |w| w.params().window_len());
-        s.allocate(&self.ctx, &plan, window_len)?;
+        s.allocate(&self.ctx, &plan)?;
         Ok((slot, plan))
     }
 

@@ -157,6 +157,16 @@ impl WindowRequest {
                 window_energy::MAX_WINDOWS
             )));
         }
+        if let Self::Features { params, windows } = self
+            && windows.len() * params.window_len() > window_energy::MAX_FEATURE_FLOATS
+        {
+            return Err(Error::Parameter(format!(
+                "{} filtered sample windows of {} values exceed {}",
+                windows.len(),
+                params.window_len(),
+                window_energy::MAX_FEATURE_FLOATS
+            )));
+        }
         if windows.iter().flatten().flatten().any(|v| !v.is_finite()) {
             return Err(Error::Parameter("a sample window has a corner that is not finite".into()));
         }

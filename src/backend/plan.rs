@@ -505,6 +505,20 @@ mod tests {
     }
 
     #[test]
+    fn sample_windows_run_last_and_keep_no_previous_frame() {
+        use crate::backend::WindowRequest;
+        use crate::early::window_energy::WindowEnergyParams;
+        let params = WindowEnergyParams::default();
+        let windows = Some(WindowRequest::Features { params, windows: vec![[[0.0; 2]; 4]; 3] });
+        let request = FrameRequest { edges: edges(false), windows, ..FrameRequest::default() };
+        let plan = FramePlan::new(&request, W, H, None);
+        assert_eq!(shape(&plan), ["sobel Luma->OfFrame", "compact Edges", "windows 3 energies=false"]);
+        assert_eq!(plan.steps()[2], Step::Windows { count: 3, params, energies: false });
+        assert_eq!(plan.next_previous(), None);
+        assert_eq!(plan.stage_names(), ["sobel", "compaction", "window_energy"]);
+    }
+
+    #[test]
     fn full_chain_runs_every_stage() {
         let request = FrameRequest::full_chain(W, H);
         let plan =

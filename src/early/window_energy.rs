@@ -91,6 +91,9 @@ pub const CHANNELS: usize = 3;
 pub const MAX_SIDE_LOG2: u32 = 7;
 /// Most windows in one request (one GPU workgroup each, in one dimension).
 pub const MAX_WINDOWS: usize = 65_535;
+/// Most floats of filtered windows handed back by one request (64 MiB):
+/// 5461 windows at the largest level compared (64 × 64), any number at 16 × 16.
+pub const MAX_FEATURE_FLOATS: usize = 1 << 24;
 /// √3 / 2.
 const HALF_SQRT3: f32 = 0.866_025_4;
 
@@ -245,6 +248,13 @@ fn check_inputs(
     }
     if quads.len() > MAX_WINDOWS {
         return Err(Error::Parameter(format!("window energy: {} windows, at most {MAX_WINDOWS}", quads.len())));
+    }
+    if template.is_none() && quads.len() * params.window_len() > MAX_FEATURE_FLOATS {
+        return Err(Error::Parameter(format!(
+            "window energy: {} filtered windows of {} values exceed {MAX_FEATURE_FLOATS} values",
+            quads.len(),
+            params.window_len()
+        )));
     }
     if let Some(i) = quads.iter().position(|q| q.iter().flatten().any(|v| !v.is_finite())) {
         return Err(Error::Parameter(format!("window energy: window {i} has a corner that is not finite")));
@@ -553,8 +563,8 @@ pub fn pack_rgb(frame: &RgbImage) -> Vec<u32> {
 }
 
 /// Device buffers of the stage, grown to the largest request seen: the
-/// packed frame, the window maps, the template, the per-window terms or
-/// values, and the energies with their staging copy.
+/// packed frame, the window maps, the template, the per-window terms (or
+/// filtered values), and the energies with their staging copy.
 pub(crate) struct WindowEnergyGpu {
     frame: wgpu::Buffer,
     frame_pixels: usize,
@@ -563,9 +573,11 @@ pub(crate) struct WindowEnergyGpu {
     out: wgpu::Buffer,
     energies: wgpu::Buffer,
     staging: wgpu::Buffer,
-    /// Windows and floats per window the buffers hold.
+    /// Windows, floats of a filtered window (the template's size), and
+    /// whether `out` holds every window's filtered values.
     windows: usize,
     window_len: usize,
+    features: bool,
 }
 
 fn storage(ctx: &GpuContext, label: &str, bytes: usize, extra: wgpu::BufferUsages) -> wgpu::Buffer {
@@ -578,22 +590,19 @@ fn storage(ctx: &GpuContext, label: &str, bytes: usize, extra: wgpu::BufferUsage
 }
 
 impl WindowEnergyGpu {
-    /// Buffers for frames of `pixels` pixels and up to `windows` windows of
-    /// `window_len` floats each.
-    pub(crate) fn new(ctx: &GpuContext, pixels: usize, windows: usize, window_len: usize) -> Self {
+    /// Buffers for frames of `pixels` pixels, up to `windows` windows, a
+    /// template of `window_len` floats, and (with `features`) every window's
+    /// `window_len` filtered values.
+    pub(crate) fn new(ctx: &GpuContext, pixels: usize, windows: usize, window_len: usize, features: bool) -> Self {
         let windows = windows.max(1);
-        let staging_bytes = ((windows + 2) * 4).max(windows * window_len * 4);
+        let per_window = if features { window_len.max(2) } else { 2 };
+        let staging_bytes = ((windows + 2) * 4).max(windows * per_window * 4);
         Self {
             frame: storage(ctx, "window_energy.frame", pixels * 4, wgpu::BufferUsages::empty()),
             frame_pixels: pixels,
             maps: storage(ctx, "window_energy.maps", windows * MAP_STRIDE * 4, wgpu::BufferUsages::empty()),
             template: storage(ctx, "window_energy.template", window_len * 4, wgpu::BufferUsages::empty()),
-            out: storage(
-                ctx,
-                "window_energy.out",
-                windows * (2usize).max(window_len) * 4,
-                wgpu::BufferUsages::COPY_SRC,
-            ),
+            out: storage(ctx, "window_energy.out", windows * per_window * 4, wgpu::BufferUsages::COPY_SRC),
             energies: storage(ctx, "window_energy.energies", (windows + 2) * 4, wgpu::BufferUsages::COPY_SRC),
             staging: ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("window_energy.staging"),
@@ -603,12 +612,16 @@ impl WindowEnergyGpu {
             }),
             windows,
             window_len,
+            features,
         }
     }
 
-    /// Whether these buffers take `pixels`, `windows` and `window_len`.
-    pub(crate) fn fits(&self, pixels: usize, windows: usize, window_len: usize) -> bool {
-        self.frame_pixels == pixels && windows <= self.windows && window_len <= self.window_len
+    /// Whether these buffers take what [`WindowEnergyGpu::new`] with these arguments would.
+    pub(crate) fn fits(&self, pixels: usize, windows: usize, window_len: usize, features: bool) -> bool {
+        self.frame_pixels == pixels
+            && windows <= self.windows
+            && window_len <= self.window_len
+            && (self.features || !features)
     }
 
     /// Upload the packed frame (before the submission that reads it).
@@ -727,7 +740,7 @@ pub fn window_energy_gpu(
     if quads.is_empty() {
         return Ok(normalise_cpu(&[]));
     }
-    let gpu = WindowEnergyGpu::new(ctx, frame.data().len(), quads.len(), template.params.window_len());
+    let gpu = WindowEnergyGpu::new(ctx, frame.data().len(), quads.len(), template.params.window_len(), false);
     gpu.write_frame(ctx, &pack_rgb(frame));
     run_once(ctx, |rec| gpu.encode_energies(rec, ctx, frame.size(), quads, template))?;
     gpu.read_energies(ctx, quads.len())
@@ -744,7 +757,7 @@ pub fn window_features_gpu(
     if quads.is_empty() {
         return Ok(Vec::new());
     }
-    let gpu = WindowEnergyGpu::new(ctx, frame.data().len(), quads.len(), params.window_len());
+    let gpu = WindowEnergyGpu::new(ctx, frame.data().len(), quads.len(), params.window_len(), true);
     gpu.write_frame(ctx, &pack_rgb(frame));
     run_once(ctx, |rec| gpu.encode_features(rec, ctx, frame.size(), params, quads))?;
     gpu.read_features(ctx, params, quads.len())
