@@ -265,10 +265,10 @@ impl CondensationTracker {
         let step: Screw = std::array::from_fn(|k| gain[k] * best_screw[k]);
         self.reference = steps::screw_motion(&step).compose(&self.reference);
         steps::drift(&mut next, &best_screw, &gain);
-        // The camera's motion over the next interval, as over the last.
-        let since_reference = steps::screw_of_motion(&self.estimate.compose(&self.reference.inverse()));
-        let predicted: Screw = std::array::from_fn(|k| interval_motion[k] + since_reference[k]);
-        steps::predict(&mut next, &predicted);
+        // Each sample now says where this frame's camera is relative to the
+        // new reference; the next frame's camera is one more interval on,
+        // the motion of the last interval (to first order, screws add).
+        steps::predict(&mut next, &interval_motion);
         // §III-B.1: Brownian diffusion, scaled at the new reference.
         let (corners, depths) = self.reference_window();
         let sigma = steps::component_sigmas(
