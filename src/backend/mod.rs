@@ -296,8 +296,12 @@ pub trait EarlyVision {
 
     /// Like [`process`](Self::process) for a colour frame: every grey stage
     /// sees its luma ([`RgbImage::to_gray`], the bytes a colour file decodes
-    /// to as grey), the sample windows see its colour.
-    fn process_rgb(&mut self, frame: &RgbImage, request: &FrameRequest) -> Result<FrameFeatures>;
+    /// to as grey), the sample windows see its colour. The default processes
+    /// the luma alone (sample windows then see no hue); both backends
+    /// override it.
+    fn process_rgb(&mut self, frame: &RgbImage, request: &FrameRequest) -> Result<FrameFeatures> {
+        self.process(&frame.to_gray(), request)
+    }
 
     /// Like [`process`](Self::process) for a frame held in a wgpu texture
     /// (formats: [`crate::early::ingest::TEXTURE_FORMATS`]). Only a backend on
