@@ -218,8 +218,8 @@ mod params;
 mod steps;
 
 pub use params::{
-    LineFitMethod, MAX_COUNT, MAX_DISTANCE_PX, MAX_MIN_MAGNITUDE, MAX_MOTION_THRESHOLD, MAX_PASSES, MissingMeasurement,
-    MotionEdgeParams, Prediction,
+    LineFitMethod, MAX_COUNT, MAX_DISTANCE_PX, MAX_MIN_MAGNITUDE, MAX_MOTION_THRESHOLD, MAX_PASSES, MAX_SEARCH_AFTER,
+    MissingMeasurement, MotionEdgeParams, Prediction,
 };
 pub use steps::{
     Labelling, LineTolerance, ModelLine, corner_deviation, fit_model_lines, intersect_corners, label_motion_pixels,
