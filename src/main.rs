@@ -388,14 +388,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             note(format_args!(""));
             say(format_args!("{}", markdown(&tables)))
         }
-        Command::Bench { windows, json, seconds, .. } if !windows.is_empty() => bench_windows(&windows, json, seconds),
+        Command::Bench { windows, json, seconds, cpu_only, .. } if !windows.is_empty() => {
+            bench_windows(&windows, json, seconds, !cpu_only)
+        }
         Command::Bench { sizes, json, stages, seconds, cpu_only, .. } => {
             bench(&sizes.0, json, &stages, seconds, !cpu_only)
         }
     }
 }
 
-fn bench_windows(counts: &[usize], json: bool, seconds: f64) -> anyhow::Result<()> {
+fn bench_windows(counts: &[usize], json: bool, seconds: f64, gpu: bool) -> anyhow::Result<()> {
     if !(seconds > 0.0 && seconds < 60.0) {
         return Err(pipetrack::Error::Parameter(format!("--seconds {seconds} must be in (0, 60)")).into());
     }
@@ -410,7 +412,7 @@ fn bench_windows(counts: &[usize], json: bool, seconds: f64) -> anyhow::Result<(
         say(format_args!("{:<22} {:>8} {:>12} {:>12} {:>9}", "stage", "windows", "cpu ms", "gpu ms", "cpu/gpu"))?;
     }
     let mut write_error = None;
-    let rows = pipetrack::cli::bench_windows::bench_windows(counts, Duration::from_secs_f64(seconds), |r| {
+    let rows = pipetrack::cli::bench_windows::bench_windows(counts, Duration::from_secs_f64(seconds), gpu, |r| {
         if !json && write_error.is_none() {
             let gpu = r.gpu_ms.map_or("-".to_string(), |g| format!("{g:.2}"));
             let ratio = r.cpu_over_gpu.map_or("-".to_string(), |x| format!("{x:.2}"));

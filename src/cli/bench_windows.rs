@@ -67,13 +67,15 @@ fn setup(n: usize) -> Result<(RgbImage, FrameRequest)> {
     Ok((frame, request))
 }
 
-/// Time the stage at each N of `counts` for at least `budget` per backend.
+/// Time the stage at each N of `counts` for at least `budget` per backend
+/// (the CPU alone when `gpu` is false, or when there is no adapter).
 pub fn bench_windows(
     counts: &[usize],
     budget: Duration,
+    gpu: bool,
     mut row: impl FnMut(&WindowBenchRow),
 ) -> Result<Vec<WindowBenchRow>> {
-    let gpu = GpuContext::new().ok();
+    let gpu = if gpu { GpuContext::new().ok() } else { None };
     let mut rows = Vec::new();
     for &n in counts {
         let (frame, request) = setup(n)?;

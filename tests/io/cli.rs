@@ -520,3 +520,18 @@ fn condensation_round_trip_and_bad_input() {
     std::fs::write(&config, "samples = 0\n").unwrap();
     expect_error(track(&seq, &config), &["c.toml", "samples"]);
 }
+
+/// `bench --windows` with `--cpu-only` times the CPU backend alone: no GPU
+/// row values, no adapter.
+#[test]
+fn bench_windows_cpu_only_opens_no_adapter() {
+    let out = pipetrack(&["bench", "--windows", "7,20", "--seconds", "0.01", "--json", "--cpu-only"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).expect("JSON rows");
+    assert_eq!(rows.len(), 2);
+    for (row, n) in rows.iter().zip([7, 20]) {
+        assert_eq!(row["windows"], n);
+        assert!(row["cpu_ms"].as_f64().is_some_and(|ms| ms > 0.0), "{row}");
+        assert!(row["gpu_ms"].is_null() && row["adapter"].is_null(), "{row}");
+    }
+}
