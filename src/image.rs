@@ -120,6 +120,27 @@ impl<T: Copy + Default> Image<T> {
 pub type GrayImage = Image<u8>;
 /// A 32-bit float image (intensities stay in the 0..255 scale of the input).
 pub type FloatImage = Image<f32>;
+/// An 8-bit RGB colour frame, one `[r, g, b]` per pixel.
+pub type RgbImage = Image<[u8; 3]>;
+
+impl RgbImage {
+    /// The grey frame of this colour frame, through [`luma`]: the same bytes
+    /// a colour file decodes to when read as grey.
+    #[must_use]
+    pub fn to_gray(&self) -> GrayImage {
+        Image {
+            width: self.width,
+            height: self.height,
+            data: self.data.iter().map(|&[r, g, b]| luma(r, g, b)).collect(),
+        }
+    }
+
+    /// A colour frame whose three channels all equal `gray`.
+    #[must_use]
+    pub fn from_gray(gray: &GrayImage) -> Self {
+        Image { width: gray.width, height: gray.height, data: gray.data.iter().map(|&v| [v, v, v]).collect() }
+    }
+}
 
 impl GrayImage {
     /// Convert to f32 (0..255 scale), the CPU twin of the `ingest` shader.

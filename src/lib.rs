@@ -67,7 +67,7 @@ pub use backend::{BackendKind, CpuBackend, EarlyVision, FrameFeatures, FrameRequ
 pub use early::ingest::TEXTURE_FORMATS;
 pub use error::{Error, Result};
 pub use gpu::{GpuContext, GpuImage, required_features, required_limits};
-pub use image::{FloatImage, GrayImage, Image};
+pub use image::{FloatImage, GrayImage, Image, RgbImage};
 pub use io::Sequence;
 pub use io::formats::{FrameResult, Pose, Status};
 pub use track::run::{AsFrame, Frame, track_frames, track_step};

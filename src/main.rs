@@ -41,7 +41,7 @@ enum Command {
     Track {
         /// Sequence folder (camera.json, model.json or model.cao, init.json, frames/).
         seq_dir: PathBuf,
-        /// Tracker: motion-edge (000) or blue (002).
+        /// Tracker: motion-edge (000), blue (002) or condensation (004).
         #[arg(long)]
         tracker: String,
         /// Early-vision backend.
@@ -62,7 +62,7 @@ enum Command {
     },
     /// Render a synthetic sequence with exact ground truth.
     Synth {
-        /// Scene name: pendulum (000) or target3dof (002).
+        /// Scene name: pendulum (000), target3dof (002) or textured-plane (004).
         scene: String,
         /// Output folder (must be absent or empty).
         out_dir: PathBuf,
@@ -128,7 +128,8 @@ enum Command {
     Demo,
     /// Regenerate a paper's result tables on synthetic sequences (markdown on stdout).
     Reproduce {
-        /// Tracker whose paper to reproduce: motion-edge (Tables 1–3 of 000).
+        /// Tracker whose paper to reproduce: motion-edge (Tables 1–3 of 000)
+        /// or condensation (Fig. 4 of 004, written to --out).
         tracker: String,
         /// `default` (pipetrack's parameters), `paper` (the method as printed), or `both`.
         #[arg(long, default_value = "both")]
@@ -136,6 +137,9 @@ enum Command {
         /// Seeds, comma-separated: each renders its own sequence per velocity.
         #[arg(long, value_delimiter = ',', default_values_t = pipetrack::cli::reproduce::SEEDS)]
         seeds: Vec<u64>,
+        /// Folder for figures (condensation: fig4.csv and fig4_l<l>.png).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Compare every early-vision stage and the whole chain on the CPU and the GPU.
     Bench {
@@ -154,6 +158,10 @@ enum Command {
         /// Time the CPU twins only, without opening a GPU adapter.
         #[arg(long)]
         cpu_only: bool,
+        /// Instead of the stages: the window energy with these numbers of
+        /// sample windows (comma-separated), e.g. 200,1000,5000.
+        #[arg(long, value_delimiter = ',')]
+        windows: Vec<usize>,
     },
 }
 
@@ -356,11 +364,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             pipetrack::cli::demo::run_demo(&pipetrack::cli::demo::default_root(), &mut std::io::stdout().lock())?;
             Ok(())
         }
-        Command::Reproduce { tracker, config, seeds } => {
+        Command::Reproduce { tracker, config, seeds, out } => {
             use pipetrack::cli::reproduce::{Config, Setup, markdown, run_tables};
+            if tracker == "condensation" {
+                let out = out.ok_or_else(|| {
+                    pipetrack::Error::Parameter("reproduce condensation writes figures: give --out DIR".into())
+                })?;
+                let seed = seeds.first().copied().unwrap_or(0);
+                let summary = pipetrack::cli::reproduce_condensation::reproduce_fig4(&out, seed)?;
+                note(format_args!("reproduce: wrote fig4.csv and fig4_l1..6.png to {}", out.display()));
+                return say(format_args!("{summary}"));
+            }
             if tracker != "motion-edge" {
                 return Err(pipetrack::Error::Parameter(format!(
-                    "no tables to reproduce for tracker {tracker:?} (motion-edge)"
+                    "no tables to reproduce for tracker {tracker:?} (motion-edge, condensation)"
                 ))
                 .into());
             }
@@ -371,8 +388,49 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             note(format_args!(""));
             say(format_args!("{}", markdown(&tables)))
         }
-        Command::Bench { sizes, json, stages, seconds, cpu_only } => bench(&sizes.0, json, &stages, seconds, !cpu_only),
+        Command::Bench { windows, json, seconds, cpu_only, .. } if !windows.is_empty() => {
+            bench_windows(&windows, json, seconds, !cpu_only)
+        }
+        Command::Bench { sizes, json, stages, seconds, cpu_only, .. } => {
+            bench(&sizes.0, json, &stages, seconds, !cpu_only)
+        }
     }
+}
+
+fn bench_windows(counts: &[usize], json: bool, seconds: f64, gpu: bool) -> anyhow::Result<()> {
+    if !(seconds > 0.0 && seconds < 60.0) {
+        return Err(pipetrack::Error::Parameter(format!("--seconds {seconds} must be in (0, 60)")).into());
+    }
+    if let Some(&n) = counts.iter().find(|&&n| n == 0 || n > pipetrack::early::window_energy::MAX_WINDOWS) {
+        return Err(pipetrack::Error::Parameter(format!(
+            "--windows {n} must be in 1..={}",
+            pipetrack::early::window_energy::MAX_WINDOWS
+        ))
+        .into());
+    }
+    if !json {
+        say(format_args!("{:<22} {:>8} {:>12} {:>12} {:>9}", "stage", "windows", "cpu ms", "gpu ms", "cpu/gpu"))?;
+    }
+    let mut write_error = None;
+    let rows = pipetrack::cli::bench_windows::bench_windows(counts, Duration::from_secs_f64(seconds), gpu, |r| {
+        if !json && write_error.is_none() {
+            let gpu = r.gpu_ms.map_or("-".to_string(), |g| format!("{g:.2}"));
+            let ratio = r.cpu_over_gpu.map_or("-".to_string(), |x| format!("{x:.2}"));
+            write_error = say(format_args!(
+                "{:<22} {:>8} {:>12.2} {:>12} {:>9}",
+                "window_energy 64/16", r.windows, r.cpu_ms, gpu, ratio
+            ))
+            .err();
+        }
+    })
+    .context("benchmark failed")?;
+    if let Some(e) = write_error {
+        return Err(e);
+    }
+    if json {
+        say(format_args!("{}", serde_json::to_string_pretty(&rows)?))?;
+    }
+    Ok(())
 }
 
 fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64, gpu: bool) -> anyhow::Result<()> {

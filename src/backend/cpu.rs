@@ -2,7 +2,7 @@
 //! frame to frame so the per-frame loop does not allocate images.
 
 use super::plan::{EdgelPart, FramePlan, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
-use super::{EarlyVision, FrameFeatures, FrameRequest};
+use super::{EarlyVision, FrameFeatures, FrameRequest, WindowRequest};
 use crate::Result;
 use crate::early::Feature;
 use crate::early::compaction::compaction_cpu;
@@ -11,9 +11,10 @@ use crate::early::ingest::ingest_cpu;
 use crate::early::log::log_cpu;
 use crate::early::sobel::{SobelOutput, SobelPixel, gradient_at_pixel, sobel_cpu, sobel_of_gradient};
 use crate::early::temporal_diff;
+use crate::early::window_energy;
 use crate::early::zero_crossing::{Edgels, zero_crossing_strength_direction_cpu};
 use crate::early::{cpf, edge_pyramid};
-use crate::image::{FloatImage, GrayImage};
+use crate::image::{FloatImage, GrayImage, RgbImage};
 
 /// Early vision on the CPU (rayon threads across rows for large frames).
 #[derive(Debug)]
@@ -172,6 +173,18 @@ impl EarlyVision for CpuBackend {
     }
 
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {
+        self.run(frame, None, request)
+    }
+
+    fn process_rgb(&mut self, frame: &RgbImage, request: &FrameRequest) -> Result<FrameFeatures> {
+        self.run(&frame.to_gray(), Some(frame), request)
+    }
+}
+
+impl CpuBackend {
+    /// One frame: the grey stages on `frame`, the sample windows on
+    /// `colour` (or on `frame` as colour without hue when there is none).
+    fn run(&mut self, frame: &GrayImage, colour: Option<&RgbImage>, request: &FrameRequest) -> Result<FrameFeatures> {
         request.validate()?;
         let (w, h) = frame.size();
         let plan = FramePlan::new(request, w, h, self.previous.as_ref());
@@ -269,6 +282,25 @@ impl EarlyVision for CpuBackend {
                         out.pyramids = Some((cpf_levels, edge_levels));
                     } else {
                         self.spare.pyramids = Some((cpf_levels, edge_levels));
+                    }
+                }
+                Step::Windows { .. } => {
+                    let from_gray;
+                    let rgb = match colour {
+                        Some(c) => c,
+                        None => {
+                            from_gray = RgbImage::from_gray(frame);
+                            &from_gray
+                        }
+                    };
+                    match &request.windows {
+                        Some(WindowRequest::Features { params, windows }) => {
+                            out.window_features = Some(window_energy::window_features_cpu(rgb, params, windows)?);
+                        }
+                        Some(WindowRequest::Energies { windows, template }) => {
+                            out.window_energies = Some(window_energy::window_energy_cpu(rgb, windows, template)?);
+                        }
+                        None => {}
                     }
                 }
             }

@@ -10,15 +10,16 @@
 //! ([`EarlyVision`], [`GpuBackend::submit`]) uses lane 0.
 
 use super::plan::{EdgelPart, FramePlan, List, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
-use super::{EarlyVision, FrameFeatures, FrameRequest};
+use super::{EarlyVision, FrameFeatures, FrameRequest, WindowRequest};
 use crate::early::compaction::{self, CompactionGpu};
 use crate::early::cpf::{self, CpfGpu};
 use crate::early::edge_pyramid::{self, EdgePyramidGpu};
 use crate::early::sobel::{self, SobelGpu};
+use crate::early::window_energy::{self, WindowEnergyGpu};
 use crate::early::zero_crossing::{self, EdgelsGpu};
 use crate::early::{frame_sum, gaussian, ingest, log, temporal_diff};
 use crate::gpu::{FrameArena, GpuContext, GpuImage, Recorder};
-use crate::image::GrayImage;
+use crate::image::{GrayImage, RgbImage};
 use crate::{Error, Result};
 
 /// Frame slots in the ring: up to `SLOTS` frames may be submitted and not yet
@@ -59,23 +60,27 @@ pub struct LaneFrame<'a> {
     /// The lane (below [`MAX_LANES`]); each lane differences its frames
     /// against its own previous frame only.
     pub lane: usize,
-    /// The grey frame.
+    /// The grey frame (for a colour frame, its luma: [`RgbImage::to_gray`]).
     pub frame: &'a GrayImage,
+    /// The colour frame `frame` is the luma of, read by sample windows (as
+    /// [`GpuBackend::submit_rgb`] does); `None`: they read the grey frame.
+    pub colour: Option<&'a RgbImage>,
     /// What to compute on it.
     pub request: &'a FrameRequest,
 }
 
-/// Where a recorded frame's pixels come from.
+/// Where a recorded frame's pixels come from: grey bytes (with the colour
+/// frame they are the luma of, for sample windows), or a texture.
 #[derive(Clone, Copy)]
 enum Input<'a> {
-    Bytes(&'a GrayImage),
+    Bytes(&'a GrayImage, Option<&'a RgbImage>),
     Texture(&'a wgpu::Texture),
 }
 
 impl Input<'_> {
     fn size(&self) -> (usize, usize) {
         match self {
-            Input::Bytes(g) => g.size(),
+            Input::Bytes(g, _) => g.size(),
             Input::Texture(t) => (t.width() as usize, t.height() as usize),
         }
     }
@@ -123,6 +128,7 @@ struct Slot {
     motion_list: Option<CompactionGpu>,
     edge_list: Option<CompactionGpu>,
     crossing_list: Option<CompactionGpu>,
+    windows: Option<WindowEnergyGpu>,
     /// The submitted frame's plan and submission (None when the slot is free).
     pending: Option<(FramePlan, wgpu::SubmissionIndex)>,
 }
@@ -154,6 +160,7 @@ impl Slot {
             motion_list: None,
             edge_list: None,
             crossing_list: None,
+            windows: None,
             pending: None,
         }
     }
@@ -185,6 +192,12 @@ impl Slot {
                 }
                 Step::Pyramids { .. } => {
                     self.cpf.get_or_insert_with(|| (CpfGpu::new(ctx, w, h), EdgePyramidGpu::new(ctx, w, h)));
+                }
+                Step::Windows { count, params, energies } => {
+                    let (len, features) = (params.window_len(), !energies);
+                    if !self.windows.as_ref().is_some_and(|b| b.fits(w * h, count, len, features)) {
+                        self.windows = Some(WindowEnergyGpu::new(ctx, w * h, count, len, features));
+                    }
                 }
             }
         }
@@ -314,7 +327,14 @@ impl GpuBackend {
     /// Submit a grey frame; the GPU starts on it at once. Collect the result
     /// with [`GpuBackend::finish`]; up to three frames may be in flight.
     pub fn submit(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<Ticket> {
-        self.submit_inputs(&[(0, Input::Bytes(frame), request)]).and_then(first_ticket)
+        self.submit_inputs(&[(0, Input::Bytes(frame, None), request)]).and_then(first_ticket)
+    }
+
+    /// Submit a colour frame: the grey stages read its luma
+    /// ([`RgbImage::to_gray`]), the sample windows its colour.
+    pub fn submit_rgb(&mut self, frame: &RgbImage, request: &FrameRequest) -> Result<Ticket> {
+        let gray = frame.to_gray();
+        self.submit_inputs(&[(0, Input::Bytes(&gray, Some(frame)), request)]).and_then(first_ticket)
     }
 
     /// Submit a frame that is already a texture on this backend's device (a
@@ -330,8 +350,19 @@ impl GpuBackend {
     /// Returns one ticket per frame, in order; [`GpuBackend::finish`] each.
     /// Every request is checked before anything is recorded.
     pub fn submit_lanes(&mut self, frames: &[LaneFrame<'_>]) -> Result<Vec<Ticket>> {
+        for f in frames {
+            if let Some(c) = f.colour
+                && c.size() != f.frame.size()
+            {
+                let ((cw, ch), (w, h)) = (c.size(), f.frame.size());
+                return Err(Error::Parameter(format!(
+                    "lane {}: colour frame {cw}x{ch} and grey frame {w}x{h} differ in size",
+                    f.lane
+                )));
+            }
+        }
         let inputs: Vec<(usize, Input<'_>, &FrameRequest)> =
-            frames.iter().map(|f| (f.lane, Input::Bytes(f.frame), f.request)).collect();
+            frames.iter().map(|f| (f.lane, Input::Bytes(f.frame, f.colour), f.request)).collect();
         self.submit_inputs(&inputs)
     }
 
@@ -374,8 +405,13 @@ impl GpuBackend {
     /// Check every frame (lane in range and not repeated, request valid),
     /// then record each into its lane's next slot and submit them all at once.
     fn submit_inputs(&mut self, frames: &[(usize, Input<'_>, &FrameRequest)]) -> Result<Vec<Ticket>> {
-        for (i, &(lane, _, request)) in frames.iter().enumerate() {
+        for (i, &(lane, input, request)) in frames.iter().enumerate() {
             request.validate()?;
+            if matches!(input, Input::Texture(_)) && request.windows.is_some() {
+                return Err(Error::Parameter(
+                    "sample windows read a frame's colour bytes: submit the frame as bytes, not as a texture".into(),
+                ));
+            }
             if lane >= MAX_LANES {
                 return Err(Error::Parameter(format!("lane {lane} out of range (at most {MAX_LANES} lanes)")));
             }
@@ -395,7 +431,7 @@ impl GpuBackend {
             }
             let (w, h) = input.size();
             let (slot, plan) = self.prepare_slot(lane, w, h, request)?;
-            commands.push(self.record(lane, slot, &plan, input)?);
+            commands.push(self.record(lane, slot, &plan, input, request.windows.as_ref())?);
             recorded.push((lane, slot, plan));
         }
         let submitted = self.ctx.queue.submit(commands);
@@ -424,9 +460,17 @@ impl GpuBackend {
         Ok((slot, plan))
     }
 
-    /// Upload `input` (bytes) and record its ingest and every step of `plan`
-    /// into one command buffer; the lane's previous frame becomes this one.
-    fn record(&mut self, lane: usize, slot: usize, plan: &FramePlan, input: Input<'_>) -> Result<wgpu::CommandBuffer> {
+    /// Upload `input` (bytes, and for sample windows its colour or the grey
+    /// frame as colour) and record its ingest and every step of `plan` into
+    /// one command buffer; the lane's previous frame becomes this one.
+    fn record(
+        &mut self,
+        lane: usize,
+        slot: usize,
+        plan: &FramePlan,
+        input: Input<'_>,
+        windows: Option<&WindowRequest>,
+    ) -> Result<wgpu::CommandBuffer> {
         let l = &self.lanes[lane];
         let previous_slot = l.previous.map(|(p, _)| p).filter(|&p| p != slot && plan.reads_previous());
         let s = l.slot(slot)?;
@@ -436,12 +480,23 @@ impl GpuBackend {
 
         let mut rec = Recorder::new(&self.ctx, &s.arena);
         match input {
-            Input::Bytes(frame) => {
+            Input::Bytes(frame, colour) => {
                 let packed = ingest::pack_bytes(frame.data());
                 if !packed.is_empty() {
                     self.ctx.queue.write_buffer(&s.packed, 0, bytemuck::cast_slice(&packed));
                 }
-                self.stats.bytes_uploaded = (packed.len() * 4) as u64;
+                let mut uploaded = packed.len() * 4;
+                if let Some(buffers) = &s.windows
+                    && windows.is_some()
+                {
+                    let rgb = match colour {
+                        Some(c) => window_energy::pack_rgb(c),
+                        None => window_energy::pack_rgb(&RgbImage::from_gray(frame)),
+                    };
+                    buffers.write_frame(&self.ctx, &rgb);
+                    uploaded += rgb.len() * 4;
+                }
+                self.stats.bytes_uploaded = uploaded as u64;
                 ingest::encode(&mut rec, &s.packed, &s.luma)?;
             }
             Input::Texture(texture) => {
@@ -475,6 +530,20 @@ impl GpuBackend {
                     let g = s.sobel_set(gradient)?;
                     cpf::encode(&mut rec, &s.luma, c)?;
                     edge_pyramid::encode(&mut rec, &g.gx, &g.gy, e)?;
+                }
+                Step::Windows { count, .. } => {
+                    let buffers = opt(&s.windows)?;
+                    let size = (s.width, s.height);
+                    match windows {
+                        _ if count == 0 => {}
+                        Some(WindowRequest::Features { params, windows }) => {
+                            buffers.encode_features(&mut rec, &self.ctx, size, params, windows)?;
+                        }
+                        Some(WindowRequest::Energies { windows, template }) => {
+                            buffers.encode_energies(&mut rec, &self.ctx, size, windows, template)?;
+                        }
+                        None => return Err(Error::Gpu("plan has sample windows the request has not".into())),
+                    }
                 }
             }
         }
@@ -514,6 +583,23 @@ impl GpuBackend {
                             as u64;
                     out.pyramids = Some((pyr, edges));
                 }
+                Step::Windows { count, params, energies } => {
+                    let buffers = opt(&s.windows)?;
+                    if energies {
+                        let e = if count == 0 {
+                            window_energy::normalise_cpu(&[])
+                        } else {
+                            buffers.read_energies(&self.ctx, count)?
+                        };
+                        bytes += 4 * (count as u64 + 2);
+                        out.window_energies = Some(e);
+                    } else {
+                        let f =
+                            if count == 0 { Vec::new() } else { buffers.read_features(&self.ctx, &params, count)? };
+                        bytes += 4 * (count * params.window_len()) as u64;
+                        out.window_features = Some(f);
+                    }
+                }
                 _ => {}
             }
         }
@@ -548,6 +634,11 @@ impl EarlyVision for GpuBackend {
 
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures> {
         let t = self.submit(frame, request)?;
+        self.finish(t)
+    }
+
+    fn process_rgb(&mut self, frame: &RgbImage, request: &FrameRequest) -> Result<FrameFeatures> {
+        let t = self.submit_rgb(frame, request)?;
         self.finish(t)
     }
 

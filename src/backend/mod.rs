@@ -22,9 +22,10 @@ use crate::early::edge_pyramid::EdgePyramids;
 use crate::early::gaussian::GaussianParams;
 use crate::early::log::LogParams;
 use crate::early::temporal_diff::TemporalDiffParams;
+use crate::early::window_energy::{self, Quad, WindowEnergies, WindowEnergyParams, WindowTemplate};
 use crate::early::zero_crossing::ZeroCrossingParams;
 use crate::early::{Feature, Window};
-use crate::image::GrayImage;
+use crate::image::{GrayImage, RgbImage};
 use crate::{Error, Result};
 
 /// Where a list's pixels are kept: window, cap and subsample seed.
@@ -101,6 +102,85 @@ pub struct FrameRequest {
     pub zero_crossings: Option<ZeroCrossingRequest>,
     /// Critical-point and edge hierarchies of the frame (004).
     pub pyramids: Pyramids,
+    /// Sample windows of the frame to filter or score (004 §III-B.2); they
+    /// read the frame's colour (a grey frame has no hue).
+    pub windows: Option<WindowRequest>,
+}
+
+/// What to do with a frame's sample windows (004 eq. 20–28, the
+/// [`window_energy`] stage).
+#[derive(Clone, Debug, PartialEq)]
+pub enum WindowRequest {
+    /// Warp and filter each window and hand back its values
+    /// ([`FrameFeatures::window_features`]): how a template is taken.
+    Features {
+        /// Window and CPF level sizes.
+        params: WindowEnergyParams,
+        /// The quadrilaterals.
+        windows: Vec<Quad>,
+    },
+    /// Score each window against `template` and hand back the N energies
+    /// ([`FrameFeatures::window_energies`]).
+    Energies {
+        /// The quadrilaterals (at most [`window_energy::MAX_WINDOWS`]).
+        windows: Vec<Quad>,
+        /// The template, filtered with the sizes the windows are filtered with.
+        template: std::sync::Arc<WindowTemplate>,
+    },
+}
+
+impl WindowRequest {
+    /// The quadrilaterals.
+    #[must_use]
+    pub fn windows(&self) -> &[Quad] {
+        match self {
+            Self::Features { windows, .. } | Self::Energies { windows, .. } => windows,
+        }
+    }
+
+    /// The window and CPF level sizes.
+    #[must_use]
+    pub fn params(&self) -> WindowEnergyParams {
+        match self {
+            Self::Features { params, .. } => *params,
+            Self::Energies { template, .. } => template.params,
+        }
+    }
+
+    fn validate(&self) -> Result<()> {
+        self.params().validate()?;
+        let windows = self.windows();
+        if windows.len() > window_energy::MAX_WINDOWS {
+            return Err(Error::Parameter(format!(
+                "{} sample windows, at most {}",
+                windows.len(),
+                window_energy::MAX_WINDOWS
+            )));
+        }
+        if let Self::Features { params, windows } = self
+            && windows.len() * params.window_len() > window_energy::MAX_FEATURE_FLOATS
+        {
+            return Err(Error::Parameter(format!(
+                "{} filtered sample windows of {} values exceed {}",
+                windows.len(),
+                params.window_len(),
+                window_energy::MAX_FEATURE_FLOATS
+            )));
+        }
+        if windows.iter().flatten().flatten().any(|v| !v.is_finite()) {
+            return Err(Error::Parameter("a sample window has a corner that is not finite".into()));
+        }
+        if let Self::Energies { template, .. } = self
+            && template.values.len() != template.params.window_len()
+        {
+            return Err(Error::Parameter(format!(
+                "window template has {} values, its sizes need {}",
+                template.values.len(),
+                template.params.window_len()
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// Whether to build the CPF and edge hierarchies, and where they end up.
@@ -148,6 +228,9 @@ impl FrameRequest {
             }
             cap_ok(&z.list, "zero-crossing")?;
         }
+        if let Some(w) = &self.windows {
+            w.validate()?;
+        }
         Ok(())
     }
 
@@ -166,6 +249,7 @@ impl FrameRequest {
                 list,
             }),
             pyramids: Pyramids::Keep,
+            windows: None,
         }
     }
 }
@@ -183,6 +267,10 @@ pub struct FrameFeatures {
     pub zero_crossings: Option<Vec<Feature>>,
     /// CPF hierarchies and averaged edge hierarchies.
     pub pyramids: Option<(CpfPyramids, EdgePyramids)>,
+    /// The filtered sample windows ([`WindowRequest::Features`]).
+    pub window_features: Option<Vec<WindowTemplate>>,
+    /// The sample windows' energies ([`WindowRequest::Energies`]).
+    pub window_energies: Option<WindowEnergies>,
 }
 
 impl FrameFeatures {
@@ -205,6 +293,15 @@ pub trait EarlyVision {
     /// current sequence (the motion stage differences it against the previous
     /// one, under the previous-frame rule of [`FramePlan`]).
     fn process(&mut self, frame: &GrayImage, request: &FrameRequest) -> Result<FrameFeatures>;
+
+    /// Like [`process`](Self::process) for a colour frame: every grey stage
+    /// sees its luma ([`RgbImage::to_gray`], the bytes a colour file decodes
+    /// to as grey), the sample windows see its colour. The default processes
+    /// the luma alone (sample windows then see no hue); both backends
+    /// override it.
+    fn process_rgb(&mut self, frame: &RgbImage, request: &FrameRequest) -> Result<FrameFeatures> {
+        self.process(&frame.to_gray(), request)
+    }
 
     /// Like [`process`](Self::process) for a frame held in a wgpu texture
     /// (formats: [`crate::early::ingest::TEXTURE_FORMATS`]). Only a backend on

@@ -17,7 +17,7 @@ use crate::early::gaussian::{self, GaussianParams};
 use crate::early::log::{self, LogParams};
 use crate::early::temporal_diff::{self, TemporalDiffParams};
 use crate::early::zero_crossing::{self, ZeroCrossingParams};
-use crate::early::{cpf, edge_pyramid, frame_sum, sobel};
+use crate::early::{cpf, edge_pyramid, frame_sum, sobel, window_energy};
 
 /// The motion mask is 0 or 1: pixels above one half are moving.
 const MASK_THRESHOLD: f32 = 0.5;
@@ -132,6 +132,17 @@ pub enum Step {
         /// Window, threshold, cap and seed.
         params: CompactionParams,
     },
+    /// The sample windows of 004 (the `window_energy` stage), filtered
+    /// (`energies` false) or scored against a template (`energies` true),
+    /// from the frame's colour.
+    Windows {
+        /// Number of windows.
+        count: usize,
+        /// Window and CPF level sizes.
+        params: window_energy::WindowEnergyParams,
+        /// Score them (true) or hand back their filtered values (false).
+        energies: bool,
+    },
     /// A list asked for with nothing to compact it from (motion with no
     /// usable previous frame): handed back empty.
     EmptyList(List),
@@ -153,6 +164,7 @@ const LOG_STAGES: &[&str] = &[log::SHADER.name];
 const ZERO_CROSSING_STAGES: &[&str] = &[zero_crossing::SHADER.name];
 const COMPACTION_STAGES: &[&str] = &[compaction::SHADER.name];
 const PYRAMID_STAGES: &[&str] = &[cpf::SHADER.name, edge_pyramid::SHADER.name];
+const WINDOW_STAGES: &[&str] = &[window_energy::SHADER.name];
 
 const SOBEL_PARTS: [SobelPart; 5] =
     [SobelPart::Gx, SobelPart::Gy, SobelPart::Magnitude, SobelPart::Direction, SobelPart::Theta];
@@ -171,6 +183,7 @@ impl Step {
             Step::Compact { .. } => COMPACTION_STAGES,
             Step::EmptyList(_) => &[],
             Step::Pyramids { .. } => PYRAMID_STAGES,
+            Step::Windows { .. } => WINDOW_STAGES,
         }
     }
 
@@ -184,7 +197,7 @@ impl Step {
             Step::Sobel { input, .. } => vec![P(input)],
             Step::ZeroCrossings(_) => vec![P(Plane::Log)],
             Step::Compact { select, theta, magnitude, .. } => vec![select, theta, magnitude],
-            Step::EmptyList(_) => Vec::new(),
+            Step::EmptyList(_) | Step::Windows { .. } => Vec::new(),
             Step::Pyramids { gradient, .. } => {
                 vec![P(Plane::Luma), Source::Sobel(gradient, SobelPart::Gx), Source::Sobel(gradient, SobelPart::Gy)]
             }
@@ -201,7 +214,7 @@ impl Step {
             Step::Sobel { output, .. } => SOBEL_PARTS.iter().map(|&p| Source::Sobel(output, p)).collect(),
             Step::Log(_) => vec![P(Plane::Log)],
             Step::ZeroCrossings(_) => vec![Source::Edgels(EdgelPart::Strength), Source::Edgels(EdgelPart::Direction)],
-            Step::Compact { .. } | Step::EmptyList(_) | Step::Pyramids { .. } => Vec::new(),
+            Step::Compact { .. } | Step::EmptyList(_) | Step::Pyramids { .. } | Step::Windows { .. } => Vec::new(),
         }
     }
 }
@@ -225,7 +238,7 @@ pub struct PreviousFrame {
 /// the sum, compaction); edges (Sobel of the raw or smoothed frame,
 /// compaction); zero crossings (LoG, crossings, compaction); pyramids (Sobel
 /// of the raw frame unless the edges step just computed it, then the
-/// hierarchies).
+/// hierarchies); sample windows.
 ///
 /// **The previous-frame rule.** Motion always differences two *consecutive*
 /// frames smoothed the same way. A frame whose plan smooths (it asks for
@@ -310,6 +323,11 @@ impl FramePlan {
             });
         }
 
+        if let Some(w) = &request.windows {
+            let energies = matches!(w, super::WindowRequest::Energies { .. });
+            steps.push(Step::Windows { count: w.windows().len(), params: w.params(), energies });
+        }
+
         Self { steps, next_previous: smooths.then_some(this) }
     }
 
@@ -379,6 +397,7 @@ mod tests {
                 Step::Compact { list, .. } => format!("compact {list:?}"),
                 Step::EmptyList(list) => format!("empty {list:?}"),
                 Step::Pyramids { gradient, returned } => format!("pyramids {gradient:?} returned={returned}"),
+                Step::Windows { count, energies, .. } => format!("windows {count} energies={energies}"),
             })
             .collect()
     }
@@ -483,6 +502,20 @@ mod tests {
                 params: z.list.compaction(0.0),
             }
         );
+    }
+
+    #[test]
+    fn sample_windows_run_last_and_keep_no_previous_frame() {
+        use crate::backend::WindowRequest;
+        use crate::early::window_energy::WindowEnergyParams;
+        let params = WindowEnergyParams::default();
+        let windows = Some(WindowRequest::Features { params, windows: vec![[[0.0; 2]; 4]; 3] });
+        let request = FrameRequest { edges: edges(false), windows, ..FrameRequest::default() };
+        let plan = FramePlan::new(&request, W, H, None);
+        assert_eq!(shape(&plan), ["sobel Luma->OfFrame", "compact Edges", "windows 3 energies=false"]);
+        assert_eq!(plan.steps()[2], Step::Windows { count: 3, params, energies: false });
+        assert_eq!(plan.next_previous(), None);
+        assert_eq!(plan.stage_names(), ["sobel", "compaction", "window_energy"]);
     }
 
     #[test]

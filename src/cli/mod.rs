@@ -4,8 +4,10 @@
 
 pub mod batch;
 pub mod bench;
+pub mod bench_windows;
 pub mod demo;
 pub mod plot;
 pub mod reproduce;
+pub mod reproduce_condensation;
 pub mod score;
 pub mod tracker_bench;

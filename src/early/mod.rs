@@ -57,6 +57,7 @@ pub mod log;
 pub(crate) mod rows;
 pub mod sobel;
 pub mod temporal_diff;
+pub mod window_energy;
 pub mod zero_crossing;
 
 /// Every shader the stages load, in the order a frame runs them; what
@@ -73,6 +74,7 @@ pub const SHADERS: &[crate::gpu::ShaderDef] = &[
     cpf::SHADER,
     edge_pyramid::SHADER,
     compaction::SHADER,
+    window_energy::SHADER,
 ];
 
 /// A rectangle of interest in pixel coordinates: columns `x0..x1`, rows

@@ -48,6 +48,24 @@ impl Camera {
         [[self.fx * inv_z, 0.0, -self.fx * p.x * inv_z * inv_z], [0.0, self.fy * inv_z, -self.fy * p.y * inv_z * inv_z]]
     }
 
+    /// The image Jacobian of 004 eq. 21 (the interaction matrix of visual
+    /// servoing) at `pixel`, for a point at depth `depth`: the 2×6 matrix
+    /// with `(u̇, v̇) = J · (T_x, T_y, T_z, ω_x, ω_y, ω_z)` when the point moves
+    /// relative to the camera by `Ṗ = T + ω × P` (camera frame). With
+    /// `u' = u − c_x`, `v' = v − c_y` it is eq. 21 with λ = f_x in the first
+    /// row and f_y in the second:
+    /// `[f_x/Z, 0, −u'/Z, −u'v'/f_y, (f_x² + u'²)/f_x, −v' f_x/f_y]` and
+    /// `[0, f_y/Z, −v'/Z, −(f_y² + v'²)/f_y, u'v'/f_x, u' f_y/f_x]`.
+    #[must_use]
+    pub fn image_jacobian(&self, pixel: [f64; 2], depth: f64) -> [[f64; 6]; 2] {
+        let (u, v) = (pixel[0] - self.cx, pixel[1] - self.cy);
+        let (fx, fy, z) = (self.fx, self.fy, depth);
+        [
+            [fx / z, 0.0, -u / z, -u * v / fy, (fx * fx + u * u) / fx, -v * fx / fy],
+            [0.0, fy / z, -v / z, -(fy * fy + v * v) / fy, u * v / fx, u * fy / fx],
+        ]
+    }
+
     /// Whether `pixel` lies on the image: pixel centres span 0..W−1 and
     /// 0..H−1, and pixels reach half a pixel beyond their centres, so
     /// −½ ≤ u ≤ W − ½ and −½ ≤ v ≤ H − ½ (false for NaN).
@@ -118,5 +136,28 @@ mod tests {
         let c = camera();
         assert!(c.in_image([-0.5, -0.5]) && c.in_image([639.5, 479.5]));
         assert!(!c.in_image([-0.51, 0.0]) && !c.in_image([0.0, 479.51]) && !c.in_image([f64::NAN, 0.0]));
+    }
+}
+
+#[cfg(test)]
+mod image_jacobian_tests {
+    use super::*;
+    use crate::geometry::pose::rotation_from_axis_angle;
+
+    /// A small rigid motion of a point, P' = R(ω)·P + T, moves its pixel by
+    /// J·(T, ω) to first order (eq. 20–21).
+    #[test]
+    fn the_image_jacobian_predicts_a_small_motion() {
+        let cam = Camera { width: 320, height: 240, fx: 400.0, fy: 380.0, cx: 160.0, cy: 120.0 };
+        let p = DVec3::new(0.05, -0.03, 0.6);
+        let screw = [1e-4, -2e-4, 3e-4, 2e-4, -1e-4, 3e-4];
+        let moved = rotation_from_axis_angle(DVec3::new(screw[3], screw[4], screw[5])) * p
+            + DVec3::new(screw[0], screw[1], screw[2]);
+        let (a, b) = (cam.project(p), cam.project(moved));
+        let j = cam.image_jacobian(a, p.z);
+        for row in 0..2 {
+            let predicted: f64 = (0..6).map(|k| j[row][k] * screw[k]).sum();
+            assert!((predicted - (b[row] - a[row])).abs() < 1e-3 * predicted.abs().max(1e-3), "{row}");
+        }
     }
 }

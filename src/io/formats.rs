@@ -87,6 +87,11 @@ pub struct InitState {
     /// Image positions of every model vertex at frame 0 (2-D trackers).
     #[serde(default)]
     pub corners: Vec<[f64; 2]>,
+    /// The known motion of the camera from frame 0 to frame 1: camera 1 in
+    /// the frame of camera 0, `[tx, ty, tz, rx, ry, rz]` (metres, axis-angle
+    /// radians), as 004's experiments know it (SPEC §4; optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_motion: Option<[f64; 6]>,
 }
 
 /// Which parts of the object a line of `truth.jsonl` says are seen: one
@@ -215,6 +220,13 @@ pub struct FrameResult {
     /// Covariance of the tracker's state, row-major, where it has one (not part of the contract's required fields).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub covariance: Option<Vec<f64>>,
+    /// Velocity screw estimate (T_x, T_y, T_z, ω_x, ω_y, ω_z), where the
+    /// tracker has one (Condensation; a tracker's own key).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_screw: Option<[f64; 6]>,
+    /// Effective sample size of the particle weights (Condensation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub effective_sample_size: Option<f64>,
     /// Milliseconds spent on this frame.
     pub ms: f64,
 }
@@ -588,6 +600,9 @@ impl InitState {
     pub fn validate(&self, path: &Path, model: &Model, model_path: &Path) -> Result<()> {
         if self.pose.is_none() && self.corners.is_empty() {
             return Err(input_error(path, "neither a pose nor corners: a tracker needs one of them"));
+        }
+        if self.camera_motion.is_some_and(|m| m.iter().any(|v| !v.is_finite())) {
+            return Err(input_error(path, "camera_motion has a number that is not finite"));
         }
         validate_state(path, None, self.pose.as_ref(), &self.params, &self.corners, model, model_path)
     }

@@ -11,7 +11,7 @@ use super::formats::Camera;
 use super::json::*;
 use super::sequence::FRAME_EXTENSIONS;
 use super::y4m::Y4mReader;
-use crate::image::{GrayImage, luma};
+use crate::image::{GrayImage, RgbImage, luma};
 use crate::{Error, Result};
 
 /// Largest width or height of a frame, px: four times HD, and the side of
@@ -246,6 +246,36 @@ pub fn decode_gray(path: &Path) -> Result<GrayImage> {
     dynamic_to_gray(img).map_err(|e| Error::input(path, e.to_string()))
 }
 
+/// Decode an image file to an 8-bit colour frame: colour as is (16-bit
+/// scaled to 8, alpha ignored), grey repeated in R, G and B. Its
+/// [`RgbImage::to_gray`] is what [`decode_gray`] gives for the same file.
+pub fn decode_rgb(path: &Path) -> Result<RgbImage> {
+    let mut reader = ::image::ImageReader::open(path)
+        .map_err(|e| open_error(path, &e))?
+        .with_guessed_format()
+        .map_err(|e| open_error(path, &e))?;
+    reader.limits(decoder_limits());
+    let decoder = reader.into_decoder().map_err(|e| decode_error(path, &e))?;
+    let (w, h) = ::image::ImageDecoder::dimensions(&decoder);
+    check_frame_size(path, w as usize, h as usize)?;
+    let img = ::image::DynamicImage::from_decoder(decoder).map_err(|e| decode_error(path, &e))?;
+    dynamic_to_rgb(img).map_err(|e| Error::input(path, e.to_string()))
+}
+
+/// Convert any decoded image to colour as [`decode_rgb`] describes.
+pub fn dynamic_to_rgb(img: ::image::DynamicImage) -> Result<RgbImage> {
+    use ::image::DynamicImage as D;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let data = match img {
+        img @ (D::ImageLuma8(_) | D::ImageLumaA8(_) | D::ImageLuma16(_) | D::ImageLumaA16(_)) => {
+            return Ok(RgbImage::from_gray(&dynamic_to_gray(img)?));
+        }
+        D::ImageRgb8(buf) => buf.as_raw().chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect(),
+        other => other.to_rgb8().as_raw().chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect(),
+    };
+    RgbImage::from_vec(w, h, data)
+}
+
 /// Convert any decoded image to grey as [`decode_gray`] describes.
 pub fn dynamic_to_gray(img: ::image::DynamicImage) -> Result<GrayImage> {
     use ::image::DynamicImage as D;
@@ -328,12 +358,28 @@ impl FrameSource {
         result
     }
 
+    /// Colour frames instead of grey ones: image files decode with
+    /// [`decode_rgb`]; a Y4M stream (luma only) arrives as grey in R, G and B.
+    #[must_use]
+    pub fn colour(self) -> ColourFrames {
+        ColourFrames(self)
+    }
+
     fn read_next(&mut self) -> Option<Result<GrayImage>> {
+        self.read_next_with(decode_gray, |g| g)
+    }
+
+    /// The next frame, decoding files with `decode` and taking stream frames through `from_gray`.
+    fn read_next_with<T: FrameSize>(
+        &mut self,
+        decode: fn(&Path) -> Result<T>,
+        from_gray: fn(GrayImage) -> T,
+    ) -> Option<Result<T>> {
         let (cw, ch) = (self.camera.width as usize, self.camera.height as usize);
         match &mut self.kind {
             SourceKind::Files(paths) => {
                 let path = paths.get(self.delivered)?;
-                Some(decode_gray(path).and_then(|img| {
+                Some(decode(path).and_then(|img| {
                     if img.size() == (cw, ch) {
                         Ok(img)
                     } else {
@@ -355,7 +401,7 @@ impl FrameSource {
                 }
                 let r = reader.as_mut()?;
                 match r.next_frame() {
-                    Ok(Some(img)) => Some(Ok(img)),
+                    Ok(Some(img)) => Some(Ok(from_gray(img))),
                     Ok(None) if r.frames_read() == 0 => {
                         Some(Err(Error::input(r.name(), "the stream has a header but no frames")))
                     }
@@ -364,6 +410,57 @@ impl FrameSource {
                 }
             }
         }
+    }
+}
+
+/// Anything a frame file decodes to, by its size.
+trait FrameSize {
+    fn size(&self) -> (usize, usize);
+    fn width(&self) -> usize {
+        self.size().0
+    }
+    fn height(&self) -> usize {
+        self.size().1
+    }
+}
+
+impl<T: Copy + Default> FrameSize for crate::image::Image<T> {
+    fn size(&self) -> (usize, usize) {
+        crate::image::Image::size(self)
+    }
+}
+
+/// [`FrameSource`] decoding colour: an iterator of `Result<RgbImage>` (see
+/// [`FrameSource::colour`]).
+pub struct ColourFrames(FrameSource);
+
+impl ColourFrames {
+    /// Number of frames, when known (image files, not streams).
+    #[must_use]
+    pub fn len_hint(&self) -> Option<usize> {
+        self.0.len_hint()
+    }
+}
+
+impl Iterator for ColourFrames {
+    type Item = Result<RgbImage>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let source = &mut self.0;
+        if source.failed {
+            return None;
+        }
+        let (cw, ch) = (source.camera.width as usize, source.camera.height as usize);
+        let result = match check_frame_size(&source.camera_path, cw, ch) {
+            Ok(()) => source.read_next_with(decode_rgb, |g| RgbImage::from_gray(&g)),
+            Err(e) => Some(Err(e)),
+        };
+        match &result {
+            Some(Ok(_)) => source.delivered += 1,
+            Some(Err(_)) => source.failed = true,
+            None => {}
+        }
+        result
     }
 }
 

@@ -7,19 +7,22 @@
 //!
 //! [`scene_names`] lists them, [`render_scene`] renders one in memory and
 //! [`generate`] renders and writes a sequence folder (SPEC §4). Today:
-//! `pendulum` ([`pendulum`], paper 000) and `target3dof` ([`target3dof`],
-//! paper 002: the back of a truck translating in front of a bookshelf).
+//! `pendulum` ([`pendulum`], paper 000), `target3dof` ([`target3dof`],
+//! paper 002: the back of a truck translating in front of a bookshelf) and
+//! `textured-plane` ([`textured_plane`], paper 004: a camera moving with a
+//! velocity screw in front of a colourful plane).
 
 pub mod background;
 pub mod canvas;
 pub mod pendulum;
 pub mod target3dof;
+pub mod textured_plane;
 
 use std::path::Path;
 
 use rayon::prelude::*;
 
-use crate::image::GrayImage;
+use crate::image::{GrayImage, RgbImage};
 use crate::io::StagedDir;
 use crate::io::formats::{Camera, InitState, Model, TruthFrame};
 use crate::{Error, Result};
@@ -30,6 +33,7 @@ pub use background::{
 pub use canvas::{Canvas, DEFAULT_SUPERSAMPLE, ELLIPSE_SEGMENTS, Face, FillRule, MAX_SUPERSAMPLE, ellipse_points};
 pub use pendulum::{PendulumMotion, PendulumOptions, PendulumSwing, render_pendulum};
 pub use target3dof::{Target3dofOptions, Target3dofScene, render_target3dof};
+pub use textured_plane::{PlaneMotion, TexturedPlaneOptions, render_textured_plane};
 
 /// A rendered sequence held in memory: what a sequence folder (SPEC §4) holds.
 #[derive(Clone, Debug)]
@@ -44,8 +48,12 @@ pub struct SyntheticSequence {
     pub init: InitState,
     /// Ground truth, one entry per frame (`truth.jsonl`).
     pub truth: Vec<TruthFrame>,
-    /// The frames, 8-bit grey (`frames/000000.png`, ...).
+    /// The frames, 8-bit grey (`frames/000000.png`, ...); the luma of
+    /// `rgb_frames` for a colour scene.
     pub frames: Vec<GrayImage>,
+    /// The frames in colour, for a colour scene (then written instead of
+    /// `frames`); empty for a grey one.
+    pub rgb_frames: Vec<RgbImage>,
     /// Scene parameters for people reading the folder (`meta.json`, ignored by readers).
     pub meta: serde_json::Value,
 }
@@ -78,6 +86,22 @@ impl SyntheticSequence {
         }
         let truth_path = dir.join("truth.jsonl");
         std::fs::write(&truth_path, truth).map_err(|e| Error::io(&truth_path, e))?;
+        self.rgb_frames.par_iter().enumerate().try_for_each(|(k, frame)| {
+            let path = frames_dir.join(format!("{k:06}.png"));
+            let bytes: Vec<u8> = frame.data().iter().flatten().copied().collect();
+            image::save_buffer_with_format(
+                &path,
+                &bytes,
+                frame.width() as u32,
+                frame.height() as u32,
+                image::ColorType::Rgb8,
+                image::ImageFormat::Png,
+            )
+            .map_err(|e| Error::io(&path, std::io::Error::other(e)))
+        })?;
+        if !self.rgb_frames.is_empty() {
+            return Ok(());
+        }
         self.frames.par_iter().enumerate().try_for_each(|(k, frame)| {
             let path = frames_dir.join(format!("{k:06}.png"));
             image::save_buffer_with_format(
@@ -130,7 +154,7 @@ pub(crate) fn check_frames(frames: usize, max: usize) -> Result<()> {
 /// The scenes [`render_scene`] and [`generate`] know.
 #[must_use]
 pub fn scene_names() -> &'static [&'static str] {
-    &["pendulum", "target3dof"]
+    &["pendulum", "target3dof", "textured-plane"]
 }
 
 /// Render scene `scene` in memory. `frames` overrides the scene's default
@@ -164,6 +188,16 @@ pub fn render_scene(
                 opts.set(key, value)?;
             }
             render_target3dof(&opts)
+        }
+        "textured-plane" => {
+            let mut opts = TexturedPlaneOptions { seed, ..TexturedPlaneOptions::default() };
+            if let Some(n) = frames {
+                opts.frames = n;
+            }
+            for (key, value) in extra {
+                opts.set(key, value)?;
+            }
+            render_textured_plane(&opts)
         }
         _ => Err(Error::Parameter(format!("unknown scene '{scene}' (known scenes: {})", scene_names().join(", ")))),
     }

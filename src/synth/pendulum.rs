@@ -379,7 +379,7 @@ pub fn render_pendulum(opts: &PendulumOptions) -> Result<SyntheticSequence> {
             corners: swing.corners(k).to_vec(),
         })
         .collect();
-    let init = InitState { pose: None, params: Vec::new(), corners: swing.corners(0).to_vec() };
+    let init = InitState { pose: None, params: Vec::new(), corners: swing.corners(0).to_vec(), camera_motion: None };
     let meta = serde_json::json!({
         "scene": "pendulum",
         "seed": opts.seed,
@@ -403,5 +403,14 @@ pub fn render_pendulum(opts: &PendulumOptions) -> Result<SyntheticSequence> {
         "target_grey": TARGET_GREY,
         "note": "theta(t) = A cos(omega t), released from rest at frame 0; corners exact, pixel (0,0) = centre of the top-left pixel",
     });
-    Ok(SyntheticSequence { scene: "pendulum".to_string(), camera: camera(), model: model(), init, truth, frames, meta })
+    Ok(SyntheticSequence {
+        scene: "pendulum".to_string(),
+        camera: camera(),
+        model: model(),
+        init,
+        truth,
+        frames,
+        rgb_frames: Vec::new(),
+        meta,
+    })
 }

@@ -793,7 +793,8 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
             corners: scene.corners(k),
         })
         .collect();
-    let init = InitState { pose: Some(scene.pose(0)), params: Vec::new(), corners: scene.corners(0) };
+    let init =
+        InitState { pose: Some(scene.pose(0)), params: Vec::new(), corners: scene.corners(0), camera_motion: None };
     let occluder_columns: Vec<[f64; 2]> = bars.into_iter().flatten().collect();
     let meta = serde_json::json!({
         "scene": "target3dof",
@@ -827,6 +828,7 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
         init,
         truth,
         frames,
+        rgb_frames: Vec::new(),
         meta,
     })
 }

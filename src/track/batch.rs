@@ -9,6 +9,8 @@
 //! the other group's trackers (in parallel, one sequence per thread); a lane
 //! whose sequence ends takes the next one. Each tracker still sees its own
 //! frames in order, one at a time: only the scheduling differs from `track`.
+//! A tracker that reads colour gets colour frames here too: its lane's
+//! frames carry their colour for the sample windows.
 //!
 //! On the CPU, K threads each track one sequence at a time with
 //! [`run::track_to_file_with`].
@@ -27,8 +29,9 @@ use rayon::prelude::*;
 use super::Tracker;
 use super::run::{self, RunSummary, TrackOptions, make_tracker, track_features, write_result_line};
 use crate::backend::{BackendKind, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, LaneFrame, MAX_LANES, Ticket};
-use crate::image::GrayImage;
+use crate::image::{GrayImage, RgbImage};
 use crate::io::formats::Status;
+use crate::io::frames::ColourFrames;
 use crate::io::sequence::CAMERA_FILE;
 use crate::io::{AtomicFile, FrameSource, Sequence};
 use crate::{Error, GpuContext, Result};
@@ -108,14 +111,21 @@ struct Running<'j> {
     job: usize,
     seq: &'j Sequence,
     tracker: Box<dyn Tracker + Send>,
-    frames: FrameSource,
+    frames: LaneFrames,
     out: AtomicFile,
     /// Index of the next frame.
     index: usize,
     tracked: usize,
     started: Instant,
-    /// The frame submitted this step, with the tracker's request for it and when it was taken.
-    current: Option<(GrayImage, FrameRequest, Instant)>,
+    /// The frame submitted this step (grey, or the luma of the colour frame
+    /// beside it), with the tracker's request for it and when it was taken.
+    current: Option<(GrayImage, Option<RgbImage>, FrameRequest, Instant)>,
+}
+
+/// A sequence's frames as its tracker reads them ([`Tracker::wants_colour`]).
+enum LaneFrames {
+    Gray(FrameSource),
+    Colour(ColourFrames),
 }
 
 impl<'j> Running<'j> {
@@ -131,15 +141,28 @@ impl<'j> Running<'j> {
             Error::input(seq.dir().join(CAMERA_FILE), format!("{message}; try --backend cpu"))
         })?;
         let out = AtomicFile::create(&j.out_path)?;
-        let frames = seq.frames();
+        let frames = if tracker.wants_colour() {
+            LaneFrames::Colour(seq.frames().colour())
+        } else {
+            LaneFrames::Gray(seq.frames())
+        };
         Ok(Self { job, seq, tracker, frames, out, index: 0, tracked: 0, started: Instant::now(), current: None })
     }
 
     /// Read the next frame and take the tracker's request for it: `Ok(true)`
     /// when there is one, `Ok(false)` after the last frame.
     fn next_frame(&mut self) -> Result<bool> {
-        let Some(frame) = self.frames.next_frame() else { return Ok(false) };
-        let frame = frame?;
+        let (frame, colour) = match &mut self.frames {
+            LaneFrames::Gray(frames) => {
+                let Some(frame) = frames.next_frame() else { return Ok(false) };
+                (frame?, None)
+            }
+            LaneFrames::Colour(frames) => {
+                let Some(colour) = frames.next() else { return Ok(false) };
+                let colour = colour?;
+                (colour.to_gray(), Some(colour))
+            }
+        };
         let size = (self.seq.camera.width as usize, self.seq.camera.height as usize);
         if frame.size() != size {
             let (w, h) = frame.size();
@@ -149,13 +172,13 @@ impl<'j> Running<'j> {
         let request = self.tracker.request(size.0, size.1);
         // Checked here so that a bad request fails this sequence, not the shared submission.
         request.validate()?;
-        self.current = Some((frame, request, requested));
+        self.current = Some((frame, colour, request, requested));
         Ok(true)
     }
 
     /// Let the tracker update with this step's features and write its line.
     fn track(&mut self, features: &FrameFeatures) -> Result<()> {
-        let (_, _, requested) = self.current.take().ok_or_else(|| Error::Gpu("no frame submitted".into()))?;
+        let (_, _, _, requested) = self.current.take().ok_or_else(|| Error::Gpu("no frame submitted".into()))?;
         let (_, result) = track_features(self.tracker.as_mut(), self.index, features, requested);
         let name = self.out.path().to_path_buf();
         write_result_line(&mut self.out, &name, &result)?;
@@ -314,8 +337,8 @@ impl<'j> Lanes<'j, '_> {
         let frames: Vec<LaneFrame<'_>> = group
             .iter()
             .filter_map(|&lane| {
-                let (frame, request, _) = self.running[lane].as_ref()?.current.as_ref()?;
-                Some(LaneFrame { lane, frame, request })
+                let (frame, colour, request, _) = self.running[lane].as_ref()?.current.as_ref()?;
+                Some(LaneFrame { lane, frame, colour: colour.as_ref(), request })
             })
             .collect();
         if frames.is_empty() {

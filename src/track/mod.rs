@@ -11,11 +11,13 @@
 
 pub mod batch;
 pub mod blue;
+pub mod condensation;
 pub mod motion_edge;
 pub mod run;
 pub mod support;
 
 pub use blue::{BlueParams, BlueTracker, TargetLocation, TargetPrediction};
+pub use condensation::{CondensationParams, CondensationTracker};
 pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker, Prediction};
 pub use run::{
     RunSummary, TRACKERS, TrackOptions, make_tracker, read_config, track_frames, track_sequence, track_to_file,
@@ -23,6 +25,7 @@ pub use run::{
 };
 
 use crate::backend::{FrameFeatures, FrameRequest};
+use crate::early::window_energy::{WindowEnergies, WindowTemplate};
 use crate::early::{Feature, Window};
 use crate::io::formats::{FrameResult, Pose, Status};
 
@@ -36,6 +39,10 @@ pub struct Observations<'a> {
     pub edges: Option<&'a [Feature]>,
     /// Zero crossings of the LoG (001).
     pub zero_crossings: Option<&'a [Feature]>,
+    /// Filtered sample windows (004), when the request asked for them.
+    pub window_features: Option<&'a [WindowTemplate]>,
+    /// Energies of the sample windows (004), when the request asked for them.
+    pub window_energies: Option<&'a WindowEnergies>,
 }
 
 impl<'a> From<&'a FrameFeatures> for Observations<'a> {
@@ -45,6 +52,8 @@ impl<'a> From<&'a FrameFeatures> for Observations<'a> {
             motion: features.motion.as_deref(),
             edges: features.edges.as_deref(),
             zero_crossings: features.zero_crossings.as_deref(),
+            window_features: features.window_features.as_deref(),
+            window_energies: features.window_energies.as_ref(),
         }
     }
 }
@@ -178,6 +187,8 @@ impl FrameOutcome {
             pose,
             params,
             covariance: self.covariance.clone().filter(|c| finite(c)),
+            velocity_screw: None,
+            effective_sample_size: None,
             ms: if ms.is_finite() { ms } else { 0.0 },
         }
     }
@@ -198,6 +209,29 @@ pub trait Tracker {
 
     /// Take the features of frame `frame` and report the frame's outcome.
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome;
+
+    /// Whether the tracker reads colour (its requests have sample windows
+    /// that compare hue): colour frames then reach the backend as colour.
+    /// Grey otherwise (the default).
+    fn wants_colour(&self) -> bool {
+        false
+    }
+
+    /// The extra keys of the last frame's output line (none by default).
+    fn extras(&self) -> FrameExtras {
+        FrameExtras::default()
+    }
+}
+
+/// Numbers a tracker reports beyond the common ones (SPEC §4 lets trackers
+/// add keys; readers ignore them).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameExtras {
+    /// The velocity screw estimate (T_x, T_y, T_z, ω_x, ω_y, ω_z) over the
+    /// last frame interval (Condensation).
+    pub velocity_screw: Option<[f64; 6]>,
+    /// The effective sample size of a particle filter's weights.
+    pub effective_sample_size: Option<f64>,
 }
 
 #[cfg(test)]

@@ -12,16 +12,19 @@ use std::time::Instant;
 
 use crate::backend::{BackendKind, EarlyVision, FrameFeatures, make_backend};
 use crate::geometry::{ModelGeometry, check_simple_polygon};
-use crate::image::GrayImage;
+use crate::image::{GrayImage, RgbImage};
 use crate::io::formats::{FrameResult, Status};
 use crate::io::json::one_short_line;
 use crate::io::sequence::CAMERA_FILE;
 use crate::io::{AtomicFile, Sequence, StagedDir};
-use crate::track::{BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
+use crate::track::{
+    BlueParams, BlueTracker, CondensationParams, CondensationTracker, FrameOutcome, MotionEdgeParams,
+    MotionEdgeTracker, Observations, Tracker,
+};
 use crate::{Error, Result};
 
 /// The `--tracker` names pipetrack knows.
-pub const TRACKERS: &[&str] = &["motion-edge", "blue"];
+pub const TRACKERS: &[&str] = &["motion-edge", "blue", "condensation"];
 
 /// Largest config file read, bytes: a tracker has a few dozen parameters.
 pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
@@ -95,6 +98,22 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             let params: BlueParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
             let tracker = BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), params)
+                .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
+            Ok(Box::new(tracker))
+        }
+        "condensation" => {
+            let params: CondensationParams = read_config(config, name)?;
+            params.validate().map_err(|e| config_error(config, e))?;
+            if seq.model.vertices.len() != 4 {
+                return Err(Error::input(
+                    seq.model_path(),
+                    format!(
+                        "condensation tracks a window of 4 vertices (top-left, top-right, bottom-right, bottom-left); the model has {}",
+                        seq.model.vertices.len()
+                    ),
+                ));
+            }
+            let tracker = CondensationTracker::new(seq.camera, &seq.model, &seq.init, params)
                 .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
             Ok(Box::new(tracker))
         }
@@ -178,30 +197,46 @@ fn track_named(
     let bar = progress_bar(opts.progress, frames.len_hint());
     let start = Instant::now();
     let (mut count, mut tracked) = (0, 0);
-    track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), |frame, outcome, result| {
+    let mut sink = |frame: Frame<'_>, outcome: &FrameOutcome, result: &FrameResult| -> Result<()> {
         write_result_line(out, out_name, result)?;
-        if let (Some(dir), Some(frame)) = (&overlay, frame.gray()) {
-            let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
-            let visible = match (&model_geometry, &outcome.pose) {
-                (Some(g), Some(pose)) => {
-                    g.visible_edges_at(&(*pose).into(), outcome.params.as_deref().unwrap_or(&[])).ok()
+        if let Some(dir) = &overlay {
+            let luma_of_colour;
+            let gray = match frame {
+                Frame::Rgb(c) => {
+                    luma_of_colour = c.to_gray();
+                    Some(&luma_of_colour)
                 }
-                _ => None,
+                Frame::Gray(g) => Some(g),
+                Frame::Texture(_) => None,
             };
-            let edges: std::borrow::Cow<'_, [[usize; 2]]> = match visible {
-                Some(v) => seq.model.edges.iter().zip(v).filter(|(_, on)| *on).map(|(e, _)| *e).collect(),
-                None => (&seq.model.edges[..]).into(),
-            };
-            let img = crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
-            let path = dir.path().join(format!("{:06}.png", outcome.frame));
-            img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
+            if let Some(frame) = gray {
+                let labelled: Vec<(u32, u32)> = outcome.labelled.iter().flatten().copied().collect();
+                let visible = match (&model_geometry, &outcome.pose) {
+                    (Some(g), Some(pose)) => {
+                        g.visible_edges_at(&(*pose).into(), outcome.params.as_deref().unwrap_or(&[])).ok()
+                    }
+                    _ => None,
+                };
+                let edges: std::borrow::Cow<'_, [[usize; 2]]> = match visible {
+                    Some(v) => seq.model.edges.iter().zip(v).filter(|(_, on)| *on).map(|(e, _)| *e).collect(),
+                    None => (&seq.model.edges[..]).into(),
+                };
+                let img = crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
+                let path = dir.path().join(format!("{:06}.png", outcome.frame));
+                img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
+            }
         }
         tracked += usize::from(result.status == Status::Tracking);
         count += 1;
         on_result(result);
         bar.inc(1);
         Ok(())
-    })?;
+    };
+    if tracker.wants_colour() {
+        track_frames(tracker.as_mut(), backend.as_mut(), frames.colour(), (w, h), &mut sink)?;
+    } else {
+        track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), &mut sink)?;
+    }
     bar.finish_and_clear();
     // The output first: a run whose lines could not all be written publishes no overlays.
     out.flush().map_err(|e| Error::io(out_name, e))?;
@@ -223,6 +258,9 @@ fn track_named(
 pub enum Frame<'a> {
     /// An 8-bit grey frame in memory (any backend).
     Gray(&'a GrayImage),
+    /// An 8-bit colour frame in memory (any backend): the grey stages see
+    /// its luma, sample windows its colour.
+    Rgb(&'a RgbImage),
     /// A texture on the device of a [`crate::backend::GpuBackend`]; a CPU
     /// backend answers [`Error::TextureOnCpu`].
     Texture(&'a wgpu::Texture),
@@ -234,16 +272,17 @@ impl Frame<'_> {
     pub fn size(&self) -> (usize, usize) {
         match self {
             Frame::Gray(g) => g.size(),
+            Frame::Rgb(c) => c.size(),
             Frame::Texture(t) => (t.width() as usize, t.height() as usize),
         }
     }
 
-    /// The grey image, for a byte frame.
+    /// The grey image, for a grey byte frame.
     #[must_use]
     pub fn gray(&self) -> Option<&GrayImage> {
         match self {
             Frame::Gray(g) => Some(g),
-            Frame::Texture(_) => None,
+            Frame::Rgb(_) | Frame::Texture(_) => None,
         }
     }
 }
@@ -264,6 +303,12 @@ impl AsFrame for GrayImage {
 impl AsFrame for &GrayImage {
     fn as_frame(&self) -> Frame<'_> {
         Frame::Gray(self)
+    }
+}
+
+impl AsFrame for RgbImage {
+    fn as_frame(&self) -> Frame<'_> {
+        Frame::Rgb(self)
     }
 }
 
@@ -298,6 +343,7 @@ pub fn track_step(
     let request = tracker.request(w, h);
     let features = match frame {
         Frame::Gray(g) => backend.process(g, &request)?,
+        Frame::Rgb(c) => backend.process_rgb(c, &request)?,
         Frame::Texture(t) => backend.process_texture(t, &request)?,
     };
     let step = track_features(tracker, index, &features, t0);
@@ -317,7 +363,10 @@ pub fn track_features(
 ) -> (FrameOutcome, FrameResult) {
     let obs = Observations::from(features);
     let outcome = tracker.track(index, &obs);
-    let result = outcome.to_result(requested.elapsed().as_secs_f64() * 1e3);
+    let mut result = outcome.to_result(requested.elapsed().as_secs_f64() * 1e3);
+    let extras = tracker.extras();
+    result.velocity_screw = extras.velocity_screw.filter(|s| s.iter().all(|v| v.is_finite()));
+    result.effective_sample_size = extras.effective_sample_size.filter(|v| v.is_finite());
     (outcome, result)
 }
 

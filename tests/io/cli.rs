@@ -457,3 +457,81 @@ fn sigint_during_track_leaves_no_partial_output() {
     let left: Vec<_> = std::fs::read_dir(&root).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(left, ["seq"], "nothing but the sequence is left");
 }
+
+/// `track --tracker condensation` on a `textured-plane` folder (colour PNG
+/// frames): every line has corners, a pose, a velocity screw and an
+/// effective sample size; a sequence without a pose, a model that is not a
+/// quadrilateral and an out-of-range parameter are one-line errors with
+/// exit status 2 naming the file.
+#[test]
+fn condensation_round_trip_and_bad_input() {
+    let root = scratch("condensation");
+    let seq = root.join("plane");
+    let out =
+        pipetrack(&["synth", "textured-plane", seq.to_str().unwrap(), "--frames", "4", "--set", "motion=translation"]);
+    assert!(out.status.success(), "synth failed: {}", String::from_utf8_lossy(&out.stderr));
+    let config = root.join("c.toml");
+    std::fs::write(&config, "samples = 30\ncomponent_weights = [1.0, 1.0, 0.0, 0.0, 0.0, 0.0]\n").unwrap();
+    let pred = root.join("pred.jsonl");
+    let track = |seq: &Path, config: &Path| {
+        pipetrack(&[
+            "track",
+            seq.to_str().unwrap(),
+            "--tracker",
+            "condensation",
+            "--backend",
+            "cpu",
+            "--config",
+            config.to_str().unwrap(),
+            "--out",
+            pred.to_str().unwrap(),
+        ])
+    };
+    let out = track(&seq, &config);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(&pred).unwrap();
+    let lines: Vec<serde_json::Value> = text.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 4);
+    for v in &lines[1..] {
+        assert_eq!(v["status"], "tracking", "{v}");
+        assert_eq!(v["corners"].as_array().unwrap().len(), 4);
+        assert!(v["pose"].is_object());
+        assert_eq!(v["velocity_screw"].as_array().unwrap().len(), 6);
+        assert!(v["effective_sample_size"].as_f64().unwrap() >= 1.0);
+    }
+    std::fs::remove_file(&pred).unwrap();
+
+    let expect_error = |out: Output, needles: &[&str]| {
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
+        assert_eq!(lines.len(), 1, "{stderr}");
+        for n in needles {
+            assert!(lines[0].contains(n), "{n:?} missing from {}", lines[0]);
+        }
+        assert!(!pred.exists());
+    };
+    let pendulum = good_sequence(&root);
+    expect_error(track(&pendulum, &config), &["init.json", "pose"]);
+    let truck = root.join("truck");
+    let out = pipetrack(&["synth", "target3dof", truck.to_str().unwrap(), "--frames", "2"]);
+    assert!(out.status.success());
+    expect_error(track(&truck, &config), &["model.json", "4 vertices"]);
+    std::fs::write(&config, "samples = 0\n").unwrap();
+    expect_error(track(&seq, &config), &["c.toml", "samples"]);
+}
+
+/// `bench --windows` with `--cpu-only` times the CPU backend alone: no GPU
+/// row values, no adapter.
+#[test]
+fn bench_windows_cpu_only_opens_no_adapter() {
+    let out = pipetrack(&["bench", "--windows", "7,20", "--seconds", "0.01", "--json", "--cpu-only"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).expect("JSON rows");
+    assert_eq!(rows.len(), 2);
+    for (row, n) in rows.iter().zip([7, 20]) {
+        assert_eq!(row["windows"], n);
+        assert!(row["cpu_ms"].as_f64().is_some_and(|ms| ms > 0.0), "{row}");
+        assert!(row["gpu_ms"].is_null() && row["adapter"].is_null(), "{row}");
+    }
+}

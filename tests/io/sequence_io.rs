@@ -530,3 +530,24 @@ fn bundled_cube_cao_reads_as_a_closed_box() {
         assert_eq!(shared, 2, "edge {e:?}");
     }
 }
+
+/// A colour PNG read as colour and reduced to luma is the grey reading of
+/// the same file, byte for byte; a grey PNG read as colour is grey in R, G, B.
+#[test]
+fn colour_and_grey_readings_of_a_frame_agree() {
+    use pipetrack::io::frames::{decode_gray, decode_rgb};
+    let dir = crate::common::scratch("colour_reading", "frames");
+    let (w, h) = (13u32, 7u32);
+    let rgb: Vec<u8> = (0..w * h * 3).map(|i| (i * 37 % 251) as u8).collect();
+    let colour_path = dir.join("colour.png");
+    image::save_buffer(&colour_path, &rgb, w, h, image::ColorType::Rgb8).unwrap();
+    let colour = decode_rgb(&colour_path).unwrap();
+    assert_eq!(colour.get(1, 0), [rgb[3], rgb[4], rgb[5]]);
+    assert_eq!(colour.to_gray(), decode_gray(&colour_path).unwrap());
+    let grey_path = dir.join("grey.png");
+    let grey: Vec<u8> = (0..w * h).map(|i| (i * 11 % 256) as u8).collect();
+    image::save_buffer(&grey_path, &grey, w, h, image::ColorType::L8).unwrap();
+    let as_colour = decode_rgb(&grey_path).unwrap();
+    assert!(as_colour.data().iter().zip(&grey).all(|(p, &g)| *p == [g, g, g]));
+    assert_eq!(as_colour.to_gray(), decode_gray(&grey_path).unwrap());
+}

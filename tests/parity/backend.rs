@@ -375,7 +375,7 @@ fn lanes_in_one_submission_equal_cpu_per_sequence() {
         let batch: Vec<LaneFrame<'_>> = lanes
             .iter()
             .zip(&frames)
-            .map(|(&lane, frame)| LaneFrame { lane, frame, request: &requests[lane] })
+            .map(|(&lane, frame)| LaneFrame { lane, frame, colour: None, request: &requests[lane] })
             .collect();
         let tickets = gpu.submit_lanes(&batch).unwrap();
         for ((&lane, f), ticket) in lanes.iter().zip(&frames).zip(tickets) {
@@ -389,6 +389,6 @@ fn lanes_in_one_submission_equal_cpu_per_sequence() {
         }
     }
     let again = frame(1, 0);
-    let one = [LaneFrame { lane: 1, frame: &again, request: &requests[1] }; 2];
+    let one = [LaneFrame { lane: 1, frame: &again, colour: None, request: &requests[1] }; 2];
     assert!(gpu.submit_lanes(&one).is_err(), "a lane twice in one submission");
 }

@@ -15,4 +15,5 @@ mod log;
 mod shader_validation;
 mod sobel;
 mod temporal_diff;
+mod window_energy;
 mod zero_crossing;

@@ -143,3 +143,46 @@ fn a_failing_lane_leaves_the_others_running() {
         assert_eq!(got, lines_without_time(want), "{}", job.out_path.display());
     }
 }
+
+/// Condensation reads colour frames: in a GPU batch its lanes carry each
+/// frame's colour, and every sequence's lines equal tracking it alone with
+/// `track` on the GPU (which reads the colour files).
+#[test]
+fn gpu_batch_of_colour_sequences_equals_tracking_each_alone() {
+    let Some((ctx, _guard)) = common::gpu("gpu_batch_of_colour_sequences_equals_tracking_each_alone") else {
+        return;
+    };
+    let root = common::scratch("batch", "gpu-colour");
+    let frames = [5, 3, 4];
+    let jobs = |out: &str, backend: BackendKind| -> Vec<BatchJob> {
+        std::fs::create_dir_all(root.join(out)).unwrap();
+        frames
+            .iter()
+            .enumerate()
+            .map(|(i, &n)| {
+                let dir = root.join(format!("plane{i}"));
+                if !dir.exists() {
+                    synth::generate("textured-plane", &dir, Some(n), 10 + i as u64, &[]).unwrap();
+                }
+                BatchJob {
+                    seq: Sequence::open(&dir, false).unwrap(),
+                    opts: options("condensation", backend),
+                    out_path: root.join(out).join(format!("plane{i}.jsonl")),
+                }
+            })
+            .collect()
+    };
+    let alone = jobs("alone", BackendKind::Gpu);
+    for j in &alone {
+        let summary = track_to_file(&j.seq, &j.opts, &j.out_path).unwrap();
+        assert!(summary.backend.starts_with("GPU"), "{}", summary.backend);
+    }
+    let batch = jobs("lanes2", BackendKind::Cpu);
+    let results = run_batch_on_gpu(&batch, &mut GpuBackend::new(ctx.clone()), 2, &no_progress).unwrap();
+    for ((job, want), (r, &n)) in batch.iter().zip(&alone).zip(results.iter().zip(&frames)) {
+        r.as_ref().unwrap_or_else(|e| panic!("{}: {e}", job.out_path.display()));
+        let (got, want) = (lines_without_time(&job.out_path), lines_without_time(&want.out_path));
+        assert_eq!(got.len(), n, "{}", job.out_path.display());
+        assert_eq!(got, want, "{} differs from tracking it alone", job.out_path.display());
+    }
+}

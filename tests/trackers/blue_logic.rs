@@ -451,6 +451,7 @@ fn run_box(speed: f64, occlusion: bool, seed: u64) -> Run {
         pose: Some(Pose { rotation: ROTATION, translation: truth_translation(0, omega) }),
         params: Vec::new(),
         corners: Vec::new(),
+        camera_motion: None,
     };
     let mut params = BlueParams::default();
     if let Ok(v) = std::env::var("BLUE_PARAMS") {

@@ -7,6 +7,7 @@ mod common;
 mod batch;
 mod blue_e2e;
 mod blue_logic;
+mod condensation_e2e;
 mod embed;
 mod finite;
 mod motion_edge_e2e;

@@ -1,0 +1,343 @@
+//! The `condensation` tracker (paper 004, Chambers and Hutchinson): a
+//! particle filter over the velocity screw of a camera looking at a static
+//! planar window, each sample scored by the critical-point-filter energy of
+//! the window it predicts.
+//!
+//! # The method, as Fig. 2 runs it
+//! * **State** (eq. 14): each sample is a velocity screw s = (T, ω), the
+//!   motion of the scene relative to the camera since the *reference* (see
+//!   [`steps`] for the sign convention of eq. 21).
+//! * **Window and template.** The tracked window is the model's quadrilateral
+//!   (`model.json`, four vertices: the template's top-left, top-right,
+//!   bottom-right and bottom-left), at the pose of `init.json`, which gives
+//!   the depths eq. 21 needs. Frame 0 is the source image: the backend warps
+//!   the window to 2^L × 2^L and filters it to CPF level k; that is the
+//!   template (§III-B.3).
+//! * **Initial set** (§III-B.3): N draws from N(r_i, Σ), r_i the screw of the
+//!   known first camera motion (`init.json`'s `camera_motion`, or the
+//!   `camera_motion` parameter; zero without either).
+//! * **Each frame** (Fig. 2, steps 1–5): project the reference window's
+//!   vertices with every sample through eq. 20–21 at the reference depths;
+//!   score all N windows in the frame's one request (the `window_energy`
+//!   stage: warp, CPF to level k, eq. 22–26); weight π = 1/U normalised
+//!   (eq. 27–28); resample by cumulative weights (eq. 16–18); drift by the
+//!   best sample with gain K (eq. 19); diffuse by a Brownian random walk.
+//!
+//! # From one image pair to a sequence
+//! 004 tracks one source–destination pair; a sequence extends it so:
+//! * **Accumulating the motion.** The reference is a pose of the window;
+//!   the drift of eq. 19, `s ← s − K·s^max`, is read as the servo step it is
+//!   in the paper: the reference moves by `K·s^max` (applied exactly, as a
+//!   rigid motion) and every sample is re-expressed relative to it. The
+//!   camera keeps moving, so each sample then gets the motion of the last
+//!   frame interval added (a constant-velocity prediction; the paper's
+//!   robot knows its own motion instead). With K = I (the default) the
+//!   reference is the last estimate and the samples are the screw of the
+//!   next frame interval, so their spread stays that of the diffusion.
+//!   Depths come from the reference pose each frame (the paper keeps the
+//!   source depth for its single step).
+//! * **Keeping the template.** The template is frame 0's window, kept for
+//!   the whole sequence. Each sample window is warped projectively onto the
+//!   template's square, so for a plane every frame is compared with the same
+//!   template without accumulated error; refreshing the template from the
+//!   estimate would make each frame's sub-pixel error part of the next
+//!   frame's reference, a random walk that grows with the sequence.
+//!
+//! # Output
+//! Corners: the window scored for the estimate (the best sample by
+//! default, [`Estimate`]), in model-vertex order; pose: the window's pose
+//! relative to the camera (the estimate's screw applied to the reference);
+//! the velocity screw estimate (`velocity_screw`, per frame interval) and the
+//! effective sample size 1/Σπ² (`effective_sample_size`) as extra keys; the
+//! weighted covariance of the samples' screws as `covariance`.
+//!
+//! A frame is `tracking` when the best window matches the template: the RMS
+//! intensity difference per compared value, bounded from above by its
+//! energy (`U · Σ_n C_I / 4K²`, since U ≥ C_I / Σ_n C_I), is at most
+//! [`CondensationParams::max_residual`]. Otherwise it is `lost`, with the
+//! residual in the reason, and the filter carries on (the template stays,
+//! so the window can be found again).
+
+pub mod params;
+pub mod steps;
+
+use std::sync::Arc;
+
+use glam::DVec3;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+pub use params::{CondensationParams, Estimate};
+use steps::Screw;
+
+use super::{Diagnostics, FrameExtras, FrameOutcome, Observations, Phase, Tracker};
+use crate::backend::{FrameRequest, WindowRequest};
+use crate::early::Window;
+use crate::early::window_energy::{HIERARCHIES, Quad, WindowTemplate};
+use crate::geometry::Camera;
+use crate::geometry::pose::Pose;
+use crate::io::formats::{self, InitState, Model, Status};
+use crate::{Error, Result};
+
+/// Margin of the window of interest around the sample windows, px.
+const INTEREST_MARGIN_PX: f64 = 2.0;
+
+/// The Condensation tracker of 004.
+#[derive(Debug)]
+pub struct CondensationTracker {
+    params: CondensationParams,
+    camera: Camera,
+    /// The window's vertices in the object frame.
+    vertices: [DVec3; 4],
+    /// The pose (camera-from-object) the samples' screws are relative to.
+    reference: Pose,
+    /// The last frame's estimate.
+    estimate: Pose,
+    samples: Vec<Screw>,
+    /// The sample windows of the next frame.
+    windows: Vec<Quad>,
+    template: Option<Arc<WindowTemplate>>,
+    rng: ChaCha8Rng,
+    extras: FrameExtras,
+    phase: Phase,
+}
+
+impl CondensationTracker {
+    /// A tracker of the four-vertex window `model` seen by `camera`, starting
+    /// at `init.pose`; the first motion from `params.camera_motion`, else
+    /// `init.camera_motion`, else zero.
+    pub fn new(camera: Camera, model: &Model, init: &InitState, params: CondensationParams) -> Result<Self> {
+        params.validate()?;
+        let [a, b, c, d] = model.vertices[..] else {
+            return Err(Error::Parameter(format!(
+                "condensation tracks a window of 4 vertices (top-left, top-right, bottom-right, bottom-left); the model has {}",
+                model.vertices.len()
+            )));
+        };
+        let vertices = [a, b, c, d].map(DVec3::from_array);
+        let pose: Pose = init
+            .pose
+            .ok_or_else(|| Error::Parameter("condensation needs \"pose\" (the window's depth comes from it)".into()))?
+            .into();
+        if vertices.iter().any(|v| !(pose.apply(*v).z > 0.0)) {
+            return Err(Error::Parameter("a window vertex is not in front of the camera at the initial pose".into()));
+        }
+        let motion = params.camera_motion.or(init.camera_motion).unwrap_or([0.0; 6]);
+        let mut tracker = Self {
+            camera,
+            vertices,
+            reference: pose,
+            estimate: pose,
+            samples: Vec::new(),
+            windows: Vec::new(),
+            template: None,
+            rng: ChaCha8Rng::seed_from_u64(params.seed),
+            extras: FrameExtras::default(),
+            phase: Phase::Acquiring,
+            params,
+        };
+        let (corners, depths) = tracker.reference_window();
+        let sigma = steps::component_sigmas(
+            &camera,
+            &corners,
+            &depths,
+            tracker.params.initial_spread_px,
+            &tracker.params.component_weights,
+        );
+        tracker.samples = steps::draw_initial_samples(
+            &steps::screw_of_camera_motion(&motion),
+            &sigma,
+            tracker.params.samples,
+            &mut tracker.rng,
+        );
+        tracker.windows = steps::project_sample_windows(&camera, &corners, &depths, &tracker.samples);
+        Ok(tracker)
+    }
+
+    /// The parameters.
+    #[must_use]
+    pub fn params(&self) -> &CondensationParams {
+        &self.params
+    }
+
+    /// The samples' screws (relative to the reference) the next frame scores.
+    #[must_use]
+    pub fn samples(&self) -> &[Screw] {
+        &self.samples
+    }
+
+    /// The sample windows the next frame scores.
+    #[must_use]
+    pub fn sample_windows(&self) -> &[Quad] {
+        &self.windows
+    }
+
+    /// Corners and depths of the window at `pose`.
+    fn window_at(&self, pose: &Pose) -> ([[f64; 2]; 4], [f64; 4]) {
+        let cam: [DVec3; 4] = self.vertices.map(|v| pose.apply(v));
+        (cam.map(|p| self.camera.project(p)), cam.map(|p| p.z))
+    }
+
+    fn reference_window(&self) -> ([[f64; 2]; 4], [f64; 4]) {
+        self.window_at(&self.reference)
+    }
+
+    fn outcome(&self, frame: usize, status: Status, corners: Vec<[f64; 2]>, reason: Option<String>) -> FrameOutcome {
+        FrameOutcome {
+            frame,
+            status,
+            phase: self.phase,
+            corners,
+            pose: Some(formats::Pose::from(&self.estimate)),
+            params: None,
+            covariance: None,
+            labelled: Vec::new(),
+            diagnostics: Diagnostics { lost_reason: reason, ..Diagnostics::default() },
+        }
+    }
+
+    /// Frame 0: keep the filtered window as the template.
+    fn take_template(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {
+        let (corners, _) = self.reference_window();
+        match observations.window_features.and_then(|f| f.first()) {
+            Some(t) if t.params == self.params.window() => {
+                self.template = Some(Arc::new(t.clone()));
+                self.phase = Phase::Tracking;
+                self.outcome(frame, Status::Tracking, corners.to_vec(), None)
+            }
+            _ => {
+                self.outcome(frame, Status::Lost, corners.to_vec(), Some("no template window from the backend".into()))
+            }
+        }
+    }
+
+    /// Fig. 2 for one destination frame.
+    fn track_frame(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {
+        let (ref_corners, ref_depths) = self.reference_window();
+        let energies = match observations.window_energies {
+            Some(e) if e.energies.len() == self.samples.len() => e,
+            _ => {
+                self.phase = Phase::Lost;
+                let reason = "no window energies from the backend".to_string();
+                return self.outcome(frame, Status::Lost, ref_corners.to_vec(), Some(reason));
+            }
+        };
+        // Eq. 27–28.
+        let weights = steps::weights_from_energies(&energies.energies);
+        let best = steps::best_sample(&weights);
+        let best_screw = self.samples[best];
+        let estimate_screw = match self.params.estimate {
+            Estimate::Best => best_screw,
+            Estimate::WeightedMean => steps::weighted_mean(&self.samples, &weights),
+        };
+        let window = steps::project_sample_windows(&self.camera, &ref_corners, &ref_depths, &[estimate_screw]);
+        let corners: Vec<[f64; 2]> = window[0].iter().map(|c| [f64::from(c[0]), f64::from(c[1])]).collect();
+        let estimate = steps::screw_motion(&estimate_screw).compose(&self.reference);
+        let interval_motion = steps::screw_of_motion(&estimate.compose(&self.estimate.inverse()));
+        self.estimate = estimate;
+
+        // The claim of tracking, checked against the image.
+        let side = self.params.window().level_side();
+        let residual =
+            steps::residual_bound(energies.energies[best], energies.intensity_total, HIERARCHIES * side * side);
+        let (status, reason) = if residual <= self.params.max_residual {
+            self.phase = Phase::Tracking;
+            (Status::Tracking, None)
+        } else {
+            self.phase = Phase::Lost;
+            (
+                Status::Lost,
+                Some(format!("best window's residual {residual:.1} grey levels exceeds {}", self.params.max_residual)),
+            )
+        };
+        let mut outcome = self.outcome(frame, status, corners, reason);
+        outcome.covariance = Some(screw_covariance(&self.samples, &weights));
+        self.extras = FrameExtras {
+            velocity_screw: Some(interval_motion),
+            effective_sample_size: Some(steps::effective_sample_size(&weights)),
+        };
+
+        // Eq. 16–18: resample.
+        let cumulative = steps::cumulative_weights(&weights);
+        let mut next = steps::resample(&self.samples, &cumulative, &mut self.rng);
+        // Eq. 19: drift by K·s^max; the reference follows the same step.
+        let gain = self.params.gain;
+        let step: Screw = std::array::from_fn(|k| gain[k] * best_screw[k]);
+        self.reference = steps::screw_motion(&step).compose(&self.reference);
+        steps::drift(&mut next, &best_screw, &gain);
+        // Each sample now says where this frame's camera is relative to the
+        // new reference; the next frame's camera is one more interval on,
+        // the motion of the last interval (to first order, screws add).
+        steps::predict(&mut next, &interval_motion);
+        // §III-B.1: Brownian diffusion, scaled at the new reference.
+        let (corners, depths) = self.reference_window();
+        let sigma = steps::component_sigmas(
+            &self.camera,
+            &corners,
+            &depths,
+            self.params.diffusion_px,
+            &self.params.component_weights,
+        );
+        steps::diffuse(&mut next, &sigma, &mut self.rng);
+        self.windows = steps::project_sample_windows(&self.camera, &corners, &depths, &next);
+        self.samples = next;
+        outcome
+    }
+}
+
+/// The weighted covariance of the samples' screws, 6×6 row-major.
+fn screw_covariance(samples: &[Screw], weights: &[f64]) -> Vec<f64> {
+    let mean = steps::weighted_mean(samples, weights);
+    let mut cov = vec![0.0; 36];
+    for (s, w) in samples.iter().zip(weights) {
+        for i in 0..6 {
+            for j in 0..6 {
+                cov[i * 6 + j] += w * (s[i] - mean[i]) * (s[j] - mean[j]);
+            }
+        }
+    }
+    cov
+}
+
+impl Tracker for CondensationTracker {
+    fn name(&self) -> &'static str {
+        "condensation"
+    }
+
+    fn window_of_interest(&self, width: usize, height: usize) -> Window {
+        let corners: Vec<[f64; 2]> =
+            self.windows.iter().flatten().map(|c| [f64::from(c[0]), f64::from(c[1])]).collect();
+        Window::around(&corners, INTEREST_MARGIN_PX, width, height).unwrap_or_else(|| Window::full(width, height))
+    }
+
+    fn request(&self, _width: usize, _height: usize) -> FrameRequest {
+        let windows = match &self.template {
+            None => {
+                let (corners, _) = self.reference_window();
+                WindowRequest::Features {
+                    params: self.params.window(),
+                    windows: vec![corners.map(|c| [c[0] as f32, c[1] as f32])],
+                }
+            }
+            Some(template) => WindowRequest::Energies { windows: self.windows.clone(), template: Arc::clone(template) },
+        };
+        FrameRequest { windows: Some(windows), ..FrameRequest::default() }
+    }
+
+    fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {
+        self.extras = FrameExtras::default();
+        if self.template.is_none() {
+            self.take_template(frame, observations)
+        } else {
+            self.track_frame(frame, observations)
+        }
+    }
+
+    fn wants_colour(&self) -> bool {
+        true
+    }
+
+    fn extras(&self) -> FrameExtras {
+        self.extras.clone()
+    }
+}
