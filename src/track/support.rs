@@ -92,7 +92,7 @@ impl EdgeMap {
     /// Support of the segments `segments` (module doc): `(supported, samples)`.
     #[must_use]
     pub fn support(&self, segments: &[([f64; 2], [f64; 2])], distance: f64, angle: f64) -> (usize, usize) {
-        self.support_by_segment(segments, distance, angle).into_iter().fold((0, 0), |(s, n), (si, ni)| (s + si, n + ni))
+        total(&self.support_by_segment(segments, distance, angle))
     }
 
     /// Support of each segment of `segments` (module doc): `(supported,
@@ -177,6 +177,12 @@ pub fn offset_segments(segments: &[([f64; 2], [f64; 2])], offset: f64) -> Vec<([
             ([p[0] + nx, p[1] + ny], [q[0] + nx, q[1] + ny])
         })
         .collect()
+}
+
+/// The sum of per-segment `(supported, samples)` counts.
+#[must_use]
+pub fn total(counts: &[(usize, usize)]) -> (usize, usize) {
+    counts.iter().fold((0, 0), |(s, n), &(si, ni)| (s + si, n + ni))
 }
 
 /// Supported fraction of `(supported, samples)`; 0 without samples.

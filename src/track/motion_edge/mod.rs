@@ -654,7 +654,7 @@ impl MotionEdgeTracker {
         let m = match (best, failure) {
             (Some(m), None) => m,
             (best, failure) => {
-                let m = best.unwrap_or_else(|| self.measure(&[], &self.predicted.clone(), &tolerances, None));
+                let m = best.unwrap_or_else(|| self.measure(&[], &self.predicted, &tolerances, None));
                 return self.coast(frame, m, failure.unwrap_or_default());
             }
         };
@@ -925,7 +925,7 @@ impl MotionEdgeTracker {
             let segments: Vec<([f64; 2], [f64; 2])> =
                 self.edges.iter().map(|&[i, j]| (corners[i], corners[j])).collect();
             let sides = map.support_by_segment(&segments, self.params.support_distance, self.params.delta);
-            let total = sides.iter().fold((0, 0), |(s, n), &(si, ni)| (s + si, n + ni));
+            let total = support::total(&sides);
             // A side too short to sample has no support: the outline collapsed.
             let weakest = sides.iter().map(|&side| support::fraction(side)).fold(1.0, f64::min);
             (support::fraction(total), weakest)
