@@ -25,9 +25,7 @@ pub type Screw = [f64; 6];
 pub fn screw_of_camera_motion(motion: &[f64; 6]) -> Screw {
     let camera =
         Pose::from_axis_angle(DVec3::new(motion[3], motion[4], motion[5]), DVec3::new(motion[0], motion[1], motion[2]));
-    let scene = camera.inverse();
-    let (t, r) = (scene.translation, scene.axis_angle());
-    [t.x, t.y, t.z, r.x, r.y, r.z]
+    screw_of_motion(&camera.inverse())
 }
 
 /// The rigid motion of `screw`, `P ↦ R(ω)·P + T`.
