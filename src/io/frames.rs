@@ -342,20 +342,7 @@ impl FrameSource {
     /// the first, the camera's size is checked against [`check_frame_size`]
     /// (the error names the camera file).
     pub fn next_frame(&mut self) -> Option<Result<GrayImage>> {
-        if self.failed {
-            return None;
-        }
-        let (cw, ch) = (self.camera.width as usize, self.camera.height as usize);
-        let result = match check_frame_size(&self.camera_path, cw, ch) {
-            Ok(()) => self.read_next(),
-            Err(e) => Some(Err(e)),
-        };
-        match &result {
-            Some(Ok(_)) => self.delivered += 1,
-            Some(Err(_)) => self.failed = true,
-            None => {}
-        }
-        result
+        self.next_with(decode_gray, |g| g)
     }
 
     /// Colour frames instead of grey ones: image files decode with
@@ -365,8 +352,27 @@ impl FrameSource {
         ColourFrames(self)
     }
 
-    fn read_next(&mut self) -> Option<Result<GrayImage>> {
-        self.read_next_with(decode_gray, |g| g)
+    /// The next frame as [`next_frame`](Self::next_frame) gives it, decoding
+    /// files with `decode` and taking stream frames through `from_gray`.
+    fn next_with<T: FrameSize>(
+        &mut self,
+        decode: fn(&Path) -> Result<T>,
+        from_gray: fn(GrayImage) -> T,
+    ) -> Option<Result<T>> {
+        if self.failed {
+            return None;
+        }
+        let (cw, ch) = (self.camera.width as usize, self.camera.height as usize);
+        let result = match check_frame_size(&self.camera_path, cw, ch) {
+            Ok(()) => self.read_next_with(decode, from_gray),
+            Err(e) => Some(Err(e)),
+        };
+        match &result {
+            Some(Ok(_)) => self.delivered += 1,
+            Some(Err(_)) => self.failed = true,
+            None => {}
+        }
+        result
     }
 
     /// The next frame, decoding files with `decode` and taking stream frames through `from_gray`.
@@ -446,21 +452,7 @@ impl Iterator for ColourFrames {
     type Item = Result<RgbImage>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        let source = &mut self.0;
-        if source.failed {
-            return None;
-        }
-        let (cw, ch) = (source.camera.width as usize, source.camera.height as usize);
-        let result = match check_frame_size(&source.camera_path, cw, ch) {
-            Ok(()) => source.read_next_with(decode_rgb, |g| RgbImage::from_gray(&g)),
-            Err(e) => Some(Err(e)),
-        };
-        match &result {
-            Some(Ok(_)) => source.delivered += 1,
-            Some(Err(_)) => source.failed = true,
-            None => {}
-        }
-        result
+        self.0.next_with(decode_rgb, |g| RgbImage::from_gray(&g))
     }
 }
 

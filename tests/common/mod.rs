@@ -5,8 +5,10 @@
 use std::path::PathBuf;
 use std::sync::{LazyLock, Mutex, MutexGuard};
 
-use pipetrack::GpuContext;
+use pipetrack::backend::EarlyVision;
 use pipetrack::image::Image;
+use pipetrack::io::formats::{FrameResult, Status};
+use pipetrack::{AsFrame, GpuContext, Tracker};
 
 static GPU: LazyLock<Option<GpuContext>> = LazyLock::new(|| match GpuContext::new() {
     Ok(ctx) => {
@@ -261,4 +263,26 @@ pub fn box_model() -> pipetrack::io::formats::Model {
         }
     }
     pipetrack::io::formats::Model { name: "box".into(), units: "m".into(), vertices, edges, faces, joints: Vec::new() }
+}
+
+/// Track `frames` (`size` px) with `tracker` on `backend` through the real
+/// per-frame loop: every frame's output line, and the frames not tracking
+/// as `frame (reason)`.
+pub fn track_lost<F: AsFrame>(
+    tracker: &mut dyn Tracker,
+    backend: &mut dyn EarlyVision,
+    frames: impl IntoIterator<Item = F>,
+    size: (usize, usize),
+) -> (Vec<FrameResult>, Vec<String>) {
+    let mut results = Vec::new();
+    let mut lost = Vec::new();
+    pipetrack::track::run::track_frames(tracker, backend, frames.into_iter().map(Ok), size, |_, outcome, result| {
+        if outcome.status != Status::Tracking {
+            lost.push(format!("{} ({})", outcome.frame, outcome.diagnostics.lost_reason.as_deref().unwrap_or("?")));
+        }
+        results.push(result.clone());
+        Ok(())
+    })
+    .expect("track");
+    (results, lost)
 }

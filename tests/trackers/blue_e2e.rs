@@ -45,22 +45,7 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) {
     let mut tracker =
         BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), BlueParams::default()).expect("blue tracker");
     let size = (seq.camera.width as usize, seq.camera.height as usize);
-    let mut results: Vec<FrameResult> = Vec::new();
-    let mut lost: Vec<String> = Vec::new();
-    pipetrack::track::run::track_frames(
-        &mut tracker,
-        backend,
-        seq.frames.iter().cloned().map(Ok),
-        size,
-        |_, outcome, result| {
-            if outcome.status != Status::Tracking {
-                lost.push(format!("{} ({})", outcome.frame, outcome.diagnostics.lost_reason.as_deref().unwrap_or("?")));
-            }
-            results.push(result.clone());
-            Ok(())
-        },
-    )
-    .expect("track");
+    let (results, lost) = common::track_lost(&mut tracker, backend, seq.frames.iter().cloned(), size);
     let s = score(&seq.truth, &results).expect("score");
     let stats = s.stats.expect("scored frames");
     let mut worst = s.frame_errors.clone();

@@ -45,23 +45,7 @@ fn track(
 ) -> (Vec<FrameResult>, Vec<String>) {
     let mut tracker = CondensationTracker::new(seq.camera, &seq.model, &seq.init, params).expect("tracker");
     let size = (seq.camera.width as usize, seq.camera.height as usize);
-    let mut results = Vec::new();
-    let mut lost = Vec::new();
-    pipetrack::track::run::track_frames(
-        &mut tracker,
-        backend,
-        seq.rgb_frames.iter().cloned().map(Ok),
-        size,
-        |_, outcome, result| {
-            if outcome.status != Status::Tracking {
-                lost.push(format!("{} ({})", outcome.frame, outcome.diagnostics.lost_reason.as_deref().unwrap_or("?")));
-            }
-            results.push(result.clone());
-            Ok(())
-        },
-    )
-    .expect("track");
-    (results, lost)
+    common::track_lost(&mut tracker, backend, seq.rgb_frames.iter().cloned(), size)
 }
 
 fn check(motion: PlaneMotion, backend: &mut dyn EarlyVision, backend_name: &str) {

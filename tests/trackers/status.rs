@@ -146,21 +146,36 @@ fn reason(out: &[(FrameOutcome, FrameResult)], k: usize) -> String {
 // ---------------------------------------------------------------------------
 // motion-edge on the pendulum (256×242, 3.9 px/frame, rotating).
 
+/// `seq` covered for `covered`, tracked by `tracker`: tracking before the
+/// cover, lost throughout it, tracking again within 5 frames after it, and
+/// holding the `what` from frame `held_from` on.
+fn check_cover(
+    label: &str,
+    mut seq: SyntheticSequence,
+    tracker: fn(&SyntheticSequence) -> Box<dyn Tracker>,
+    backend: &mut dyn EarlyVision,
+    covered: std::ops::Range<usize>,
+    held_from: usize,
+    what: &str,
+) {
+    let (start, end) = (covered.start, covered.end);
+    cover(&mut seq, covered);
+    let out = run(&seq, tracker(&seq), backend);
+    let st = check_no_false_tracking(label, &seq, &out);
+    assert!(st[..start].chars().all(|c| c == 'T'), "{label}: tracking before the cover");
+    assert!(st[start..end].chars().all(|c| c == 'L'), "{label}: lost while covered: {}", &st[start..end]);
+    println!("{label}: frame {start}: {}", reason(&out, start));
+    let back = first(&st, end, 'T').expect("re-acquired");
+    println!("{label}: re-acquired at frame {back}");
+    assert!(back <= end + 5, "{label}: re-acquired at {back}, 5 frames after the cover at most");
+    assert!(st[held_from..].chars().all(|c| c == 'T'), "{label}: holds the {what} from frame {held_from}");
+}
+
 fn me_cover(backend: &mut dyn EarlyVision, label: &str) {
     // Covered for 20 frames around the turning point at frame 122 (period
     // 122 frames): it reappears ~10 px from where it was hidden, within the
     // re-acquisition strips.
-    let mut seq = pendulum();
-    cover(&mut seq, 112..132);
-    let out = run(&seq, motion_edge(&seq), backend);
-    let st = check_no_false_tracking(label, &seq, &out);
-    assert!(st[..112].chars().all(|c| c == 'T'), "{label}: tracking before the cover");
-    assert!(st[112..132].chars().all(|c| c == 'L'), "{label}: lost while covered: {}", &st[112..132]);
-    println!("{label}: frame 112: {}", reason(&out, 112));
-    let back = first(&st, 132, 'T').expect("re-acquired");
-    println!("{label}: re-acquired at frame {back}");
-    assert!(back <= 137, "{label}: re-acquired at {back}, 5 frames after the cover at most");
-    assert!(st[150..].chars().all(|c| c == 'T'), "{label}: holds the object from frame 150");
+    check_cover(label, pendulum(), motion_edge, backend, 112..132, 150, "object");
 }
 
 #[test]
@@ -270,17 +285,7 @@ fn motion_edge_wrong_initialisation_is_never_tracking() {
 // blue on target3dof (640×480, 0.3 rad/s, 150 frames).
 
 fn blue_cover(backend: &mut dyn EarlyVision, label: &str) {
-    let mut seq = target();
-    cover(&mut seq, 60..80);
-    let out = run(&seq, blue(&seq), backend);
-    let st = check_no_false_tracking(label, &seq, &out);
-    assert!(st[..60].chars().all(|c| c == 'T'), "{label}: tracking before the cover");
-    assert!(st[60..80].chars().all(|c| c == 'L'), "{label}: lost while covered: {}", &st[60..80]);
-    println!("{label}: frame 60: {}", reason(&out, 60));
-    let back = first(&st, 80, 'T').expect("re-acquired");
-    println!("{label}: re-acquired at frame {back}");
-    assert!(back <= 85, "{label}: re-acquired at {back}, 5 frames after the cover at most");
-    assert!(st[100..].chars().all(|c| c == 'T'), "{label}: holds the target from frame 100");
+    check_cover(label, target(), blue, backend, 60..80, 100, "target");
 }
 
 #[test]
