@@ -491,7 +491,7 @@ impl GpuBackend {
                 {
                     let rgb = match colour {
                         Some(c) => window_energy::pack_rgb(c),
-                        None => window_energy::pack_rgb(&RgbImage::from_gray(frame)),
+                        None => window_energy::pack_gray(frame),
                     };
                     buffers.write_frame(&self.ctx, &rgb);
                     uploaded += rgb.len() * 4;

@@ -148,38 +148,13 @@ impl WindowRequest {
     }
 
     fn validate(&self) -> Result<()> {
-        self.params().validate()?;
-        let windows = self.windows();
-        if windows.len() > window_energy::MAX_WINDOWS {
-            return Err(Error::Parameter(format!(
-                "{} sample windows, at most {}",
-                windows.len(),
-                window_energy::MAX_WINDOWS
-            )));
-        }
-        if let Self::Features { params, windows } = self
-            && windows.len() * params.window_len() > window_energy::MAX_FEATURE_FLOATS
-        {
-            return Err(Error::Parameter(format!(
-                "{} filtered sample windows of {} values exceed {}",
-                windows.len(),
-                params.window_len(),
-                window_energy::MAX_FEATURE_FLOATS
-            )));
-        }
-        if windows.iter().flatten().flatten().any(|v| !v.is_finite()) {
-            return Err(Error::Parameter("a sample window has a corner that is not finite".into()));
-        }
-        if let Self::Energies { template, .. } = self
-            && template.values.len() != template.params.window_len()
-        {
-            return Err(Error::Parameter(format!(
-                "window template has {} values, its sizes need {}",
-                template.values.len(),
-                template.params.window_len()
-            )));
-        }
-        Ok(())
+        let params = self.params();
+        params.validate()?;
+        let template = match self {
+            Self::Features { .. } => None,
+            Self::Energies { template, .. } => Some(&**template),
+        };
+        window_energy::check_windows(&params, self.windows(), template)
     }
 }
 

@@ -55,7 +55,7 @@ use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
     EntryPoint, GpuContext, Recorder, ShaderDef, run_once,
 };
-use crate::image::RgbImage;
+use crate::image::{GrayImage, RgbImage};
 use crate::{Error, Result};
 
 /// The shader of this stage.
@@ -246,6 +246,18 @@ fn check_inputs(
     if frame.width() == 0 || frame.height() == 0 {
         return Err(Error::Size("window energy of an empty frame".into()));
     }
+    check_windows(params, quads, template)
+}
+
+/// The checks of the stage that need no frame, for `params` already
+/// validated: at most [`MAX_WINDOWS`] windows (and [`MAX_FEATURE_FLOATS`]
+/// filtered values without a template), finite corners, and a template made
+/// for `params`.
+pub(crate) fn check_windows(
+    params: &WindowEnergyParams,
+    quads: &[Quad],
+    template: Option<&WindowTemplate>,
+) -> Result<()> {
     if quads.len() > MAX_WINDOWS {
         return Err(Error::Parameter(format!("window energy: {} windows, at most {MAX_WINDOWS}", quads.len())));
     }
@@ -562,6 +574,13 @@ pub fn pack_rgb(frame: &RgbImage) -> Vec<u32> {
     frame.data().iter().map(|&[r, g, b]| u32::from(r) | u32::from(g) << 8 | u32::from(b) << 16).collect()
 }
 
+/// [`pack_rgb`] of the grey frame as colour ([`RgbImage::from_gray`]: each
+/// byte in all three channels), without building that colour frame.
+#[must_use]
+pub fn pack_gray(frame: &GrayImage) -> Vec<u32> {
+    frame.data().iter().map(|&g| u32::from(g) * 0x0001_0101).collect()
+}
+
 /// Device buffers of the stage, grown to the largest request seen: the
 /// packed frame, the window maps, the template, the per-window terms (or
 /// filtered values), and the energies with their staging copy.
@@ -642,6 +661,26 @@ impl WindowEnergyGpu {
         }
     }
 
+    /// Record `window_terms` over `n` windows in `mode`; the uniform block it used.
+    fn dispatch_terms(
+        &self,
+        rec: &mut Recorder<'_>,
+        size: (usize, usize),
+        params: &WindowEnergyParams,
+        n: usize,
+        mode: u32,
+    ) -> Result<WindowEnergyUniform> {
+        let u = uniform(size, params, n, mode);
+        rec.dispatch(
+            &SHADER,
+            "window_terms",
+            &u,
+            &[&self.frame, &self.maps, &self.template, &self.out],
+            [n as u32, 1, 1],
+        )?;
+        Ok(u)
+    }
+
     /// Record the energies of `quads` against `template` (uploading both
     /// now) and the copy of the N energies and two totals for
     /// [`WindowEnergyGpu::read_energies`].
@@ -656,14 +695,7 @@ impl WindowEnergyGpu {
         let params = &template.params;
         self.write_windows(ctx, quads, Some(template));
         let n = quads.len();
-        let u = uniform(size, params, n, MODE_TERMS);
-        rec.dispatch(
-            &SHADER,
-            "window_terms",
-            &u,
-            &[&self.frame, &self.maps, &self.template, &self.out],
-            [n as u32, 1, 1],
-        )?;
+        let u = self.dispatch_terms(rec, size, params, n, MODE_TERMS)?;
         rec.dispatch(&SHADER, "normalise", &u, &[&self.out, &self.energies], [1, 1, 1])?;
         rec.copy(&self.energies, 0, &self.staging, 0, ((n + 2) * 4) as u64);
         Ok(())
@@ -672,8 +704,7 @@ impl WindowEnergyGpu {
     /// After the submission of [`WindowEnergyGpu::encode_energies`] for `n`
     /// windows is done: the energies and totals.
     pub(crate) fn read_energies(&self, ctx: &GpuContext, n: usize) -> Result<WindowEnergies> {
-        let bytes = ctx.read_buffer(&self.staging, 0..((n + 2) * 4) as u64)?;
-        let values: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
+        let values: Vec<f32> = ctx.read_mapped(&self.staging, 0..((n + 2) * 4) as u64, bytemuck::pod_collect_to_vec)?;
         Ok(WindowEnergies { energies: values[..n].to_vec(), intensity_total: values[n], colour_total: values[n + 1] })
     }
 
@@ -689,14 +720,7 @@ impl WindowEnergyGpu {
     ) -> Result<()> {
         self.write_windows(ctx, quads, None);
         let n = quads.len();
-        let u = uniform(size, params, n, MODE_FEATURES);
-        rec.dispatch(
-            &SHADER,
-            "window_terms",
-            &u,
-            &[&self.frame, &self.maps, &self.template, &self.out],
-            [n as u32, 1, 1],
-        )?;
+        self.dispatch_terms(rec, size, params, n, MODE_FEATURES)?;
         rec.copy(&self.out, 0, &self.staging, 0, (n * params.window_len() * 4) as u64);
         Ok(())
     }
@@ -710,8 +734,7 @@ impl WindowEnergyGpu {
         n: usize,
     ) -> Result<Vec<WindowTemplate>> {
         let len = params.window_len();
-        let bytes = ctx.read_buffer(&self.staging, 0..(n * len * 4) as u64)?;
-        let values: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
+        let values: Vec<f32> = ctx.read_mapped(&self.staging, 0..(n * len * 4) as u64, bytemuck::pod_collect_to_vec)?;
         Ok(values.chunks_exact(len).map(|v| WindowTemplate { params: *params, values: v.to_vec() }).collect())
     }
 }
@@ -865,6 +888,12 @@ mod tests {
         // θ weighs the edge term alone.
         let no_edges = PixelMatchCoefficients { theta: 0.0, ..PixelMatchCoefficients::default() };
         assert!((pixel_match_energy(&p, &q, &no_edges) - 9.0375).abs() < 1e-4);
+    }
+
+    #[test]
+    fn a_grey_frame_packs_as_its_colour_frame() {
+        let grey = GrayImage::from_fn(5, 3, |x, y| (x * 50 + y * 7) as u8);
+        assert_eq!(pack_gray(&grey), pack_rgb(&RgbImage::from_gray(&grey)));
     }
 
     #[test]
