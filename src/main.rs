@@ -314,9 +314,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Score { seq_dir, pred, false_tracking_px, plot, plot_size } => {
             let seq = Sequence::open(&seq_dir, false)?;
             let truth = seq.read_truth()?;
-            let score = pipetrack::cli::score::score_file_with(&truth, &pred, false_tracking_px)?;
+            let (score, predictions) = pipetrack::cli::score::score_file_read(&truth, &pred, false_tracking_px)?;
             if let Some(png) = plot {
-                let predictions = pipetrack::cli::score::read_predictions(&pred)?;
                 pipetrack::cli::plot::plot_score(&score, &predictions, &png, plot_size)?;
             }
             say(format_args!("{score}"))

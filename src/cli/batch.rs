@@ -46,6 +46,7 @@ use serde::{Deserialize, Serialize};
 
 use super::score::{read_predictions, score};
 use crate::backend::BackendKind;
+use crate::io::formats::FrameResult;
 use crate::io::{AtomicFile, Sequence};
 use crate::track::batch::{BatchJob, BatchProgress, run_batch};
 use crate::track::run::{RunSummary, TRACKERS, TrackOptions};
@@ -301,19 +302,20 @@ impl SummaryLine {
 
     /// Fill frames, tracked and the score from the complete output of `seq`.
     fn describe_output(&mut self, seq: &Sequence, out_path: &Path) {
-        let predictions = match read_predictions(out_path) {
-            Ok(p) => p,
-            Err(e) => {
-                self.score_error = Some(one_line(&e.to_string()));
-                return;
-            }
-        };
+        match read_predictions(out_path) {
+            Ok(predictions) => self.describe_predictions(seq, &predictions),
+            Err(e) => self.score_error = Some(one_line(&e.to_string())),
+        }
+    }
+
+    /// Fill frames, tracked and the score from `predictions`, the output of `seq`.
+    fn describe_predictions(&mut self, seq: &Sequence, predictions: &[FrameResult]) {
         self.frames = Some(predictions.len());
         self.tracked = Some(predictions.iter().filter(|p| p.status == crate::Status::Tracking).count());
         if !seq.truth_path().exists() {
             return;
         }
-        match seq.read_truth().and_then(|truth| score(&truth, &predictions)) {
+        match seq.read_truth().and_then(|truth| score(&truth, predictions)) {
             Ok(s) => {
                 self.mean_px = s.stats.map(|s| s.mean);
                 self.median_px = s.stats.map(|s| s.median);
@@ -395,13 +397,13 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
             }
         };
         let out_path = opts.out_dir.join(format!("{}.jsonl", entry.name));
-        if is_complete(&seq, &out_path) {
+        if let Some(predictions) = complete_output(&seq, &out_path) {
             let mut line = SummaryLine::new(entry, SequenceStatus::Skipped);
             if let Some(before) = earlier.iter().find(|l| l.name == entry.name && l.status != SequenceStatus::Failed) {
                 line.fps = before.fps;
                 line.backend.clone_from(&before.backend);
             }
-            line.describe_output(&seq, &out_path);
+            line.describe_predictions(&seq, &predictions);
             lines[k] = Some(line);
             continue;
         }
@@ -451,12 +453,15 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
     Ok(BatchReport { lines, first_error })
 }
 
-/// Whether `out_path` holds a complete output of `seq` (module doc).
-fn is_complete(seq: &Sequence, out_path: &Path) -> bool {
-    let Some(frames) = seq.frame_count() else { return false };
-    out_path.is_file()
-        && read_predictions(out_path)
-            .is_ok_and(|p| p.len() == frames && p.last().is_some_and(|last| last.frame + 1 == frames))
+/// The output at `out_path` when it is a complete output of `seq` (module doc).
+fn complete_output(seq: &Sequence, out_path: &Path) -> Option<Vec<FrameResult>> {
+    let frames = seq.frame_count()?;
+    if !out_path.is_file() {
+        return None;
+    }
+    read_predictions(out_path)
+        .ok()
+        .filter(|p| p.len() == frames && p.last().is_some_and(|last| last.frame + 1 == frames))
 }
 
 /// The lines of an existing summary; lines that do not read are dropped

@@ -138,9 +138,19 @@ pub fn score_file(truth: &[TruthFrame], pred_path: &Path) -> Result<Score> {
 
 /// [`score_file`] with false tracking judged at `false_tracking_px`.
 pub fn score_file_with(truth: &[TruthFrame], pred_path: &Path, false_tracking_px: f64) -> Result<Score> {
+    score_file_read(truth, pred_path, false_tracking_px).map(|(score, _)| score)
+}
+
+/// [`score_file_with`], also giving the predictions it read.
+pub fn score_file_read(
+    truth: &[TruthFrame],
+    pred_path: &Path,
+    false_tracking_px: f64,
+) -> Result<(Score, Vec<FrameResult>)> {
     check_threshold(false_tracking_px)?;
     let predictions = read_predictions(pred_path)?;
-    score_impl(truth, &predictions, false_tracking_px).map_err(|msg| Error::input(pred_path, msg))
+    let score = score_impl(truth, &predictions, false_tracking_px).map_err(|msg| Error::input(pred_path, msg))?;
+    Ok((score, predictions))
 }
 
 fn score_impl(
