@@ -137,12 +137,6 @@ mod tests {
         assert!(c.in_image([-0.5, -0.5]) && c.in_image([639.5, 479.5]));
         assert!(!c.in_image([-0.51, 0.0]) && !c.in_image([0.0, 479.51]) && !c.in_image([f64::NAN, 0.0]));
     }
-}
-
-#[cfg(test)]
-mod image_jacobian_tests {
-    use super::*;
-    use crate::geometry::pose::rotation_from_axis_angle;
 
     /// A small rigid motion of a point, P' = R(ω)·P + T, moves its pixel by
     /// J·(T, ω) to first order (eq. 20–21).
@@ -151,7 +145,7 @@ mod image_jacobian_tests {
         let cam = Camera { width: 320, height: 240, fx: 400.0, fy: 380.0, cx: 160.0, cy: 120.0 };
         let p = DVec3::new(0.05, -0.03, 0.6);
         let screw = [1e-4, -2e-4, 3e-4, 2e-4, -1e-4, 3e-4];
-        let moved = rotation_from_axis_angle(DVec3::new(screw[3], screw[4], screw[5])) * p
+        let moved = crate::geometry::pose::rotation_from_axis_angle(DVec3::new(screw[3], screw[4], screw[5])) * p
             + DVec3::new(screw[0], screw[1], screw[2]);
         let (a, b) = (cam.project(p), cam.project(moved));
         let j = cam.image_jacobian(a, p.z);
