@@ -12,6 +12,7 @@
 pub mod batch;
 pub mod blue;
 pub mod condensation;
+pub mod lowe;
 pub mod motion_edge;
 pub mod run;
 pub mod support;

@@ -1,0 +1,2 @@
+//! Straight line segments from the LoG zero crossings (001, "Real-time line
+//! detection").
