@@ -55,6 +55,7 @@ struct JointAxis {
     origin: DVec3,
     axis: DVec3,
     vertices: Vec<usize>,
+    limits: [f64; 2],
 }
 
 /// The geometry of a model: its vertices at joint values 0 and its topology
@@ -115,6 +116,7 @@ impl ModelGeometry {
                 origin: DVec3::from_array(joint.origin),
                 axis: axis / length,
                 vertices: joint.vertices.clone(),
+                limits: [joint.min, joint.max],
             });
         }
         Ok(Self {
@@ -202,6 +204,39 @@ impl ModelGeometry {
             }
         }
         Ok(vertices)
+    }
+
+    /// [`ModelGeometry::posed_vertices`] at `params` (one value per joint),
+    /// with the derivative of every vertex with respect to every joint value:
+    /// `derivatives[v * joints + j]` = ∂Y_v/∂q_j (object frame). Joint j
+    /// rotates by R(a_j, q_j) about the axis a_j through o_j, so a vertex it
+    /// moves to Z gets a_j × (Z − o_j), carried on by the rotations of the
+    /// joints applied after it (the joint rule's order); zero for a vertex
+    /// the joint does not move. Errors when `params` has another length.
+    pub fn posed_vertices_with_joint_derivatives(&self, params: &[f64]) -> Result<(Vec<DVec3>, Vec<DVec3>)> {
+        let joints = self.joints.len();
+        if params.len() != joints {
+            return Err(Error::Parameter(format!("{} joint values for a model with {joints} joints", params.len())));
+        }
+        let mut vertices = self.vertices.clone();
+        let mut derivatives = vec![DVec3::ZERO; vertices.len() * joints];
+        for (j, (joint, &q)) in self.joints.iter().zip(params).enumerate().rev() {
+            let rotation = DMat3::from_axis_angle(joint.axis, q);
+            for &v in &joint.vertices {
+                vertices[v] = joint.origin + rotation * (vertices[v] - joint.origin);
+                for d in &mut derivatives[v * joints + j + 1..(v + 1) * joints] {
+                    *d = rotation * *d;
+                }
+                derivatives[v * joints + j] = joint.axis.cross(vertices[v] - joint.origin);
+            }
+        }
+        Ok((vertices, derivatives))
+    }
+
+    /// Each joint's limits `[min, max]`, radians, in joint order.
+    #[must_use]
+    pub fn joint_limits(&self) -> Vec<[f64; 2]> {
+        self.joints.iter().map(|j| j.limits).collect()
     }
 
     /// The vertices in the camera frame: [`ModelGeometry::posed_vertices`]

@@ -3,4 +3,9 @@
 //! the LoG zero crossings, matched by probability and a best-first search,
 //! fitted by stabilised Gauss–Newton.
 
+pub mod estimation;
+#[cfg(test)]
+mod fixtures;
+pub mod params;
+pub mod projection;
 pub mod segments;

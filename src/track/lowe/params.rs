@@ -1,0 +1,134 @@
+//! Parameters of the `lowe` tracker (paper 001): the paper's where it gives
+//! them, documented choices otherwise, each with its range, checked by
+//! [`LoweParams::validate`].
+
+use serde::{Deserialize, Serialize};
+
+use crate::Result;
+use crate::bounds::{Interval, check_count};
+
+/// Most joints a model may have (the parameter vector is 6 + joints long).
+pub const MAX_JOINTS: usize = 10;
+/// Length of the longest parameter vector: rotation, translation, joints.
+pub const MAX_PARAMS: usize = 6 + MAX_JOINTS;
+/// Most search branches per frame a configuration may ask for.
+pub const MAX_BRANCHES: usize = 100;
+/// Most Gauss–Newton iterations per solution.
+pub const MAX_ITERATIONS: usize = 20;
+
+/// Parameters of the Lowe tracker (paper 001), all with defaults, so a
+/// `--config` TOML file may set any subset (unknown keys are refused).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LoweParams {
+    /// σ of the Laplacian of Gaussian (001: 1.2). Range: [0.5, 4].
+    pub log_sigma: f32,
+    /// Least slope across a zero crossing, LoG units (see
+    /// `ZeroCrossingParams::min_slope`). Range: [0, 1000].
+    pub min_slope: f32,
+    /// Prior standard deviation of the rotation about each camera axis
+    /// through the model's centre from the velocity-extrapolated prediction,
+    /// radians (001: "a prior standard deviation per parameter"; no number).
+    /// 0.05 rad ≈ 3° of unpredicted turn per frame. Range: (0, 1].
+    pub prior_rotation_sigma: f64,
+    /// Prior standard deviation of the model centre's position along each
+    /// camera axis, metres. 0.015 m ≈ 9 px at 1 m with a 600 px focal
+    /// length. Range: (0, 10].
+    pub prior_translation_sigma: f64,
+    /// Prior standard deviation of each joint value, radians.
+    /// Range: (0, 3.2].
+    pub prior_joint_sigma: f64,
+    /// Standard deviation of a correct segment's endpoint from its model
+    /// line, px: the unit of the measurement rows of eq. 1 and the spread a
+    /// true match adds to the prediction's own (eq. 2) in eq. 3.
+    /// Range: (0, 20].
+    pub measurement_sigma_px: f64,
+    /// A solution is rejected when its residual σ (001: σ² = ‖Jx − e‖² /
+    /// (m − n)) exceeds this many `measurement_sigma_px` ("much greater
+    /// than the standard deviation of the measurement errors").
+    /// Range: [1, 100].
+    pub residual_ratio: f64,
+    /// The search's initial set grows while the product of its matches'
+    /// probabilities stays above this (001: 0.9). Range: (0, 1).
+    pub set_probability: f64,
+    /// Candidates below this probability of correctness are not listed.
+    /// Range: [0, 1).
+    pub min_probability: f64,
+    /// After acceptance, further matches join when their probability is at
+    /// least this. Range: (0, 1].
+    pub lock_probability: f64,
+    /// Bound on the search branches per frame (001: 5). Range: 1 ..= [`MAX_BRANCHES`].
+    pub max_branches: usize,
+    /// How often the prior ranges double when too few candidates are found
+    /// (001: up to 2). Range: 0 ..= 4.
+    pub range_doublings: usize,
+    /// Candidate matches are looked for within this many standard
+    /// deviations of a predicted edge's position and orientation.
+    /// Range: [1, 10].
+    pub search_sigmas: f64,
+    /// Gauss–Newton iterations per solution (001: "one or two").
+    /// Range: 1 ..= [`MAX_ITERATIONS`].
+    pub iterations: usize,
+    /// Re-predictions after acceptance ("locking on", Figs. 3–6).
+    /// Range: 0 ..= 20.
+    pub lock_iterations: usize,
+    /// A frame is `tracking` only when its matches cover at least this
+    /// fraction of the visible model edges' length. Range: [0, 1].
+    pub min_coverage: f64,
+    /// Extra margin of the window of interest around the predicted model,
+    /// px, on top of the search range. Range: [0, 4096].
+    pub window_margin_px: f64,
+}
+
+impl Default for LoweParams {
+    fn default() -> Self {
+        Self {
+            log_sigma: 1.2,
+            min_slope: 1.0,
+            prior_rotation_sigma: 0.05,
+            prior_translation_sigma: 0.015,
+            prior_joint_sigma: 0.1,
+            measurement_sigma_px: 1.0,
+            residual_ratio: 2.5,
+            set_probability: 0.9,
+            min_probability: 0.05,
+            lock_probability: 0.5,
+            max_branches: 5,
+            range_doublings: 2,
+            search_sigmas: 3.0,
+            iterations: 3,
+            lock_iterations: 4,
+            min_coverage: 0.3,
+            window_margin_px: 8.0,
+        }
+    }
+}
+
+impl LoweParams {
+    /// Check every parameter against its documented range.
+    pub fn validate(&self) -> Result<()> {
+        const WHO: &str = "lowe";
+        Interval::closed(0.5, 4.0).check(WHO, "log_sigma", f64::from(self.log_sigma), "")?;
+        Interval::closed(0.0, 1000.0).check(WHO, "min_slope", f64::from(self.min_slope), "")?;
+        Interval::open_closed(0.0, 1.0).check(WHO, "prior_rotation_sigma", self.prior_rotation_sigma, " rad")?;
+        Interval::open_closed(0.0, 10.0).check(WHO, "prior_translation_sigma", self.prior_translation_sigma, " m")?;
+        Interval::open_closed(0.0, 3.2).check(WHO, "prior_joint_sigma", self.prior_joint_sigma, " rad")?;
+        Interval::open_closed(0.0, 20.0).check(WHO, "measurement_sigma_px", self.measurement_sigma_px, " px")?;
+        Interval::closed(1.0, 100.0).check(WHO, "residual_ratio", self.residual_ratio, "")?;
+        Interval::open(0.0, 1.0).check(WHO, "set_probability", self.set_probability, "")?;
+        Interval { lo: 0.0, lo_closed: true, hi: 1.0, hi_closed: false }.check(
+            WHO,
+            "min_probability",
+            self.min_probability,
+            "",
+        )?;
+        Interval::open_closed(0.0, 1.0).check(WHO, "lock_probability", self.lock_probability, "")?;
+        check_count(WHO, "max_branches", self.max_branches, 1, MAX_BRANCHES)?;
+        check_count(WHO, "range_doublings", self.range_doublings, 0, 4)?;
+        Interval::closed(1.0, 10.0).check(WHO, "search_sigmas", self.search_sigmas, "")?;
+        check_count(WHO, "iterations", self.iterations, 1, MAX_ITERATIONS)?;
+        check_count(WHO, "lock_iterations", self.lock_iterations, 0, 20)?;
+        Interval::closed(0.0, 1.0).check(WHO, "min_coverage", self.min_coverage, "")?;
+        Interval::closed(0.0, 4096.0).check(WHO, "window_margin_px", self.window_margin_px, " px")
+    }
+}
