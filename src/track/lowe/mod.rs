@@ -6,6 +6,8 @@
 pub mod estimation;
 #[cfg(test)]
 mod fixtures;
+pub mod matching;
 pub mod params;
 pub mod projection;
+pub mod search;
 pub mod segments;

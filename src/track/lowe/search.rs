@@ -1,0 +1,379 @@
+//! Best-first search for a consistent set of matches (001 "Best-first
+//! search"), then "locking on" (Figs. 3–6).
+//!
+//! 1. **A node** takes, from the candidates ranked by their current
+//!    probability of correctness, the best ones with distinct model and
+//!    image segments until there are enough to constrain the n parameters
+//!    with redundancy (⌊n/2⌋ + 1 segments, two measurements each: 4 for the
+//!    7-parameter hinged box, as in 001), then more while the product of
+//!    their probabilities stays above `set_probability` (0.9).
+//! 2. The set is solved by stabilised Gauss–Newton from the prediction and
+//!    accepted when its residual σ is at most `residual_ratio` times the
+//!    measurement σ.
+//! 3. **On rejection** at least one member is wrong: each member's
+//!    probability is multiplied by 1 − 1/n for a set of n (the paper's
+//!    "reduced by 1/n", read as a relative reduction so probabilities stay
+//!    in [0, 1]), the set is remembered, and the next node is formed from
+//!    the updated ranking, never containing a complete rejected set. At
+//!    most `max_branches` nodes are tried per frame (001: 5).
+//! 4. **Locking on**: after acceptance the model is re-predicted with the
+//!    solution's reduced covariance, every candidate is re-scored (eq. 2–3)
+//!    and each image segment whose best probability is at least
+//!    `lock_probability` joins (one model segment may take several
+//!    collinear pieces); the enlarged set is solved from the solution and
+//!    kept when its residual passes. This repeats until the set stops
+//!    changing, at most `lock_iterations` times.
+
+use super::estimation::{Match, Matrix, Problem, Solution, solve};
+use super::matching::{Candidate, Endpoints};
+use super::projection::{ModelSegment, State};
+
+/// What the search needs from the frame: the visible model segments at a
+/// state, the candidates of those segments under a covariance, and the
+/// image segments' endpoints.
+pub trait SearchFrame {
+    /// The visible model segments at `state` (replacing `out`'s contents).
+    fn model_segments(&self, state: &State, out: &mut Vec<ModelSegment>);
+    /// The candidates of `segs` under covariance `p` (replacing `out`'s contents).
+    fn candidates(&self, segs: &[ModelSegment], p: &Matrix, out: &mut Vec<Candidate>);
+    /// Endpoints of image segment `image`.
+    fn endpoints(&self, image: usize) -> Endpoints;
+}
+
+/// Search settings (from `LoweParams`).
+#[derive(Clone, Copy, Debug)]
+pub struct SearchSettings {
+    /// Product of probabilities a node's set stays above.
+    pub set_probability: f64,
+    /// Residual limit, px.
+    pub residual_limit: f64,
+    /// Nodes per frame.
+    pub max_branches: usize,
+    /// Gauss–Newton iterations per solution.
+    pub iterations: usize,
+    /// Re-predictions after acceptance.
+    pub lock_iterations: usize,
+    /// Least probability of a match joining after acceptance.
+    pub lock_probability: f64,
+}
+
+/// The result of one frame's search.
+#[derive(Clone, Debug, Default)]
+pub struct SearchOutcome {
+    /// The accepted solution after locking on, if a node was accepted.
+    pub solution: Option<Solution>,
+    /// Its matches.
+    pub matches: Vec<Match>,
+    /// Nodes tried (accepted one included).
+    pub branches: usize,
+    /// Re-predictions done while locking on.
+    pub lock_steps: usize,
+    /// Model segments (at the final state, or the prediction without a solution).
+    pub model_segments: Vec<ModelSegment>,
+}
+
+/// Segments needed for a node with n parameters: ⌊n/2⌋ + 1.
+#[must_use]
+pub fn segments_needed(n: usize) -> usize {
+    n / 2 + 1
+}
+
+/// Whether `set` (sorted) contains every member of some rejected set.
+fn contains_rejected(set: &[usize], rejected: &[Vec<usize>]) -> bool {
+    rejected.iter().any(|r| r.iter().all(|c| set.binary_search(c).is_ok()))
+}
+
+/// The next node's set (sorted candidate indices), `None` when no set of
+/// `needed` members can be formed.
+fn node_set(
+    candidates: &[Candidate],
+    probabilities: &[f64],
+    rejected: &[Vec<usize>],
+    needed: usize,
+    set_probability: f64,
+) -> Option<Vec<usize>> {
+    let mut order: Vec<usize> = (0..candidates.len()).filter(|&c| probabilities[c] > 0.0).collect();
+    order.sort_by(|&a, &b| probabilities[b].total_cmp(&probabilities[a]).then(a.cmp(&b)));
+    let mut set: Vec<usize> = Vec::new();
+    let mut product = 1.0;
+    for c in order {
+        let cand = candidates[c];
+        if set.iter().any(|&s| candidates[s].model == cand.model || candidates[s].image == cand.image) {
+            continue;
+        }
+        if set.len() >= needed && product * probabilities[c] < set_probability {
+            break;
+        }
+        let mut trial = set.clone();
+        let at = trial.binary_search(&c).unwrap_or_else(|e| e);
+        trial.insert(at, c);
+        if contains_rejected(&trial, rejected) {
+            continue;
+        }
+        set = trial;
+        product *= probabilities[c];
+    }
+    (set.len() >= needed).then_some(set)
+}
+
+fn to_matches(frame: &dyn SearchFrame, segs: &[ModelSegment], candidates: &[Candidate], set: &[usize]) -> Vec<Match> {
+    set.iter()
+        .map(|&c| {
+            let cand = candidates[c];
+            let seg = &segs[cand.model];
+            Match { edge: seg.edge, interval: seg.interval, endpoints: frame.endpoints(cand.image), image: cand.image }
+        })
+        .collect()
+}
+
+fn passes(solution: &Solution, limit: f64) -> bool {
+    solution.residual_sigma.is_none_or(|s| s <= limit)
+}
+
+/// Run the search of the module doc for one frame: `problem` holds the
+/// prediction and its prior, `segs` and `candidates` were computed at the
+/// prediction under the prior covariance.
+#[must_use]
+pub fn search(
+    frame: &dyn SearchFrame,
+    problem: &Problem<'_>,
+    segs: Vec<ModelSegment>,
+    candidates: &[Candidate],
+    settings: &SearchSettings,
+) -> SearchOutcome {
+    let n = 6 + problem.geometry.joint_count();
+    let needed = segments_needed(n);
+    let mut probabilities: Vec<f64> = candidates.iter().map(|c| c.probability).collect();
+    let mut rejected: Vec<Vec<usize>> = Vec::new();
+    let mut outcome = SearchOutcome::default();
+    let mut accepted = None;
+    while outcome.branches < settings.max_branches {
+        let Some(set) = node_set(candidates, &probabilities, &rejected, needed, settings.set_probability) else {
+            break;
+        };
+        outcome.branches += 1;
+        let matches = to_matches(frame, &segs, candidates, &set);
+        match solve(problem, problem.prediction, &matches, settings.iterations) {
+            Some(solution) if passes(&solution, settings.residual_limit) => {
+                accepted = Some((solution, matches));
+                break;
+            }
+            _ => {
+                let keep = 1.0 - 1.0 / set.len() as f64;
+                for &c in &set {
+                    probabilities[c] *= keep;
+                }
+                rejected.push(set);
+            }
+        }
+    }
+    let Some((mut solution, mut matches)) = accepted else {
+        outcome.model_segments = segs;
+        return outcome;
+    };
+    let mut segs_now = Vec::new();
+    let mut cands_now = Vec::new();
+    for _ in 0..settings.lock_iterations {
+        frame.model_segments(&solution.state, &mut segs_now);
+        frame.candidates(&segs_now, &solution.covariance, &mut cands_now);
+        let locked = lock_set(frame, &segs_now, &cands_now, settings.lock_probability);
+        if same_matches(&locked, &matches) || locked.len() < needed {
+            break;
+        }
+        outcome.lock_steps += 1;
+        match solve(problem, &solution.state, &locked, settings.iterations) {
+            Some(next) if passes(&next, settings.residual_limit) => {
+                solution = next;
+                matches = locked;
+            }
+            _ => break,
+        }
+    }
+    frame.model_segments(&solution.state, &mut segs_now);
+    outcome.model_segments = segs_now;
+    outcome.solution = Some(solution);
+    outcome.matches = matches;
+    outcome
+}
+
+/// Each image segment joins its most probable model segment when that
+/// probability is at least `min_probability`.
+fn lock_set(frame: &dyn SearchFrame, segs: &[ModelSegment], cands: &[Candidate], min_probability: f64) -> Vec<Match> {
+    let mut best: Vec<(usize, Candidate)> = Vec::new();
+    for c in cands.iter().filter(|c| c.probability >= min_probability) {
+        match best.iter_mut().find(|(image, _)| *image == c.image) {
+            Some((_, held)) if held.probability < c.probability => *held = *c,
+            Some(_) => {}
+            None => best.push((c.image, *c)),
+        }
+    }
+    best.sort_by_key(|(image, _)| *image);
+    best.iter()
+        .map(|(image, c)| {
+            let seg = &segs[c.model];
+            Match { edge: seg.edge, interval: seg.interval, endpoints: frame.endpoints(*image), image: *image }
+        })
+        .collect()
+}
+
+fn same_matches(a: &[Match], b: &[Match]) -> bool {
+    let key = |m: &Match| (m.image, m.edge);
+    let mut ka: Vec<_> = a.iter().map(key).collect();
+    let mut kb: Vec<_> = b.iter().map(key).collect();
+    ka.sort_unstable();
+    kb.sort_unstable();
+    ka == kb
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::geometry::{Camera, ModelGeometry, Pose};
+    use crate::track::lowe::fixtures::{camera, hinged_box, vertex_error};
+    use crate::track::lowe::matching::{MatchContext, all_candidates};
+    use crate::track::lowe::params::MAX_PARAMS;
+    use crate::track::lowe::projection::Linearised;
+
+    struct Brute<'a> {
+        geometry: &'a ModelGeometry,
+        camera: &'a Camera,
+        images: Vec<Endpoints>,
+        ctx: MatchContext,
+        /// Extra probability given to chosen (model edge, image) pairs, to
+        /// plant a decoy at the top of the ranking.
+        boost: Vec<(usize, usize)>,
+    }
+
+    impl SearchFrame for Brute<'_> {
+        fn model_segments(&self, state: &State, out: &mut Vec<ModelSegment>) {
+            let lin = Linearised::at(self.geometry, state, self.geometry.centroid()).unwrap();
+            out.clear();
+            out.extend(
+                (0..self.geometry.edges().len())
+                    .filter_map(|e| ModelSegment::new(&lin, self.camera, self.geometry.edges(), e, [0.0, 1.0])),
+            );
+        }
+        fn candidates(&self, segs: &[ModelSegment], p: &Matrix, out: &mut Vec<Candidate>) {
+            *out = all_candidates(segs, p, 7, &self.images, &self.ctx);
+            for c in out.iter_mut() {
+                if self.boost.contains(&(segs[c.model].edge, c.image)) {
+                    c.probability = 0.999_999;
+                }
+            }
+        }
+        fn endpoints(&self, image: usize) -> Endpoints {
+            self.images[image]
+        }
+    }
+
+    fn settings() -> SearchSettings {
+        SearchSettings {
+            set_probability: 0.9,
+            residual_limit: 2.5,
+            max_branches: 5,
+            iterations: 3,
+            lock_iterations: 4,
+            lock_probability: 0.5,
+        }
+    }
+
+    /// The true image segments of every edge at `truth` (the middle 70 %).
+    fn true_images(geometry: &ModelGeometry, cam: &Camera, truth: &State) -> Vec<Endpoints> {
+        let lin = Linearised::at(geometry, truth, geometry.centroid()).unwrap();
+        (0..geometry.edges().len())
+            .map(|e| {
+                let s = ModelSegment::new(&lin, cam, geometry.edges(), e, [0.0, 1.0]).unwrap();
+                let at = |t: f64| [s.a[0] + t * (s.b[0] - s.a[0]), s.a[1] + t * (s.b[1] - s.a[1])];
+                [at(0.15), at(0.85)]
+            })
+            .collect()
+    }
+
+    fn run(boost: Vec<(usize, usize)>, decoys: &[Endpoints]) -> (SearchOutcome, f64) {
+        let geometry = hinged_box();
+        let cam = camera();
+        let centre = geometry.centroid();
+        let limits = geometry.joint_limits();
+        let truth = State {
+            pose: Pose::from_axis_angle(DVec3::new(0.5, -0.4, 0.1), DVec3::new(-0.12, 0.0, 0.8)),
+            params: vec![0.9],
+        };
+        let prediction = truth.corrected(&[0.01, -0.01, 0.015, 0.004, -0.004, 0.006, -0.05], centre, &limits);
+        let mut images = true_images(&geometry, &cam, &truth);
+        images.extend_from_slice(decoys);
+        let ctx = MatchContext {
+            segments: images.len(),
+            area: 640.0 * 480.0,
+            measurement_sigma: 1.0,
+            search_sigmas: 3.0,
+            min_probability: 0.01,
+        };
+        let frame = Brute { geometry: &geometry, camera: &cam, images, ctx, boost };
+        let mut sigmas = [0.0; MAX_PARAMS];
+        sigmas[..7].copy_from_slice(&[0.03, 0.03, 0.03, 0.01, 0.01, 0.01, 0.1]);
+        let problem = Problem {
+            geometry: &geometry,
+            camera: &cam,
+            centre,
+            limits: &limits,
+            prediction: &prediction,
+            prior_sigmas: &sigmas,
+            measurement_sigma: 1.0,
+        };
+        let mut p0 = [[0.0; MAX_PARAMS]; MAX_PARAMS];
+        for i in 0..7 {
+            p0[i][i] = sigmas[i] * sigmas[i];
+        }
+        let mut segs = Vec::new();
+        frame.model_segments(&prediction, &mut segs);
+        let mut cands = Vec::new();
+        frame.candidates(&segs, &p0, &mut cands);
+        assert!(
+            frame.boost.iter().all(|&(e, i)| cands.iter().any(|c| segs[c.model].edge == e && c.image == i)),
+            "a planted decoy is not a candidate"
+        );
+        let outcome = search(&frame, &problem, segs, &cands, &settings());
+        let error =
+            outcome.solution.as_ref().map_or(f64::INFINITY, |s| vertex_error(&geometry, &cam, &s.state, &truth));
+        (outcome, error)
+    }
+
+    /// With only true segments the first node is accepted and locking on
+    /// brings in every edge and the true state.
+    #[test]
+    fn clean_frame_is_accepted_at_once_and_locks_on() {
+        let (outcome, error) = run(Vec::new(), &[]);
+        assert_eq!(outcome.branches, 1);
+        assert!(outcome.lock_steps >= 1);
+        assert_eq!(outcome.matches.len(), 16, "{:?}", outcome.matches.len());
+        assert!(error < 0.1, "{error} px");
+    }
+
+    /// A decoy 8 px off edge 0, planted at the top of the ranking: the
+    /// first node contains it and is rejected by its residual; the search
+    /// backtracks and recovers the true state without the decoy.
+    #[test]
+    fn search_backtracks_from_a_decoy() {
+        let geometry = hinged_box();
+        let cam = camera();
+        let truth_images = {
+            let truth = State {
+                pose: Pose::from_axis_angle(DVec3::new(0.5, -0.4, 0.1), DVec3::new(-0.12, 0.0, 0.8)),
+                params: vec![0.9],
+            };
+            true_images(&geometry, &cam, &truth)
+        };
+        let [a, b] = truth_images[0];
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let len = dx.hypot(dy);
+        let (nx, ny) = (-dy / len * 8.0, dx / len * 8.0);
+        let decoy = [[a[0] + nx, a[1] + ny], [b[0] + nx, b[1] + ny]];
+        let decoy_index = 16;
+        let (outcome, error) = run(vec![(0, decoy_index)], &[decoy]);
+        assert!(outcome.branches >= 2, "branches {}", outcome.branches);
+        assert!(error < 0.1, "{error} px");
+        assert!(outcome.matches.iter().all(|m| m.image != decoy_index));
+    }
+}
