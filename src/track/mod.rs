@@ -19,6 +19,7 @@ pub mod support;
 
 pub use blue::{BlueParams, BlueTracker, TargetLocation, TargetPrediction};
 pub use condensation::{CondensationParams, CondensationTracker};
+pub use lowe::{LoweParams, LoweTracker};
 pub use motion_edge::{LineFitMethod, MissingMeasurement, MotionEdgeParams, MotionEdgeTracker, Prediction};
 pub use run::{
     RunSummary, TRACKERS, TrackOptions, make_tracker, read_config, track_frames, track_sequence, track_to_file,

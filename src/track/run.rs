@@ -18,13 +18,13 @@ use crate::io::json::one_short_line;
 use crate::io::sequence::CAMERA_FILE;
 use crate::io::{AtomicFile, Sequence, StagedDir};
 use crate::track::{
-    BlueParams, BlueTracker, CondensationParams, CondensationTracker, FrameOutcome, MotionEdgeParams,
-    MotionEdgeTracker, Observations, Tracker,
+    BlueParams, BlueTracker, CondensationParams, CondensationTracker, FrameOutcome, LoweParams, LoweTracker,
+    MotionEdgeParams, MotionEdgeTracker, Observations, Tracker,
 };
 use crate::{Error, Result};
 
 /// The `--tracker` names pipetrack knows.
-pub const TRACKERS: &[&str] = &["motion-edge", "blue", "condensation"];
+pub const TRACKERS: &[&str] = &["motion-edge", "blue", "condensation", "lowe"];
 
 /// Largest config file read, bytes: a tracker has a few dozen parameters.
 pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
@@ -114,6 +114,13 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
                 ));
             }
             let tracker = CondensationTracker::new(seq.camera, &seq.model, &seq.init, params)
+                .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
+            Ok(Box::new(tracker))
+        }
+        "lowe" => {
+            let params: LoweParams = read_config(config, name)?;
+            params.validate().map_err(|e| config_error(config, e))?;
+            let tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, params)
                 .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
             Ok(Box::new(tracker))
         }

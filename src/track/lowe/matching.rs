@@ -21,11 +21,13 @@
 //! (2σ_m / s)², the orientation noise of a segment of length s whose ends
 //! are each σ_m off. Without the measurement terms a prediction locked on
 //! (S → 0) would give every correct match a vanishing p. The model segment
-//! is extended at each end by two standard deviations of that endpoint's
-//! position along it (the paper's "extended in length to include the
-//! uncertainty in its endpoint positions"); a candidate's midpoint must fall
-//! within the extended segment, and m − s is floored at 1 px so a segment
-//! as long as the extended one still gets a finite background density.
+//! is extended at each end (the paper's "extended in length to include the
+//! uncertainty in its endpoint positions"), by two standard deviations of
+//! the endpoint's position along it, S's parallel variance plus σ_m². A
+//! candidate must lie within the extended segment (both its ends projected
+//! onto the line fall inside it; so s ≤ m), and m − s is floored at σ_m so
+//! a segment as long as the extended one still gets a finite background
+//! density.
 
 use std::f64::consts::PI;
 
@@ -58,6 +60,14 @@ pub struct SegmentSpread {
 }
 
 impl SegmentSpread {
+    /// How far the model segment is extended beyond `a` and beyond `b`:
+    /// two standard deviations of each end's position along it, with the
+    /// measurement σ of a correct segment's ends.
+    #[must_use]
+    pub fn extension(&self, measurement_sigma: f64) -> [f64; 2] {
+        [2.0 * self.parallel[0].hypot(measurement_sigma), 2.0 * self.parallel[1].hypot(measurement_sigma)]
+    }
+
     /// The spread of `seg` under covariance `p` (n parameters).
     #[must_use]
     pub fn of(seg: &ModelSegment, p: &Matrix, n: usize) -> Self {
@@ -91,7 +101,7 @@ pub struct MatchContext {
 #[must_use]
 pub fn search_bounds(seg: &ModelSegment, spread: &SegmentSpread, ctx: &MatchContext) -> [f64; 4] {
     let [ux, uy] = seg.direction();
-    let ext = [2.0 * spread.parallel[0], 2.0 * spread.parallel[1]];
+    let ext = spread.extension(ctx.measurement_sigma);
     let a = [seg.a[0] - ux * ext[0], seg.a[1] - uy * ext[0]];
     let b = [seg.b[0] + ux * ext[1], seg.b[1] + uy * ext[1]];
     let reach = ctx.search_sigmas * (spread.perpendicular[0].max(spread.perpendicular[1]).hypot(ctx.measurement_sigma));
@@ -114,13 +124,16 @@ pub fn match_probability(
     let length = seg.length();
     let [ux, uy] = seg.direction();
     let [nx, ny] = seg.normal();
-    let mid = [(image[0][0] + image[1][0]) * 0.5, (image[0][1] + image[1][1]) * 0.5];
-    let (rx, ry) = (mid[0] - seg.a[0], mid[1] - seg.a[1]);
-    let along = ux * rx + uy * ry;
-    let ext = [2.0 * spread.parallel[0], 2.0 * spread.parallel[1]];
-    if along < -ext[0] || along > length + ext[1] {
+    let along_of = |p: [f64; 2]| ux * (p[0] - seg.a[0]) + uy * (p[1] - seg.a[1]);
+    let (along0, along1) = (along_of(image[0]), along_of(image[1]));
+    let ext = spread.extension(ctx.measurement_sigma);
+    let inside = |t: f64| t >= -ext[0] && t <= length + ext[1];
+    if !(inside(along0) && inside(along1)) {
         return None;
     }
+    let mid = [(image[0][0] + image[1][0]) * 0.5, (image[0][1] + image[1][1]) * 0.5];
+    let (rx, ry) = (mid[0] - seg.a[0], mid[1] - seg.a[1]);
+    let along = 0.5 * (along0 + along1);
     let x = nx * rx + ny * ry;
     let s_len = (image[1][0] - image[0][0]).hypot(image[1][1] - image[0][1]);
     if s_len <= 0.0 {
@@ -141,7 +154,7 @@ pub fn match_probability(
     }
     let density = (-0.5 * ((x / sigma_x).powi(2) + (y / sigma_y).powi(2))).exp() / (2.0 * PI * sigma_x * sigma_y);
     let extended = length + ext[0] + ext[1];
-    let background = ctx.segments as f64 * (extended - s_len).max(1.0) / (PI * ctx.area);
+    let background = ctx.segments as f64 * (extended - s_len).max(ctx.measurement_sigma) / (PI * ctx.area);
     let probability = density / (density + background);
     (probability >= ctx.min_probability).then_some(probability)
 }

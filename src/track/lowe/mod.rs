@@ -2,6 +2,43 @@
 //! parameters of an articulated polyhedron, from straight line segments of
 //! the LoG zero crossings, matched by probability and a best-first search,
 //! fitted by stabilised Gauss–Newton.
+//!
+//! # Each frame
+//! 1. **Prediction** by velocity extrapolation from the two previous
+//!    solutions (the rotation and the centre's displacement of the last
+//!    frame interval applied once more; joints likewise, within their
+//!    limits), with a prior standard deviation per parameter
+//!    (`prior_*_sigma`).
+//! 2. **Features** ([`segments`]): LoG σ = 1.2 zero crossings in a window
+//!    around the predicted model (wide enough for the largest search
+//!    range), linked with hysteresis, cut into straight segments, indexed
+//!    by midpoint and orientation.
+//! 3. **Visible model** at the prediction: back-face test and hidden-line
+//!    removal ([`crate::geometry::hidden_lines`]); each visible part of an
+//!    edge is a model segment ([`projection`]).
+//! 4. **Candidates** ([`matching`]): for each model segment the index is
+//!    queried within `search_sigmas` of its predicted position and
+//!    orientation (S = A P Aᵀ, eq. 2) and every hit gets its probability of
+//!    correctness (eq. 3).
+//! 5. **Too few candidates** (fewer model segments with one than a search
+//!    node needs): the prior ranges double and step 4 repeats, up to
+//!    `range_doublings` times (001: twice). A search that finds no
+//!    acceptable set also doubles the ranges ("increase the search range
+//!    when the system is unable to find the object").
+//! 6. **Best-first search and locking on** ([`search`]), each solution a
+//!    stabilised Gauss–Newton fit ([`estimation`], eq. 1).
+//! 7. **Verification**: the frame is `tracking` only when a set was
+//!    accepted (its residual passes) and its matched image segments cover
+//!    at least `min_coverage` of the visible model edges' length. Otherwise
+//!    it is `lost`: the output carries the prediction, the next frame
+//!    predicts from the last accepted solution without velocity and starts
+//!    its search at the widest range; when the evidence returns the search
+//!    re-acquires the model.
+//!
+//! Output per frame: status, `corners` (every model vertex projected),
+//! `pose`, `params` (joint values) and the covariance P of the correction
+//! parameters (ω about the camera axes through the model's centre, rad; the
+//! centre's displacement, m; the joints, rad; see [`projection`]).
 
 pub mod estimation;
 #[cfg(test)]
@@ -11,3 +48,449 @@ pub mod params;
 pub mod projection;
 pub mod search;
 pub mod segments;
+
+use glam::DVec3;
+
+pub use params::LoweParams;
+
+use self::estimation::{Matrix, Problem};
+use self::matching::{Candidate, Endpoints, MatchContext, SegmentSpread, match_probability, search_bounds};
+use self::params::MAX_PARAMS;
+use self::projection::{Linearised, ModelSegment, Row, State};
+use self::search::{SearchFrame, SearchSettings, segments_needed};
+use self::segments::{ImageSegment, SegmentExtractor, SegmentIndex};
+use super::{Diagnostics, FrameOutcome, Observations, Phase, Tracker};
+use crate::backend::{FrameRequest, ListSpec, ZeroCrossingRequest};
+use crate::early::Window;
+use crate::early::log::LogParams;
+use crate::early::zero_crossing::ZeroCrossingParams;
+use crate::geometry::{Camera, ModelGeometry, Pose};
+use crate::io::formats::{self, InitState, Model, Status};
+use crate::{Error, Result};
+
+/// Model segments shorter than this in the image are not matched, px.
+const MIN_MODEL_SEGMENT_PX: f64 = 4.0;
+
+/// What the tracker reports beyond the common diagnostics.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LoweDiagnostics {
+    /// Image segments found in the window.
+    pub image_segments: usize,
+    /// Search nodes tried this frame, over all ranges.
+    pub branches: usize,
+    /// Times the prior ranges were doubled this frame.
+    pub doublings: usize,
+    /// Matches of the accepted solution.
+    pub matches: usize,
+    /// Residual σ of the accepted solution, px.
+    pub residual_sigma: Option<f64>,
+    /// Fraction of the visible model edges' length covered by matches.
+    pub coverage: f64,
+    /// The visible model segments at the reported state and the standard
+    /// deviation of their perpendicular position at each end, px (for the
+    /// overlay's 2σ bands).
+    pub bands: Vec<([f64; 2], [f64; 2], [f64; 2])>,
+}
+
+/// The Lowe tracker.
+#[derive(Debug)]
+pub struct LoweTracker {
+    camera: Camera,
+    geometry: ModelGeometry,
+    centre: DVec3,
+    limits: Vec<[f64; 2]>,
+    params: LoweParams,
+    extractor: SegmentExtractor,
+    index: SegmentIndex,
+    image_segments: Vec<ImageSegment>,
+    /// The last accepted solution and the one before it.
+    last: State,
+    before_last: Option<State>,
+    /// This frame's prediction.
+    prediction: State,
+    /// Doubling the next frame's search starts at.
+    first_doubling: usize,
+    phase: Phase,
+    window: Window,
+    last_diagnostics: LoweDiagnostics,
+}
+
+impl LoweTracker {
+    /// A tracker of `model` seen by `camera`, starting at `init`'s pose and
+    /// joint values. Errors on a model the tracker cannot use (too many
+    /// joints, no edges) and on an `init` without a pose or with the wrong
+    /// number of joint values.
+    pub fn new(camera: Camera, model: &Model, init: &InitState, params: LoweParams) -> Result<Self> {
+        params.validate()?;
+        let geometry = ModelGeometry::new(model)?;
+        if geometry.joint_count() > params::MAX_JOINTS {
+            return Err(Error::Parameter(format!(
+                "lowe tracks at most {} joints; the model has {}",
+                params::MAX_JOINTS,
+                geometry.joint_count()
+            )));
+        }
+        if geometry.edges().is_empty() {
+            return Err(Error::Parameter("lowe needs a model with edges".into()));
+        }
+        let pose = init.pose.as_ref().ok_or_else(|| Error::Parameter("lowe needs \"pose\" in init.json".into()))?;
+        let joint_values = if init.params.is_empty() { vec![0.0; geometry.joint_count()] } else { init.params.clone() };
+        if joint_values.len() != geometry.joint_count() {
+            return Err(Error::Parameter(format!(
+                "\"params\" has {} values; the model has {} joints",
+                joint_values.len(),
+                geometry.joint_count()
+            )));
+        }
+        let state = State { pose: Pose::from(pose), params: joint_values };
+        let segment_params = params.segments.clone();
+        Ok(Self {
+            camera,
+            centre: geometry.centroid(),
+            limits: geometry.joint_limits(),
+            extractor: SegmentExtractor::new(segment_params.clone())?,
+            index: SegmentIndex::with_params(&segment_params),
+            image_segments: Vec::new(),
+            prediction: state.clone(),
+            last: state,
+            before_last: None,
+            first_doubling: 0,
+            phase: Phase::Tracking,
+            window: Window::full(camera.width as usize, camera.height as usize),
+            last_diagnostics: LoweDiagnostics::default(),
+            geometry,
+            params,
+        })
+    }
+
+    /// The diagnostics of the last frame.
+    #[must_use]
+    pub fn diagnostics(&self) -> &LoweDiagnostics {
+        &self.last_diagnostics
+    }
+
+    fn n(&self) -> usize {
+        6 + self.geometry.joint_count()
+    }
+
+    /// Prior standard deviations after `doublings` doublings.
+    fn prior_sigmas(&self, doublings: usize) -> Row {
+        let scale = f64::from(1u32 << doublings);
+        let mut sigmas = [0.0; MAX_PARAMS];
+        for (i, s) in sigmas.iter_mut().enumerate().take(self.n()) {
+            *s = scale
+                * match i {
+                    0..=2 => self.params.prior_rotation_sigma,
+                    3..=5 => self.params.prior_translation_sigma,
+                    _ => self.params.prior_joint_sigma,
+                };
+        }
+        sigmas
+    }
+
+    fn diagonal(sigmas: &Row, n: usize) -> Matrix {
+        let mut p = [[0.0; MAX_PARAMS]; MAX_PARAMS];
+        for i in 0..n {
+            p[i][i] = sigmas[i] * sigmas[i];
+        }
+        p
+    }
+
+    /// The image positions of every vertex at `state` (NaN for a vertex at
+    /// or behind the camera).
+    fn corners_at(&self, state: &State) -> Vec<[f64; 2]> {
+        self.geometry.camera_vertices(&state.pose, &state.params).map_or_else(
+            |_| vec![[f64::NAN; 2]; self.geometry.vertices().len()],
+            |points| points.iter().map(|p| self.camera.project_in_front(*p).unwrap_or([f64::NAN; 2])).collect(),
+        )
+    }
+
+    /// The next frame's prediction: velocity extrapolation from the last two
+    /// accepted solutions (module doc), or the last one when there is no
+    /// velocity.
+    fn predict(&self) -> State {
+        let Some(before) = &self.before_last else { return self.last.clone() };
+        let step = self.last.deviation_from(before, self.centre);
+        self.last.corrected(&step[..self.n()], self.centre, &self.limits)
+    }
+
+    /// Window of interest around the model at `state`, grown by the search
+    /// reach of the widest prior.
+    fn window_at(&self, state: &State, width: usize, height: usize) -> Window {
+        let n = self.n();
+        let widest = Self::diagonal(&self.prior_sigmas(self.params.range_doublings), n);
+        let Ok(lin) = Linearised::at(&self.geometry, state, self.centre) else {
+            return Window::full(width, height);
+        };
+        let mut reach: f64 = 0.0;
+        let mut corners = Vec::with_capacity(lin.points.len());
+        for (p, rows) in lin.points.iter().zip(&lin.derivatives) {
+            if let Some((pixel, pixel_rows)) = projection::project_with_rows(&self.camera, *p, rows, n) {
+                corners.push(pixel);
+                let var = estimation::quadratic_form(&widest, &pixel_rows[0], n)
+                    + estimation::quadratic_form(&widest, &pixel_rows[1], n);
+                reach = reach.max(var.sqrt());
+            }
+        }
+        let margin = self.params.search_sigmas * reach + self.params.window_margin_px;
+        Window::around(&corners, margin.min(1e6), width, height).unwrap_or_else(|| Window::full(width, height))
+    }
+
+    fn settings(&self) -> SearchSettings {
+        SearchSettings {
+            set_probability: self.params.set_probability,
+            residual_limit: self.params.residual_ratio * self.params.measurement_sigma_px,
+            max_branches: self.params.max_branches,
+            iterations: self.params.iterations,
+            lock_iterations: self.params.lock_iterations,
+            lock_probability: self.params.lock_probability,
+        }
+    }
+}
+
+/// The frame as the search sees it.
+struct FrameView<'a> {
+    tracker: &'a LoweTracker,
+    ctx: MatchContext,
+}
+
+impl FrameView<'_> {
+    fn visible_segments(&self, state: &State, out: &mut Vec<ModelSegment>) {
+        out.clear();
+        let t = self.tracker;
+        let Ok(lin) = Linearised::at(&t.geometry, state, t.centre) else { return };
+        let parts = crate::geometry::hidden_lines::visible_edge_parts(&t.geometry, &lin.points, &t.camera);
+        for (edge, intervals) in parts.iter().enumerate() {
+            for &interval in intervals {
+                if let Some(seg) = ModelSegment::new(&lin, &t.camera, t.geometry.edges(), edge, interval)
+                    && seg.length() >= MIN_MODEL_SEGMENT_PX
+                {
+                    out.push(seg);
+                }
+            }
+        }
+    }
+}
+
+impl SearchFrame for FrameView<'_> {
+    fn model_segments(&self, state: &State, out: &mut Vec<ModelSegment>) {
+        self.visible_segments(state, out);
+    }
+
+    fn candidates(&self, segs: &[ModelSegment], p: &Matrix, out: &mut Vec<Candidate>) {
+        out.clear();
+        let t = self.tracker;
+        let n = t.n();
+        let min_length = t.params.segments.min_length.max(1.0);
+        let mut hits = Vec::new();
+        for (m, seg) in segs.iter().enumerate() {
+            let spread = SegmentSpread::of(seg, p, n);
+            let [x0, y0, x1, y1] = search_bounds(seg, &spread, &self.ctx);
+            let tolerance =
+                self.ctx.search_sigmas * spread.orientation.hypot(2.0 * self.ctx.measurement_sigma / min_length);
+            t.index.query(x0..=x1, y0..=y1, seg.orientation(), tolerance.min(std::f64::consts::FRAC_PI_2), &mut hits);
+            for &i in &hits {
+                if let Some(probability) = match_probability(seg, &spread, p, n, &self.endpoints(i), &self.ctx) {
+                    out.push(Candidate { model: m, image: i, probability });
+                }
+            }
+        }
+    }
+
+    fn endpoints(&self, image: usize) -> Endpoints {
+        let s = &self.tracker.image_segments[image];
+        [s.start, s.end]
+    }
+}
+
+/// Fraction of the model segments' total length covered by the matched
+/// image segments (each projected onto its model segment and clipped to
+/// it; a model segment counts at most its own length).
+fn coverage(segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
+    let total: f64 = segs.iter().map(ModelSegment::length).sum();
+    if total <= 0.0 {
+        return 0.0;
+    }
+    let mut covered = 0.0;
+    for seg in segs {
+        let length = seg.length();
+        let [ux, uy] = seg.direction();
+        let mut spans: Vec<[f64; 2]> = matches
+            .iter()
+            .filter(|m| m.edge == seg.edge && m.interval == seg.interval)
+            .map(|m| {
+                let along = |p: [f64; 2]| ((p[0] - seg.a[0]) * ux + (p[1] - seg.a[1]) * uy).clamp(0.0, length);
+                let (s0, s1) = (along(m.endpoints[0]), along(m.endpoints[1]));
+                [s0.min(s1), s0.max(s1)]
+            })
+            .collect();
+        spans.sort_by(|a, b| a[0].total_cmp(&b[0]));
+        let mut end: f64 = 0.0;
+        for [s0, s1] in spans {
+            covered += (s1 - s0.max(end)).max(0.0);
+            end = end.max(s1);
+        }
+    }
+    covered / total
+}
+
+impl Tracker for LoweTracker {
+    fn name(&self) -> &'static str {
+        "lowe"
+    }
+
+    fn window_of_interest(&self, width: usize, height: usize) -> Window {
+        self.window_at(&self.prediction, width, height)
+    }
+
+    fn request(&self, width: usize, height: usize) -> FrameRequest {
+        let window = self.window_of_interest(width, height);
+        FrameRequest {
+            zero_crossings: Some(ZeroCrossingRequest {
+                log: LogParams { sigma: self.params.log_sigma },
+                crossings: ZeroCrossingParams { min_slope: self.params.min_slope },
+                list: ListSpec { window, cap: None, seed: 0 },
+            }),
+            ..FrameRequest::default()
+        }
+    }
+
+    fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {
+        let (width, height) = (self.camera.width as usize, self.camera.height as usize);
+        self.window = self.window_of_interest(width, height);
+        let crossings = observations.zero_crossings.unwrap_or(&[]);
+        let mut image_segments = std::mem::take(&mut self.image_segments);
+        self.extractor.extract(crossings, self.window, &mut image_segments);
+        self.image_segments = image_segments;
+        self.index.build(&self.image_segments, self.window);
+
+        let n = self.n();
+        let needed = segments_needed(n);
+        let ctx = MatchContext {
+            segments: self.image_segments.len(),
+            area: (self.window.area() as f64).max(1.0),
+            measurement_sigma: self.params.measurement_sigma_px,
+            search_sigmas: self.params.search_sigmas,
+            min_probability: self.params.min_probability,
+        };
+        let settings = self.settings();
+        let mut diag = LoweDiagnostics { image_segments: self.image_segments.len(), ..LoweDiagnostics::default() };
+        let mut accepted = None;
+        {
+            let view = FrameView { tracker: self, ctx };
+            let mut segs = Vec::new();
+            let mut cands = Vec::new();
+            view.visible_segments(&self.prediction, &mut segs);
+            for doubling in self.first_doubling..=self.params.range_doublings {
+                diag.doublings = doubling;
+                let sigmas = self.prior_sigmas(doubling);
+                let p0 = Self::diagonal(&sigmas, n);
+                view.candidates(&segs, &p0, &mut cands);
+                let mut with_candidates: Vec<usize> = cands.iter().map(|c| c.model).collect();
+                with_candidates.dedup();
+                if with_candidates.len() < needed {
+                    continue;
+                }
+                let problem = Problem {
+                    geometry: &self.geometry,
+                    camera: &self.camera,
+                    centre: self.centre,
+                    limits: &self.limits,
+                    prediction: &self.prediction,
+                    prior_sigmas: &sigmas,
+                    measurement_sigma: self.params.measurement_sigma_px,
+                };
+                let outcome = search::search(&view, &problem, segs.clone(), &cands, &settings);
+                diag.branches += outcome.branches;
+                if let Some(solution) = outcome.solution {
+                    accepted = Some((solution, outcome.matches, outcome.model_segments));
+                    break;
+                }
+            }
+        }
+        let mut lost_reason = None;
+        let verified = match &accepted {
+            None => {
+                lost_reason = Some(format!(
+                    "no consistent set of matches ({} image segments, {} branches)",
+                    diag.image_segments, diag.branches
+                ));
+                None
+            }
+            Some((solution, matches, segs)) => {
+                diag.matches = matches.len();
+                diag.residual_sigma = solution.residual_sigma;
+                diag.coverage = coverage(segs, matches);
+                if diag.coverage < self.params.min_coverage {
+                    lost_reason = Some(format!(
+                        "matches cover {:.0} % of the visible edges (< {:.0} %)",
+                        100.0 * diag.coverage,
+                        100.0 * self.params.min_coverage
+                    ));
+                    None
+                } else {
+                    Some(solution.clone())
+                }
+            }
+        };
+        let (status, reported, covariance) = match verified {
+            Some(solution) => {
+                self.before_last = Some(std::mem::replace(&mut self.last, solution.state.clone()));
+                self.first_doubling = 0;
+                self.phase = Phase::Tracking;
+                (Status::Tracking, solution.state, Some(solution.covariance))
+            }
+            None => {
+                // Coast: the prediction becomes the last state, so the next
+                // frame's prediction keeps the last velocity.
+                let coasted = self.prediction.clone();
+                self.before_last = Some(std::mem::replace(&mut self.last, coasted));
+                self.first_doubling = self.params.range_doublings;
+                self.phase = Phase::Lost;
+                (Status::Lost, self.prediction.clone(), None)
+            }
+        };
+        // The overlay's bands: the visible model at the reported state with
+        // the spread of its perpendicular position.
+        {
+            let view = FrameView { tracker: self, ctx };
+            let mut segs = Vec::new();
+            view.visible_segments(&reported, &mut segs);
+            let p = covariance.unwrap_or_else(|| Self::diagonal(&self.prior_sigmas(self.params.range_doublings), n));
+            diag.bands = segs
+                .iter()
+                .map(|s| {
+                    let spread = SegmentSpread::of(s, &p, n);
+                    (s.a, s.b, spread.perpendicular)
+                })
+                .collect();
+        }
+        if std::env::var_os("LOWE_DEBUG").is_some() {
+            eprintln!(
+                "DEBUG frame {frame} {status:?} segs {} branches {} doublings {} matches {} resid {:?} cov {:.2} {:?}",
+                diag.image_segments,
+                diag.branches,
+                diag.doublings,
+                diag.matches,
+                diag.residual_sigma,
+                diag.coverage,
+                lost_reason
+            );
+        }
+        let corners = self.corners_at(&reported);
+        self.prediction = self.predict();
+        let covariance = covariance.map(|p| (0..n).flat_map(|i| (0..n).map(move |j| p[i][j])).collect());
+        self.last_diagnostics = diag;
+        FrameOutcome {
+            frame,
+            status,
+            phase: self.phase,
+            corners,
+            pose: Some(formats::Pose::from(&reported.pose)),
+            params: Some(reported.params),
+            covariance,
+            labelled: Vec::new(),
+            diagnostics: Diagnostics { lost_reason, ..Diagnostics::default() },
+        }
+    }
+}

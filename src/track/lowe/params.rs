@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::segments::SegmentParams;
 use crate::Result;
 use crate::bounds::{Interval, check_count};
 
@@ -78,6 +79,9 @@ pub struct LoweParams {
     /// Extra margin of the window of interest around the predicted model,
     /// px, on top of the search range. Range: [0, 4096].
     pub window_margin_px: f64,
+    /// Linking, segmentation and indexing of the zero crossings (a
+    /// `[segments]` table in the TOML file; see [`SegmentParams`]).
+    pub segments: SegmentParams,
 }
 
 impl Default for LoweParams {
@@ -100,6 +104,7 @@ impl Default for LoweParams {
             lock_iterations: 4,
             min_coverage: 0.3,
             window_margin_px: 8.0,
+            segments: SegmentParams::default(),
         }
     }
 }
@@ -129,6 +134,7 @@ impl LoweParams {
         check_count(WHO, "iterations", self.iterations, 1, MAX_ITERATIONS)?;
         check_count(WHO, "lock_iterations", self.lock_iterations, 0, 20)?;
         Interval::closed(0.0, 1.0).check(WHO, "min_coverage", self.min_coverage, "")?;
-        Interval::closed(0.0, 4096.0).check(WHO, "window_margin_px", self.window_margin_px, " px")
+        Interval::closed(0.0, 4096.0).check(WHO, "window_margin_px", self.window_margin_px, " px")?;
+        self.segments.validate()
     }
 }

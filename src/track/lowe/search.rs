@@ -21,8 +21,11 @@
 //!    and each image segment whose best probability is at least
 //!    `lock_probability` joins (one model segment may take several
 //!    collinear pieces); the enlarged set is solved from the solution and
-//!    kept when its residual passes. This repeats until the set stops
-//!    changing, at most `lock_iterations` times.
+//!    kept when its residual passes. When it does not, some newcomer is
+//!    wrong: the solution is kept and the next re-prediction admits only
+//!    matches more probable than before (the threshold moves half way to
+//!    1). This repeats until the set stops changing, at most
+//!    `lock_iterations` times.
 
 use super::estimation::{Match, Matrix, Problem, Solution, solve};
 use super::matching::{Candidate, Endpoints};
@@ -153,7 +156,8 @@ pub fn search(
         };
         outcome.branches += 1;
         let matches = to_matches(frame, &segs, candidates, &set);
-        match solve(problem, problem.prediction, &matches, settings.iterations) {
+        let solved = solve(problem, problem.prediction, &matches, settings.iterations);
+        match solved {
             Some(solution) if passes(&solution, settings.residual_limit) => {
                 accepted = Some((solution, matches));
                 break;
@@ -173,10 +177,11 @@ pub fn search(
     };
     let mut segs_now = Vec::new();
     let mut cands_now = Vec::new();
+    let mut threshold = settings.lock_probability;
     for _ in 0..settings.lock_iterations {
         frame.model_segments(&solution.state, &mut segs_now);
         frame.candidates(&segs_now, &solution.covariance, &mut cands_now);
-        let locked = lock_set(frame, &segs_now, &cands_now, settings.lock_probability);
+        let locked = lock_set(frame, &segs_now, &cands_now, threshold);
         if same_matches(&locked, &matches) || locked.len() < needed {
             break;
         }
@@ -186,7 +191,7 @@ pub fn search(
                 solution = next;
                 matches = locked;
             }
-            _ => break,
+            _ => threshold = 0.5 * (1.0 + threshold),
         }
     }
     frame.model_segments(&solution.state, &mut segs_now);
