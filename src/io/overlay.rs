@@ -71,6 +71,87 @@ pub fn draw_overlay(
     out
 }
 
+/// Colour of the uncertainty bands (001's figures shade them light grey).
+pub const BAND_COLOUR: [u8; 3] = [200, 200, 255];
+/// How much of [`BAND_COLOUR`] is blended into a pixel inside a band.
+pub const BAND_OPACITY: f32 = 0.35;
+
+/// A predicted model segment with the standard deviation of its
+/// perpendicular position at each end, px: the overlay shades the region
+/// within two standard deviations of it, as 001's Figs. 3–6 do.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EdgeBand {
+    /// First end.
+    pub a: [f64; 2],
+    /// Second end.
+    pub b: [f64; 2],
+    /// Standard deviation across the segment at `a` and at `b`, px.
+    pub sigma: [f64; 2],
+}
+
+/// Shade the union of the regions within two standard deviations of each
+/// band (each a quadrilateral `a ± 2σ_a·n`, `b ± 2σ_b·n`; a pixel inside
+/// several is shaded once), then draw each band's segment as a line in
+/// `colour`. Non-finite bands are skipped.
+pub fn draw_bands(img: &mut RgbImage, bands: &[EdgeBand], colour: [u8; 3]) {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let mut inside = vec![false; w * h];
+    for band in bands {
+        let finite = band.a.iter().chain(&band.b).chain(&band.sigma).all(|v| v.is_finite());
+        let (dx, dy) = (band.b[0] - band.a[0], band.b[1] - band.a[1]);
+        let len = dx.hypot(dy);
+        if !finite || len <= 0.0 {
+            continue;
+        }
+        let (nx, ny) = (-dy / len, dx / len);
+        let (ra, rb) = (2.0 * band.sigma[0], 2.0 * band.sigma[1]);
+        let quad = [
+            [band.a[0] + nx * ra, band.a[1] + ny * ra],
+            [band.b[0] + nx * rb, band.b[1] + ny * rb],
+            [band.b[0] - nx * rb, band.b[1] - ny * rb],
+            [band.a[0] - nx * ra, band.a[1] - ny * ra],
+        ];
+        mark_convex_polygon(&mut inside, w, h, &quad);
+    }
+    for (k, _) in inside.iter().enumerate().filter(|(_, on)| **on) {
+        blend(img, (k % w) as i64, (k / w) as i64, BAND_COLOUR, BAND_OPACITY);
+    }
+    for band in bands {
+        if band.a.iter().chain(&band.b).all(|v| v.is_finite()) {
+            draw_line_aa(img, band.a, band.b, colour);
+        }
+    }
+}
+
+/// Mark the pixels whose centres lie inside the convex polygon `points`
+/// (either winding), row by row between the polygon's crossings.
+fn mark_convex_polygon(mask: &mut [bool], w: usize, h: usize, points: &[[f64; 2]]) {
+    let lo = points.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min).max(0.0).ceil();
+    let hi = points.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max).min(h as f64 - 1.0).floor();
+    if !(lo <= hi) {
+        return;
+    }
+    for y in lo as usize..=hi as usize {
+        let yf = y as f64;
+        let (mut x0, mut x1) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (k, p) in points.iter().enumerate() {
+            let q = points[(k + 1) % points.len()];
+            if (p[1] <= yf && q[1] >= yf) || (q[1] <= yf && p[1] >= yf) {
+                let x = if q[1] == p[1] { p[0].min(q[0]) } else { p[0] + (yf - p[1]) * (q[0] - p[0]) / (q[1] - p[1]) };
+                let x_other = if q[1] == p[1] { p[0].max(q[0]) } else { x };
+                x0 = x0.min(x);
+                x1 = x1.max(x_other);
+            }
+        }
+        let (a, b) = (x0.max(0.0).ceil(), x1.min(w as f64 - 1.0).floor());
+        if a <= b {
+            for x in a as usize..=b as usize {
+                mask[y * w + x] = true;
+            }
+        }
+    }
+}
+
 /// Blend `colour` into pixel `(x, y)` with weight `alpha` in 0..=1; pixels
 /// outside the image are ignored.
 fn blend(img: &mut RgbImage, x: i64, y: i64, colour: [u8; 3], alpha: f32) {
@@ -160,5 +241,26 @@ fn draw_line_aa(img: &mut RgbImage, a: [f64; 2], b: [f64; 2], colour: [u8; 3]) {
         let frac = y - y_floor;
         plot(x, y_floor as i64, 1.0 - frac);
         plot(x, y_floor as i64 + 1, frac);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A horizontal band with σ = 2 px shades the pixels within 4 px of
+    /// its line and nothing beyond, and draws the line itself.
+    #[test]
+    fn band_shades_two_sigmas_around_its_segment() {
+        let mut img = RgbImage::from_pixel(40, 30, Rgb([0, 0, 0]));
+        let band = EdgeBand { a: [5.0, 15.0], b: [35.0, 15.0], sigma: [2.0, 2.0] };
+        draw_bands(&mut img, &[band, EdgeBand { a: [f64::NAN, 0.0], ..band }], TRACKING_COLOUR);
+        let shaded = |x: u32, y: u32| img.get_pixel(x, y).0 != [0, 0, 0];
+        for y in 11..=19 {
+            assert!(shaded(20, y), "row {y} inside the band");
+        }
+        assert!(!shaded(20, 10) && !shaded(20, 20), "rows beyond 2σ");
+        assert!(!shaded(3, 15) && !shaded(37, 15), "beyond the ends");
+        assert_eq!(img.get_pixel(20, 15).0, TRACKING_COLOUR, "the line on top");
     }
 }

@@ -139,6 +139,10 @@ pub struct Diagnostics {
     pub side_support: Option<f64>,
     /// Why the frame is lost, when it is.
     pub lost_reason: Option<String>,
+    /// The visible model segments with the spread of their predicted
+    /// position, for overlays that draw them as 001's figures do (empty for
+    /// trackers without them).
+    pub bands: Vec<crate::io::overlay::EdgeBand>,
 }
 
 /// What a tracker reports for one frame.

@@ -228,7 +228,11 @@ fn track_named(
                     Some(v) => seq.model.edges.iter().zip(v).filter(|(_, on)| *on).map(|(e, _)| *e).collect(),
                     None => (&seq.model.edges[..]).into(),
                 };
-                let img = crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
+                let bands = &outcome.diagnostics.bands;
+                let edges = if bands.is_empty() { edges } else { (&[][..]).into() };
+                let mut img =
+                    crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
+                crate::io::overlay::draw_bands(&mut img, bands, crate::io::overlay::status_colour(outcome.status));
                 let path = dir.path().join(format!("{:06}.png", outcome.frame));
                 img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
             }

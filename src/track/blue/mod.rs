@@ -657,6 +657,7 @@ impl BlueTracker {
                 contour_support,
                 side_support: None,
                 lost_reason: failure,
+                bands: Vec::new(),
             },
         }
     }

@@ -66,6 +66,7 @@ use crate::early::log::LogParams;
 use crate::early::zero_crossing::ZeroCrossingParams;
 use crate::geometry::{Camera, ModelGeometry, Pose};
 use crate::io::formats::{self, InitState, Model, Status};
+use crate::io::overlay::EdgeBand;
 use crate::{Error, Result};
 
 /// Model segments shorter than this in the image are not matched, px.
@@ -86,10 +87,6 @@ pub struct LoweDiagnostics {
     pub residual_sigma: Option<f64>,
     /// Fraction of the visible model edges' length covered by matches.
     pub coverage: f64,
-    /// The visible model segments at the reported state and the standard
-    /// deviation of their perpendicular position at each end, px (for the
-    /// overlay's 2σ bands).
-    pub bands: Vec<([f64; 2], [f64; 2], [f64; 2])>,
 }
 
 /// The Lowe tracker.
@@ -452,17 +449,15 @@ impl Tracker for LoweTracker {
         };
         // The overlay's bands: the visible model at the reported state with
         // the spread of its perpendicular position.
+        let bands;
         {
             let view = FrameView { tracker: self, ctx };
             let mut segs = Vec::new();
             view.visible_segments(&reported, &mut segs);
             let p = covariance.unwrap_or_else(|| Self::diagonal(&self.prior_sigmas(self.params.range_doublings), n));
-            diag.bands = segs
+            bands = segs
                 .iter()
-                .map(|s| {
-                    let spread = SegmentSpread::of(s, &p, n);
-                    (s.a, s.b, spread.perpendicular)
-                })
+                .map(|s| EdgeBand { a: s.a, b: s.b, sigma: SegmentSpread::of(s, &p, n).perpendicular })
                 .collect();
         }
         if std::env::var_os("LOWE_DEBUG").is_some() {
@@ -490,7 +485,7 @@ impl Tracker for LoweTracker {
             params: Some(reported.params),
             covariance,
             labelled: Vec::new(),
-            diagnostics: Diagnostics { lost_reason, ..Diagnostics::default() },
+            diagnostics: Diagnostics { lost_reason, bands, ..Diagnostics::default() },
         }
     }
 }

@@ -963,6 +963,7 @@ impl MotionEdgeTracker {
             contour_support,
             side_support,
             lost_reason,
+            bands: Vec::new(),
         };
         FrameOutcome {
             frame,
