@@ -599,8 +599,9 @@ mod tests {
     }
 
     /// Whether `x`, a point of the plane of face `face` (normal `normal`),
-    /// lies inside the face's polygon: the even–odd rule in the coordinate
-    /// plane across which the normal is largest.
+    /// lies inside the face's polygon and off its border (by 1e-9·|x|): the
+    /// even–odd rule in the coordinate plane across which the normal is
+    /// largest.
     fn point_in_face(x: DVec3, vertices: &[DVec3], face: &[usize], normal: DVec3) -> bool {
         let a = normal.abs();
         let drop = if a.x >= a.y && a.x >= a.z {
@@ -614,6 +615,10 @@ mod tests {
         let mut inside = false;
         for (k, &v) in face.iter().enumerate() {
             let (p, q) = (vertices[v], vertices[face[(k + 1) % face.len()]]);
+            let s = ((x - p).dot(q - p) / (q - p).length_squared()).clamp(0.0, 1.0);
+            if (x - (p + s * (q - p))).length() <= 1e-9 * x.length() {
+                return false;
+            }
             if (p[j] > x[j]) != (q[j] > x[j]) && x[i] < p[i] + (x[j] - p[j]) * (q[i] - p[i]) / (q[j] - p[j]) {
                 inside = !inside;
             }
@@ -887,14 +892,17 @@ mod tests {
 
     /// A cube whose top (y = 0, the camera's height) is seen exactly
     /// edge-on: the top does not face the camera, the front face's edges
-    /// are whole, and an edge behind from y = −1 to 1 is hidden by the
-    /// front face below y = 0 only. A plate seen edge-on or within 1e-13
+    /// are whole, an edge behind from y = −1 to 1 is hidden by the front
+    /// face below y = 0 only, and an edge behind in the plane y = 0, whose
+    /// image runs along the front face's top side, is not hidden. A plate seen edge-on or within 1e-13
     /// rad of it hides nothing, whichever side faces the camera.
     #[test]
     fn a_face_seen_edge_on_hides_nothing() {
         let mut vertices: Vec<[f64; 3]> =
             (0..8).map(|i| [f64::from(i & 1) - 0.5, f64::from((i >> 1) & 1), 3.0 + f64::from((i >> 2) & 1)]).collect();
-        vertices.extend([[0.0, -1.0, 8.0], [0.0, 1.0, 8.0]]);
+        // A wire across the front face's image below y = 0, and one whose
+        // image runs along the front face's top side (its ray grazes it).
+        vertices.extend([[0.0, -1.0, 8.0], [0.0, 1.0, 8.0], [-1.0, 0.0, 8.0], [1.0, 0.0, 8.0]]);
         let faces = vec![
             vec![0, 4, 6, 2],
             vec![1, 3, 7, 5],
@@ -911,7 +919,7 @@ mod tests {
                 }
             }
         }
-        edges.push([8, 9]);
+        edges.extend([[8, 9], [10, 11]]);
         let geometry = ModelGeometry::new(&model(vertices, edges, faces)).expect("cube");
         let cam = geometry.vertices();
         assert_eq!(geometry.facing_faces(cam), [false, false, false, false, true, false]);
@@ -921,6 +929,7 @@ mod tests {
             assert_eq!(parts.edge(k), if front { &[[0.0, 1.0]][..] } else { &[][..] }, "edge {i}-{j}");
         }
         assert_intervals_near(parts.edge(12), &[[0.0, 0.5]], 1e-12);
+        assert_eq!(parts.edge(13), [[0.0, 1.0]]);
         assert_matches_ray_casting("edge-on cube", &geometry, cam, &parts, 2000);
 
         let mut facing_tilts = 0;
