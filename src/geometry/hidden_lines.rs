@@ -40,9 +40,11 @@
 //!   is not linear in t), and are cut to the half-interval behind the plane.
 //!
 //! The union of the hidden pieces over all occluders is taken from the
-//! edge's range in front of the near plane. The work is O(edges × faces),
-//! with the bounding-box and plane tests rejecting most pairs before the
-//! outline is read, and no allocation per pair (scratch buffers are reused).
+//! edge's range in front of the near plane. The work is O(edges × faces):
+//! the occluders are sorted by the left sides of their image bounding boxes,
+//! so an edge reads only those starting left of its right end, and the
+//! bounding-box and plane tests reject most pairs before the outline is
+//! read; there is no allocation per pair (scratch buffers are reused).
 //!
 //! # Tolerances
 //!
@@ -168,12 +170,20 @@ struct Occluder {
     normal: DVec3,
     /// Plane offset d̂ = n̂·X for X on the face (negative: it faces the camera).
     offset: f64,
-    /// The image outline (clipped to the near plane) in `outlines`.
+    /// The image outline (clipped to the near plane) in [`Occluders::outlines`].
     outline: std::ops::Range<usize>,
-    /// Image bounding box of the outline, min corner.
-    min: [f64; 2],
-    /// Image bounding box of the outline, max corner.
-    max: [f64; 2],
+}
+
+/// Every occluder of a view, sorted by the left side of its image bounding
+/// box, so that an edge reads only those starting left of its right end.
+#[derive(Clone, Debug)]
+struct Occluders {
+    /// Image bounding boxes `[u_min, v_min, u_max, v_max]`, by `u_min`.
+    boxes: Vec<[f64; 4]>,
+    /// The occluder of each box.
+    planes: Vec<Occluder>,
+    /// The outlines, one after the other.
+    outlines: Vec<[f64; 2]>,
 }
 
 /// The seen parts of every edge of `geometry` (module doc) with the model's
@@ -184,8 +194,7 @@ struct Occluder {
 pub fn visible_edge_parts(geometry: &ModelGeometry, camera_vertices: &[DVec3], camera: &Camera) -> VisibleEdgeParts {
     let facing = geometry.facing_faces(camera_vertices);
     let visible = geometry.visible_edges(&facing);
-    let mut outlines = Vec::new();
-    let occluders = occluders(geometry, camera_vertices, camera, &facing, &mut outlines);
+    let occluders = Occluders::new(geometry, camera_vertices, camera, &facing);
     let outline_tolerance = ON_OUTLINE_TOLERANCE * camera.fx.abs().max(camera.fy.abs());
 
     let edges = geometry.edges();
@@ -199,12 +208,13 @@ pub fn visible_edge_parts(geometry: &ModelGeometry, camera_vertices: &[DVec3], c
         if let (true, Some(range)) = (visible[k], in_front_of_near_plane(a.z, b.z)) {
             let edge = ClippedEdge::new(a, b, range, camera);
             hidden.clear();
-            for occluder in &occluders {
-                if geometry.edge_faces()[k].contains(&occluder.face) || !edge.image_box_meets(occluder) {
+            let left_of_edge_end = occluders.boxes.partition_point(|b| b[0] <= edge.max[0]);
+            for (image_box, occluder) in occluders.boxes.iter().zip(&occluders.planes).take(left_of_edge_end) {
+                if !edge.image_box_meets(image_box) || geometry.edge_faces()[k].contains(&occluder.face) {
                     continue;
                 }
                 let Some(behind) = behind_plane(a, b, occluder, range) else { continue };
-                let outline = &outlines[occluder.outline.clone()];
+                let outline = &occluders.outlines[occluder.outline.clone()];
                 edge.hidden_by_outline(outline, behind, outline_tolerance, &mut crossings, &mut hidden);
             }
             subtract_hidden(range, &mut hidden, &mut parts.intervals);
@@ -225,55 +235,55 @@ pub fn visible_edge_segments(
     visible_edge_parts(geometry, camera_vertices, camera).segments(geometry, camera_vertices, camera)
 }
 
-/// The occluders: every facing face with a non-degenerate normal, clipped to
-/// the near plane and projected (outlines appended to `outlines`).
-fn occluders(
-    geometry: &ModelGeometry,
-    camera_vertices: &[DVec3],
-    camera: &Camera,
-    facing: &[bool],
-    outlines: &mut Vec<[f64; 2]>,
-) -> Vec<Occluder> {
-    let mut occluders = Vec::new();
-    let mut clipped = Vec::new();
-    for (f, face) in geometry.faces().iter().enumerate() {
-        if !facing[f] {
-            continue;
-        }
-        let normal = newell_normal(camera_vertices, face);
-        let length = normal.length();
-        if !(length > 0.0 && length.is_finite()) {
-            continue;
-        }
-        let normal = normal / length;
-        let centroid = face.iter().map(|&v| camera_vertices[v]).sum::<DVec3>() / face.len() as f64;
-        let offset = normal.dot(centroid);
-        // The back-face test at the centroid (a non-planar loop can pass it
-        // at its first vertex only): d̂ < 0 is n̂·centroid < 0.
-        if !faces_camera(normal, centroid) {
-            continue;
-        }
-        clip_to_near_plane(face.iter().map(|&v| camera_vertices[v]), &mut clipped);
-        if clipped.len() < 3 {
-            continue;
-        }
-        let start = outlines.len();
-        let (mut min, mut max) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for &p in &clipped {
-            let pixel = camera.project(p);
-            for c in 0..2 {
-                min[c] = min[c].min(pixel[c]);
-                max[c] = max[c].max(pixel[c]);
+impl Occluders {
+    /// Every facing face (`facing`, one per face) with a non-degenerate
+    /// normal, clipped to the near plane and projected.
+    fn new(geometry: &ModelGeometry, camera_vertices: &[DVec3], camera: &Camera, facing: &[bool]) -> Self {
+        let mut found = Vec::new();
+        let mut outlines = Vec::new();
+        let mut clipped = Vec::new();
+        for (f, face) in geometry.faces().iter().enumerate() {
+            if !facing[f] {
+                continue;
             }
-            outlines.push(pixel);
+            let normal = newell_normal(camera_vertices, face);
+            let length = normal.length();
+            if !(length > 0.0 && length.is_finite()) {
+                continue;
+            }
+            let normal = normal / length;
+            let centroid = face.iter().map(|&v| camera_vertices[v]).sum::<DVec3>() / face.len() as f64;
+            let offset = normal.dot(centroid);
+            // The back-face test at the centroid (a non-planar loop can pass it
+            // at its first vertex only): d̂ < 0 is n̂·centroid < 0.
+            if !faces_camera(normal, centroid) {
+                continue;
+            }
+            clip_to_near_plane(face.iter().map(|&v| camera_vertices[v]), &mut clipped);
+            if clipped.len() < 3 {
+                continue;
+            }
+            let start = outlines.len();
+            let (mut min, mut max) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for &p in &clipped {
+                let pixel = camera.project(p);
+                for c in 0..2 {
+                    min[c] = min[c].min(pixel[c]);
+                    max[c] = max[c].max(pixel[c]);
+                }
+                outlines.push(pixel);
+            }
+            if !(min.iter().chain(&max).all(|x| x.is_finite())) {
+                outlines.truncate(start);
+                continue;
+            }
+            let outline = start..outlines.len();
+            found.push(([min[0], min[1], max[0], max[1]], Occluder { face: f, normal, offset, outline }));
         }
-        if !(min.iter().chain(&max).all(|x| x.is_finite())) {
-            outlines.truncate(start);
-            continue;
-        }
-        occluders.push(Occluder { face: f, normal, offset, outline: start..outlines.len(), min, max });
+        found.sort_unstable_by(|x, y| x.0[0].total_cmp(&y.0[0]));
+        let (boxes, planes) = found.into_iter().unzip();
+        Self { boxes, planes, outlines }
     }
-    occluders
 }
 
 /// The part of the polygon `loop_points` at Z ≥ [`NEAR_PLANE_Z`], into
@@ -351,9 +361,10 @@ impl ClippedEdge {
         Self { range, depths: ends.map(|p| p.z), image, min, max }
     }
 
-    /// Whether the edge's image bounding box meets the occluder's.
-    fn image_box_meets(&self, occluder: &Occluder) -> bool {
-        (0..2).all(|c| self.max[c] >= occluder.min[c] && self.min[c] <= occluder.max[c])
+    /// Whether the edge's image bounding box meets `image_box`,
+    /// `[u_min, v_min, u_max, v_max]`.
+    fn image_box_meets(&self, image_box: &[f64; 4]) -> bool {
+        (0..2).all(|c| self.max[c] >= image_box[c] && self.min[c] <= image_box[c + 2])
     }
 
     /// The edge parameter t of the image point at `lambda` along the image
@@ -427,7 +438,7 @@ fn strictly_inside(point: [f64; 2], outline: &[[f64; 2]], tolerance: f64) -> boo
     let mut inside = false;
     for (s, &p) in outline.iter().enumerate() {
         let q = outline[(s + 1) % outline.len()];
-        if distance_to_side(point, p, q) <= tolerance {
+        if squared_distance_to_side(point, p, q) <= tolerance * tolerance {
             return false;
         }
         if (p[1] > point[1]) != (q[1] > point[1]) {
@@ -440,13 +451,13 @@ fn strictly_inside(point: [f64; 2], outline: &[[f64; 2]], tolerance: f64) -> boo
     inside
 }
 
-/// Distance from `point` to the segment `p`–`q`.
-fn distance_to_side(point: [f64; 2], p: [f64; 2], q: [f64; 2]) -> f64 {
+/// Squared distance from `point` to the segment `p`–`q`.
+fn squared_distance_to_side(point: [f64; 2], p: [f64; 2], q: [f64; 2]) -> f64 {
     let (e, w) = (sub(q, p), sub(point, p));
     let len2 = dot(e, e);
     let s = if len2 > 0.0 { (dot(w, e) / len2).clamp(0.0, 1.0) } else { 0.0 };
     let r = [w[0] - s * e[0], w[1] - s * e[1]];
-    r[0].hypot(r[1])
+    dot(r, r)
 }
 
 /// Appends to `seen` what is left of `range` once the pieces in `hidden`
