@@ -49,10 +49,11 @@
 //! # Tolerances
 //!
 //! - [`ON_PLANE_TOLERANCE`]: a point nearer an occluder's plane than this
-//!   times its depth Z is on the plane, not behind it. Edges lying in an
+//!   times its depth Z is on the plane, not behind it: edges lying in an
 //!   occluder's plane (coplanar neighbours, a closed lid resting on its box,
-//!   seams drawn on a face) and the ends of edges that share a vertex with
-//!   it are not hidden by it.
+//!   seams drawn on a face) are not hidden by it when rounding puts them a
+//!   hair behind it. An edge bordering the occluder is never tested
+//!   against it.
 //! - [`ON_OUTLINE_TOLERANCE`]: an image point nearer an occluder's outline
 //!   than this (in normalised image units, pixels / focal length) is on the
 //!   outline, not inside it: an edge whose image runs along an occluder's
@@ -61,7 +62,10 @@
 //!   A part seen exactly along the border shared by two occluders is seen.
 //! - [`MIN_PART_LENGTH`]: hidden and seen pieces shorter than this (in t)
 //!   are dropped, so that the seen intervals are disjoint, sorted, at least
-//!   this long and at least this far apart (touching ones merged).
+//!   this long and at least this far apart (touching ones merged). A
+//!   millionth of the edge is far below a pixel for any edge in view, and
+//!   far above the slivers the two tolerances above leave where an edge
+//!   leaves an occluder's plane or outline at a vertex they share.
 
 use glam::DVec3;
 
@@ -73,7 +77,8 @@ use super::model::{ModelGeometry, faces_camera, newell_normal};
 pub const NEAR_PLANE_Z: f64 = 1e-3;
 
 /// A point whose distance to an occluder's plane is below this times its
-/// depth Z lies on the plane (module doc, tolerances).
+/// depth Z lies on the plane (module doc, tolerances): relative, far above
+/// the rounding of camera-frame coordinates (about 1e-16 of their size).
 pub const ON_PLANE_TOLERANCE: f64 = 1e-12;
 
 /// An image point whose distance to an occluder's outline is below this, in
