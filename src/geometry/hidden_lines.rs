@@ -967,6 +967,29 @@ mod tests {
         assert_eq!(facing_tilts, 2, "one side of each tilted plate faces the camera");
     }
 
+    /// A base slab with a 3 × 3 grid of towers of different heights: many
+    /// occluders per edge, seen from seeded random views.
+    #[test]
+    fn a_city_of_towers_agrees_with_ray_casting() {
+        let mut city = prism(&[[0.0, 0.0], [3.0, 0.0], [3.0, 3.0], [0.0, 3.0]], -0.2, 0.0);
+        for i in 0..3 {
+            for j in 0..3 {
+                let (x, y) = (f64::from(i) + 0.2, f64::from(j) + 0.2);
+                let height = 0.5 + f64::from((i * 7 + j * 13) % 10) * 0.3;
+                city = union(city, prism(&[[x, y], [x + 0.6, y], [x + 0.6, y + 0.6], [x, y + 0.6]], 0.0, height));
+            }
+        }
+        let geometry = ModelGeometry::new(&city).expect("city");
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut partly_seen = 0;
+        for trial in 0..12 {
+            let cam = geometry.camera_vertices(&random_view(&mut rng, &geometry), &[]).expect("pose");
+            let parts = visible_edge_parts(&geometry, &cam, &camera());
+            partly_seen += assert_matches_ray_casting(&format!("city trial {trial}"), &geometry, &cam, &parts, 300);
+        }
+        assert!(partly_seen >= 30, "only {partly_seen} edges partly hidden over the views");
+    }
+
     /// Seeded random views of the non-convex models (the lid at random
     /// openings), near and far, some with parts behind the camera, against
     /// the ray casting.
