@@ -11,16 +11,21 @@
 //!   polygon.
 //! - [`model`]: the model's vertices under joint values (SPEC §4's joint
 //!   rule), Newell face normals, back-face visibility and visible edges.
+//! - [`hidden_lines`]: the parts of each edge the camera sees, once the
+//!   parts behind the near plane and behind other faces are removed.
 //!
 //! Everything here is f64 and pure; nothing allocates per call except the
-//! functions returning one value per vertex, face or edge.
+//! functions returning one value per vertex, face or edge (and hidden-line
+//! removal's scratch buffers, once per call).
 
 pub mod camera;
+pub mod hidden_lines;
 pub mod model;
 pub mod polygon;
 pub mod pose;
 
 pub use camera::Camera;
+pub use hidden_lines::{VisibleEdgeParts, VisibleSegment, visible_edge_parts, visible_edge_segments};
 pub use model::{ModelGeometry, faces_camera, newell_normal};
 pub use polygon::check_simple_polygon;
 pub use pose::{Pose, axis_angle_from_rotation, rotation_from_axis_angle};
