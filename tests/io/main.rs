@@ -13,3 +13,4 @@ mod score;
 mod sequence_io;
 mod synth;
 mod synth_target3dof;
+mod synth_boxes;
