@@ -55,10 +55,13 @@
 //! each step Δτ is solved by bisection. So the peak is V and every frame
 //! after the start moves that fast. The path's shape does not depend on V;
 //! a faster sequence covers more of it (at the default 4 px/frame, 300 frames
-//! cover about 0.9 of a period; at 30 px/frame, about 7 periods). How much of
-//! V is rotation: the box turns by up to about 0.2·V degrees per frame (8°
-//! per frame at V = 30; `meta.json` gives the measured
-//! `peak_rotation_deg_per_frame` of each sequence).
+//! cover about three quarters of a period; at 30 px/frame, several). How much
+//! of V is rotation: a pure turn by θ about the box centre moves the farthest
+//! vertex by about 90·θ px at 1.2 m, so the box turns by at most about
+//! 0.7·V degrees per frame; measured peaks over 300 frames (seed 3) are 3.0°
+//! and 20.6° per frame for `box` at V = 4 and 30, 1.8° and 12.5° for
+//! `hinged-box`, whose lid takes part of the motion (`meta.json` gives the
+////! `peak_rotation_deg_per_frame` of each sequence).
 //!
 //! # Occluders
 //!
@@ -381,11 +384,16 @@ pub fn face_albedos(kind: BoxKind) -> Vec<f32> {
     albedos
 }
 
+/// Faces of the body.
+const BODY_FACES: Range<usize> = 0..6;
+/// Faces of the lid (hinged-box).
+const LID_FACES: Range<usize> = 6..12;
+
 /// The face index ranges of the parts: the body, then the lid.
 fn part_faces(kind: BoxKind) -> Vec<Range<usize>> {
     match kind {
-        BoxKind::Rigid => vec![0..6],
-        BoxKind::Hinged => vec![0..6, 6..12],
+        BoxKind::Rigid => vec![BODY_FACES],
+        BoxKind::Hinged => vec![BODY_FACES, LID_FACES],
     }
 }
 
@@ -614,7 +622,10 @@ impl BoxScene {
                     lo = hi;
                     hi *= 2.0;
                     if hi > 10.0 {
-                        return Err(Error::Parameter(format!("speed {} px/frame cannot be reached", self.options.speed)));
+                        return Err(Error::Parameter(format!(
+                            "speed {} px/frame cannot be reached",
+                            self.options.speed
+                        )));
                     }
                 }
                 for _ in 0..60 {
@@ -721,7 +732,8 @@ impl BoxScene {
         Ok((0..self.model.vertices.len())
             .map(|v| {
                 let p = view.corners[v];
-                let on_facing = self.model.faces.iter().enumerate().any(|(f, face)| view.facing[f] && face.contains(&v));
+                let on_facing =
+                    self.model.faces.iter().enumerate().any(|(f, face)| view.facing[f] && face.contains(&v));
                 let hidden_by_part =
                     hull.as_ref().is_some_and(|(hull, far)| far.contains(&v) && strictly_inside_convex(p, hull));
                 view.camera_vertices[v].z > 0.0
@@ -845,10 +857,8 @@ fn texture(model: &Model, seed: u64) -> Vec<Vec<Blob>> {
                     let centre = [rng.random_range(0.3..0.7), rng.random_range(0.3..0.7)];
                     // At least 0.08 of the face from every side.
                     let room = |c: f64| c.min(1.0 - c) - 0.08;
-                    let radii = [
-                        rng.random_range(0.4..1.0) * room(centre[0]),
-                        rng.random_range(0.4..1.0) * room(centre[1]),
-                    ];
+                    let radii =
+                        [rng.random_range(0.4..1.0) * room(centre[0]), rng.random_range(0.4..1.0) * room(centre[1])];
                     let size = rng.random_range(3.0f32..6.0);
                     let offset = if rng.random_bool(0.5) { size } else { -size };
                     Blob { centre, radii, offset }
@@ -992,9 +1002,8 @@ pub fn render_box(opts: &BoxOptions) -> Result<SyntheticSequence> {
             |(canvas, smooth), k| -> Result<GrayImage> {
                 let view = scene.view(k)?;
                 let band = scene.bands[k].map(|b| b.polygon());
-                let clipped_band = band.map(|quad| {
-                    quad.map(|[x, y]| [x.clamp(-1.0, WIDTH as f64), y.clamp(-1.0, HEIGHT as f64)])
-                });
+                let clipped_band =
+                    band.map(|quad| quad.map(|[x, y]| [x.clamp(-1.0, WIDTH as f64), y.clamp(-1.0, HEIGHT as f64)]));
                 // Only the pixels the box and the band touch differ from the background.
                 let moving = view.corners.iter().chain(clipped_band.iter().flatten());
                 let window = Window::around(moving, TOUCHED_MARGIN_PX, WIDTH, HEIGHT).unwrap_or_default();
