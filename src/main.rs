@@ -62,7 +62,7 @@ enum Command {
     },
     /// Render a synthetic sequence with exact ground truth.
     Synth {
-        /// Scene name: pendulum (000), target3dof (002) or textured-plane (004).
+        /// Scene name: pendulum (000), target3dof (002), textured-plane (004), box or hinged-box (001).
         scene: String,
         /// Output folder (must be absent or empty).
         out_dir: PathBuf,
@@ -72,13 +72,13 @@ enum Command {
         /// Seed of textures and noise.
         #[arg(long, default_value_t = 0)]
         seed: u64,
-        /// Peak speed: px/frame for pendulum, rad/s of angular speed for target3dof.
+        /// Peak speed: px/frame for pendulum, box and hinged-box, rad/s of angular speed for target3dof.
         #[arg(long)]
         speed: Option<String>,
         /// Gaussian noise σ in grey levels.
         #[arg(long)]
         noise: Option<String>,
-        /// Fraction of the target hidden by an occluding bar, 0–0.3 (target3dof).
+        /// Fraction of the target hidden by an occluding bar: of its area, 0–0.3 (target3dof); of its visible edge length, 0–0.5 (box, hinged-box).
         #[arg(long)]
         occlude: Option<String>,
         /// Scene option KEY=VALUE (repeatable), e.g. --set background=cluttered.

@@ -10,9 +10,12 @@
 //! `pendulum` ([`pendulum`], paper 000), `target3dof` ([`target3dof`],
 //! paper 002: the back of a truck translating in front of a bookshelf) and
 //! `textured-plane` ([`textured_plane`], paper 004: a camera moving with a
-//! velocity screw in front of a colourful plane).
+//! velocity screw in front of a colourful plane), and `box` / `hinged-box`
+//! ([`boxes`], paper 001: a file box, rigid or with a hinged lid, moving in
+//! six degrees of freedom, optionally behind an occluder).
 
 pub mod background;
+pub mod boxes;
 pub mod canvas;
 pub mod pendulum;
 pub mod target3dof;
@@ -30,6 +33,7 @@ use crate::{Error, Result};
 pub use background::{
     BACKGROUND_GREY, Background, FRAME_STREAM_BASE, add_noise_and_quantise, frame_rng, render_background,
 };
+pub use boxes::{BoxKind, BoxOptions, BoxScene, render_box};
 pub use canvas::{Canvas, DEFAULT_SUPERSAMPLE, ELLIPSE_SEGMENTS, Face, FillRule, MAX_SUPERSAMPLE, ellipse_points};
 pub use pendulum::{PendulumMotion, PendulumOptions, PendulumSwing, render_pendulum};
 pub use target3dof::{Target3dofOptions, Target3dofScene, render_target3dof};
@@ -48,6 +52,10 @@ pub struct SyntheticSequence {
     pub init: InitState,
     /// Ground truth, one entry per frame (`truth.jsonl`).
     pub truth: Vec<TruthFrame>,
+    /// Further keys of each `truth.jsonl` line (e.g. `occluded_fraction`),
+    /// one map per frame, written after the [`TruthFrame`] fields; empty
+    /// when the scene adds none.
+    pub truth_extra: Vec<serde_json::Map<String, serde_json::Value>>,
     /// The frames, 8-bit grey (`frames/000000.png`, ...); the luma of
     /// `rgb_frames` for a colour scene.
     pub frames: Vec<GrayImage>,
@@ -80,8 +88,11 @@ impl SyntheticSequence {
         write_json(&dir.join("init.json"), &self.init)?;
         write_json(&dir.join("meta.json"), &self.meta)?;
         let mut truth = String::new();
-        for line in &self.truth {
-            truth.push_str(&serde_json::to_string(line).map_err(|e| json_error(dir, e))?);
+        let no_extra = serde_json::Map::new();
+        for (k, line) in self.truth.iter().enumerate() {
+            let extra = self.truth_extra.get(k).unwrap_or(&no_extra);
+            let line = TruthLine { truth: line, extra };
+            truth.push_str(&serde_json::to_string(&line).map_err(|e| json_error(dir, e))?);
             truth.push('\n');
         }
         let truth_path = dir.join("truth.jsonl");
@@ -115,6 +126,15 @@ impl SyntheticSequence {
             .map_err(|e| Error::io(&path, std::io::Error::other(e)))
         })
     }
+}
+
+/// A `truth.jsonl` line: the truth fields, then the scene's further keys.
+#[derive(serde::Serialize)]
+struct TruthLine<'a> {
+    #[serde(flatten)]
+    truth: &'a TruthFrame,
+    #[serde(flatten)]
+    extra: &'a serde_json::Map<String, serde_json::Value>,
 }
 
 fn json_error(path: &Path, e: serde_json::Error) -> Error {
@@ -154,13 +174,13 @@ pub(crate) fn check_frames(frames: usize, max: usize) -> Result<()> {
 /// The scenes [`render_scene`] and [`generate`] know.
 #[must_use]
 pub fn scene_names() -> &'static [&'static str] {
-    &["pendulum", "target3dof", "textured-plane"]
+    &["pendulum", "target3dof", "textured-plane", "box", "hinged-box"]
 }
 
 /// Render scene `scene` in memory. `frames` overrides the scene's default
 /// length; `extra` holds scene options as `(key, value)` strings (for
 /// `pendulum`: see [`PendulumOptions::set`]; for `target3dof`: see
-/// [`Target3dofOptions::set`]). Unknown scenes, keys or values are
+/// [`Target3dofOptions::set`]; for `box` and `hinged-box`: see [`BoxOptions::set`]). Unknown scenes, keys or values are
 /// [`Error::Parameter`]s naming what is known.
 pub fn render_scene(
     scene: &str,
@@ -198,6 +218,17 @@ pub fn render_scene(
                 opts.set(key, value)?;
             }
             render_textured_plane(&opts)
+        }
+        "box" | "hinged-box" => {
+            let kind = if scene == "box" { BoxKind::Rigid } else { BoxKind::Hinged };
+            let mut opts = BoxOptions { kind, seed, ..BoxOptions::default() };
+            if let Some(n) = frames {
+                opts.frames = n;
+            }
+            for (key, value) in extra {
+                opts.set(key, value)?;
+            }
+            render_box(&opts)
         }
         _ => Err(Error::Parameter(format!("unknown scene '{scene}' (known scenes: {})", scene_names().join(", ")))),
     }

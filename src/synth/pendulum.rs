@@ -409,6 +409,7 @@ pub fn render_pendulum(opts: &PendulumOptions) -> Result<SyntheticSequence> {
         model: model(),
         init,
         truth,
+        truth_extra: Vec::new(),
         frames,
         rgb_frames: Vec::new(),
         meta,

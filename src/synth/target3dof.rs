@@ -827,6 +827,7 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
         model: scene.model,
         init,
         truth,
+        truth_extra: Vec::new(),
         frames,
         rgb_frames: Vec::new(),
         meta,

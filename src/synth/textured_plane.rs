@@ -392,6 +392,7 @@ pub fn render_textured_plane(opts: &TexturedPlaneOptions) -> Result<SyntheticSeq
         model,
         init,
         truth,
+        truth_extra: Vec::new(),
         frames,
         rgb_frames,
         meta,

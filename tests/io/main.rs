@@ -12,4 +12,5 @@ mod plot;
 mod score;
 mod sequence_io;
 mod synth;
+mod synth_boxes;
 mod synth_target3dof;
