@@ -454,8 +454,10 @@ impl Model {
         if d2.is_finite() { d2.sqrt() } else { 0.0 }
     }
 
-    /// The first vertex `j` within `tolerance` of an earlier vertex, as
-    /// `(i, j)` with `i` the earliest such vertex. Vertices go into a grid of
+    /// The first vertex `j` within `tolerance` of an earlier vertex moved by
+    /// the same joints, as `(i, j)` with `i` the earliest such vertex (two
+    /// parts of an articulated model may meet at q = 0, like a closed lid on
+    /// its box: their vertices part when a joint moves). Vertices go into a grid of
     /// cells `tolerance` wide (for a zero tolerance, one cell per distinct
     /// point), and each is compared only with those in its own and the 26
     /// neighbouring cells: as the search stops at the first repeat, a cell
@@ -480,6 +482,17 @@ impl Model {
                 }
             })
         };
+        // Which joints move each vertex (indices out of range are another check's).
+        let mut movers: Vec<Vec<usize>> = vec![Vec::new(); v.len()];
+        for (k, joint) in self.joints.iter().enumerate() {
+            for &i in &joint.vertices {
+                if let Some(m) = movers.get_mut(i)
+                    && m.last() != Some(&k)
+                {
+                    m.push(k);
+                }
+            }
+        }
         let reach: i64 = if tolerance > 0.0 { 1 } else { 0 };
         let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = std::collections::HashMap::new();
         for (j, p) in v.iter().enumerate() {
@@ -491,7 +504,7 @@ impl Model {
                         let Some(near) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else { continue };
                         for &i in near {
                             let d2: f64 = (0..3).map(|k| (v[i][k] - p[k]).powi(2)).sum();
-                            if d2.sqrt() <= tolerance && earliest.is_none_or(|e| i < e) {
+                            if d2.sqrt() <= tolerance && movers[i] == movers[j] && earliest.is_none_or(|e| i < e) {
                                 earliest = Some(i);
                             }
                         }

@@ -298,6 +298,10 @@ impl SearchFrame for FrameView<'_> {
         let s = &self.tracker.image_segments[image];
         [s.start, s.end]
     }
+
+    fn verify(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> bool {
+        coverage(segs, matches) >= self.tracker.params.min_coverage
+    }
 }
 
 /// Fraction of the model segments' total length covered by the matched
@@ -400,8 +404,11 @@ impl Tracker for LoweTracker {
                 let outcome = search::search(&view, &problem, segs.clone(), &cands, &settings);
                 diag.branches += outcome.branches;
                 if let Some(solution) = outcome.solution {
+                    let verified = outcome.verified;
                     accepted = Some((solution, outcome.matches, outcome.model_segments));
-                    break;
+                    if verified {
+                        break;
+                    }
                 }
             }
         }

@@ -26,6 +26,11 @@
 //!    matches more probable than before (the threshold moves half way to
 //!    1). This repeats until the set stops changing, at most
 //!    `lock_iterations` times.
+//! 5. **Verification**: the branch ends the search only when its locked-on
+//!    solution is verified (overdetermined enough: see
+//!    [`SearchFrame::verify`]); otherwise the node counts as rejected (step
+//!    3) and the search goes on — "this branch continues to be explored and
+//!    new matches are attempted until no more can be found", then judged.
 
 use super::estimation::{Match, Matrix, Problem, Solution, solve};
 use super::matching::{Candidate, Endpoints};
@@ -41,6 +46,10 @@ pub trait SearchFrame {
     fn candidates(&self, segs: &[ModelSegment], p: &Matrix, out: &mut Vec<Candidate>);
     /// Endpoints of image segment `image`.
     fn endpoints(&self, image: usize) -> Endpoints;
+    /// Whether a locked-on solution with these matches (and the model
+    /// segments at its state) is verified: overdetermined enough to end the
+    /// search.
+    fn verify(&self, segs: &[ModelSegment], matches: &[Match]) -> bool;
 }
 
 /// Search settings (from `LoweParams`).
@@ -73,6 +82,9 @@ pub struct SearchOutcome {
     pub lock_steps: usize,
     /// Model segments (at the final state, or the prediction without a solution).
     pub model_segments: Vec<ModelSegment>,
+    /// Whether the solution passed [`SearchFrame::verify`]; an unverified
+    /// solution is the branch that locked on to the most matches.
+    pub verified: bool,
 }
 
 /// Segments needed for a node with n parameters: ⌊n/2⌋ + 1.
@@ -148,36 +160,58 @@ pub fn search(
     let needed = segments_needed(n);
     let mut probabilities: Vec<f64> = candidates.iter().map(|c| c.probability).collect();
     let mut rejected: Vec<Vec<usize>> = Vec::new();
-    let mut outcome = SearchOutcome::default();
-    let mut accepted = None;
+    let mut outcome = SearchOutcome { model_segments: segs, ..SearchOutcome::default() };
+    let mut best_unverified: Option<(Solution, Vec<Match>, Vec<ModelSegment>)> = None;
     while outcome.branches < settings.max_branches {
         let Some(set) = node_set(candidates, &probabilities, &rejected, needed, settings.set_probability) else {
             break;
         };
         outcome.branches += 1;
-        let matches = to_matches(frame, &segs, candidates, &set);
-        let solved = solve(problem, problem.prediction, &matches, settings.iterations);
-        match solved {
-            Some(solution) if passes(&solution, settings.residual_limit) => {
-                accepted = Some((solution, matches));
-                break;
+        let matches = to_matches(frame, &outcome.model_segments, candidates, &set);
+        if let Some(solution) = solve(problem, problem.prediction, &matches, settings.iterations)
+            && passes(&solution, settings.residual_limit)
+        {
+            let (solution, matches, final_segs, steps) = lock_on(frame, problem, solution, matches, settings, needed);
+            if frame.verify(&final_segs, &matches) {
+                outcome.solution = Some(solution);
+                outcome.matches = matches;
+                outcome.model_segments = final_segs;
+                outcome.verified = true;
+                return outcome;
             }
-            _ => {
-                let keep = 1.0 - 1.0 / set.len() as f64;
-                for &c in &set {
-                    probabilities[c] *= keep;
-                }
-                rejected.push(set);
+            if best_unverified.as_ref().is_none_or(|(_, m, _)| m.len() < matches.len()) {
+                best_unverified = Some((solution, matches, final_segs));
             }
         }
+        let keep = 1.0 - 1.0 / set.len() as f64;
+        for &c in &set {
+            probabilities[c] *= keep;
+        }
+        rejected.push(set);
     }
-    let Some((mut solution, mut matches)) = accepted else {
-        outcome.model_segments = segs;
-        return outcome;
-    };
+    if let Some((solution, matches, final_segs)) = best_unverified {
+        outcome.solution = Some(solution);
+        outcome.matches = matches;
+        outcome.model_segments = final_segs;
+    }
+    outcome
+}
+
+/// Locking on from an accepted node (module doc, step 4): the final
+/// solution, its matches, the model segments at its state and the number of
+/// re-predictions.
+fn lock_on(
+    frame: &dyn SearchFrame,
+    problem: &Problem<'_>,
+    mut solution: Solution,
+    mut matches: Vec<Match>,
+    settings: &SearchSettings,
+    needed: usize,
+) -> (Solution, Vec<Match>, Vec<ModelSegment>, usize) {
     let mut segs_now = Vec::new();
     let mut cands_now = Vec::new();
     let mut threshold = settings.lock_probability;
+    let mut steps = 0;
     for _ in 0..settings.lock_iterations {
         frame.model_segments(&solution.state, &mut segs_now);
         frame.candidates(&segs_now, &solution.covariance, &mut cands_now);
@@ -185,7 +219,7 @@ pub fn search(
         if same_matches(&locked, &matches) || locked.len() < needed {
             break;
         }
-        outcome.lock_steps += 1;
+        steps += 1;
         match solve(problem, &solution.state, &locked, settings.iterations) {
             Some(next) if passes(&next, settings.residual_limit) => {
                 solution = next;
@@ -195,10 +229,7 @@ pub fn search(
         }
     }
     frame.model_segments(&solution.state, &mut segs_now);
-    outcome.model_segments = segs_now;
-    outcome.solution = Some(solution);
-    outcome.matches = matches;
-    outcome
+    (solution, matches, segs_now, steps)
 }
 
 /// Each image segment joins its most probable model segment when that
@@ -270,6 +301,9 @@ mod tests {
         }
         fn endpoints(&self, image: usize) -> Endpoints {
             self.images[image]
+        }
+        fn verify(&self, _segs: &[ModelSegment], matches: &[Match]) -> bool {
+            matches.len() >= 8
         }
     }
 
