@@ -47,8 +47,13 @@ pub struct Problem<'a> {
     pub prediction: &'a State,
     /// Prior standard deviations σ_i, one per parameter.
     pub prior_sigmas: &'a Row,
-    /// Measurement standard deviation, px.
+    /// Measurement standard deviation, px, of the ends of a segment
+    /// `reference_length` long.
     pub measurement_sigma: f64,
+    /// Length at which a segment's ends have `measurement_sigma`; a segment
+    /// of length L has σ·sqrt(reference_length / L) (its line is fitted to L
+    /// edgels). 0: every segment has `measurement_sigma`.
+    pub reference_length: f64,
 }
 
 /// A solution of the matches.
@@ -131,13 +136,15 @@ fn normal_equations(problem: &Problem<'_>, state: &State, matches: &[Match]) -> 
     let mut sum_sq = 0.0;
     for m in matches {
         let seg = ModelSegment::new(&lin, problem.camera, problem.geometry.edges(), m.edge, m.interval)?;
+        let length = (m.endpoints[1][0] - m.endpoints[0][0]).hypot(m.endpoints[1][1] - m.endpoints[0][1]);
+        let weight = if problem.reference_length > 0.0 { length.max(1.0) / problem.reference_length } else { 1.0 };
         for p in m.endpoints {
             let (d, row) = seg.distance_with_row(p, n);
-            sum_sq += d * d;
+            sum_sq += weight * d * d;
             for i in 0..n {
-                g[i] -= row[i] * d * inv_var;
+                g[i] -= weight * row[i] * d * inv_var;
                 for j in 0..=i {
-                    h[i][j] += row[i] * row[j] * inv_var;
+                    h[i][j] += weight * row[i] * row[j] * inv_var;
                 }
             }
         }
@@ -207,6 +214,7 @@ mod tests {
             prediction: &start,
             prior_sigmas: &sigmas,
             measurement_sigma: 1.0,
+            reference_length: 0.0,
         };
         let before = vertex_error(&geometry, &cam, &start, &truth);
         assert!(before > 5.0, "start {before} px off");
@@ -243,6 +251,7 @@ mod tests {
             prediction: &prediction,
             prior_sigmas: &sigmas,
             measurement_sigma: 1.0,
+            reference_length: 0.0,
         };
         let solution = solve(&problem, &prediction, &[], 2).unwrap();
         assert_eq!(solution.state, prediction);

@@ -400,6 +400,7 @@ impl Tracker for LoweTracker {
                     prediction: &self.prediction,
                     prior_sigmas: &sigmas,
                     measurement_sigma: self.params.measurement_sigma_px,
+                    reference_length: self.params.reference_length_px,
                 };
                 let outcome = search::search(&view, &problem, segs.clone(), &cands, &settings);
                 diag.branches += outcome.branches;

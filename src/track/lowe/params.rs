@@ -44,6 +44,13 @@ pub struct LoweParams {
     /// true match adds to the prediction's own (eq. 2) in eq. 3.
     /// Range: (0, 20].
     pub measurement_sigma_px: f64,
+    /// Length of an image segment whose ends have `measurement_sigma_px`,
+    /// px: a segment of length L is fitted to L edgels, so its ends get
+    /// σ·sqrt(reference / L) and long segments weigh more in eq. 1 than
+    /// short ones. 40 px: on the hinged box (300 frames, 20 px/frame) it
+    /// lowered the mean vertex error from 0.70 to 0.39 px against equal
+    /// weights (0), 20 px gave 0.49. Range: [0, 4096].
+    pub reference_length_px: f64,
     /// A solution is rejected when its residual σ (001: σ² = ‖Jx − e‖² /
     /// (m − n)) exceeds this many `measurement_sigma_px` ("much greater
     /// than the standard deviation of the measurement errors").
@@ -93,6 +100,7 @@ impl Default for LoweParams {
             prior_translation_sigma: 0.015,
             prior_joint_sigma: 0.1,
             measurement_sigma_px: 1.0,
+            reference_length_px: 40.0,
             residual_ratio: 2.5,
             set_probability: 0.9,
             min_probability: 0.05,
@@ -119,6 +127,7 @@ impl LoweParams {
         Interval::open_closed(0.0, 10.0).check(WHO, "prior_translation_sigma", self.prior_translation_sigma, " m")?;
         Interval::open_closed(0.0, 3.2).check(WHO, "prior_joint_sigma", self.prior_joint_sigma, " rad")?;
         Interval::open_closed(0.0, 20.0).check(WHO, "measurement_sigma_px", self.measurement_sigma_px, " px")?;
+        Interval::closed(0.0, 4096.0).check(WHO, "reference_length_px", self.reference_length_px, " px")?;
         Interval::closed(1.0, 100.0).check(WHO, "residual_ratio", self.residual_ratio, "")?;
         Interval::open(0.0, 1.0).check(WHO, "set_probability", self.set_probability, "")?;
         Interval { lo: 0.0, lo_closed: true, hi: 1.0, hi_closed: false }.check(

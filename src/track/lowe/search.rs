@@ -172,6 +172,7 @@ pub fn search(
             && passes(&solution, settings.residual_limit)
         {
             let (solution, matches, final_segs, steps) = lock_on(frame, problem, solution, matches, settings, needed);
+            outcome.lock_steps += steps;
             if frame.verify(&final_segs, &matches) {
                 outcome.solution = Some(solution);
                 outcome.matches = matches;
@@ -360,6 +361,7 @@ mod tests {
             prediction: &prediction,
             prior_sigmas: &sigmas,
             measurement_sigma: 1.0,
+            reference_length: 0.0,
         };
         let mut p0 = [[0.0; MAX_PARAMS]; MAX_PARAMS];
         for i in 0..7 {
