@@ -1060,7 +1060,7 @@ fn messages_quoting_the_file_stay_one_short_line() {
     let joint = LID_BOX.replace("\"lid\"", &format!("\"lid\\n{long}\""));
     put(&f.model, joint.replace("\"min\":-1.5", "\"min\":2").as_bytes()).expect("write");
     let message = input_message("a joint name with a newline", &f.model, || Sequence::open(&f.dir, false));
-    assert!(message.starts_with(r#"joint "lid\na.a."#) && message.contains("min <= max"), "{message}");
+    assert!(message.starts_with(r#"line 5: joint "lid\na.a."#) && message.contains("min <= max"), "{message}");
 
     // Found by fuzz_cao: a 3-D point's coordinate of 40 kB was quoted whole.
     let cao = dir.join("model.cao");
