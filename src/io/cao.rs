@@ -58,7 +58,8 @@
 //!   (ViSP warns and skips the include) naming the including file, its line
 //!   and the chain of files; so is the `load` of a missing file. A file
 //!   included twice (not in a cycle) is read twice, as ViSP does: give the
-//!   copies different placements.
+//!   copies different placements. At most [`MAX_FILES_READ`] readings make
+//!   one model.
 //!
 //! Errors name the file they are in (an included file's own errors name
 //! it) and the line; problems of the merged model found by
@@ -248,6 +249,12 @@ fn read_part(
                 chain.join(" → ")
             )));
         }
+        if merged.files.len() + reading.len() >= MAX_FILES_READ {
+            return Err(fail(format!(
+                "load(\"{}\"): more than {MAX_FILES_READ} files read for one model: are files included many times over?",
+                include.path
+            )));
+        }
         let text = read_text(&included)?;
         read_part(&text, &included, &placement.after(&include.placement), reading, merged)?;
     }
@@ -257,6 +264,11 @@ fn read_part(
     merged.files.push(path.to_path_buf());
     parser.body(!includes.is_empty(), placement, file, merged).map_err(fail)
 }
+
+/// The most file readings one model may take (a file included twice
+/// counts twice), so that files including each other many times over
+/// fail rather than run for ever.
+pub const MAX_FILES_READ: usize = 10_000;
 
 /// One `load(...)` line.
 struct Include {
@@ -994,5 +1006,18 @@ mod tests {
         let outer = Placement { rotation: DMat3::IDENTITY, translation: DVec3::new(10.0, 0.0, 0.0) };
         let q = outer.after(&p).apply([1.0, 0.0, 0.0]);
         assert!((DVec3::from(q) - DVec3::new(11.0, 3.0, 3.0)).length() < 1e-12, "{q:?}");
+    }
+
+    #[test]
+    fn files_included_many_times_over_are_refused() {
+        // Each level includes the next twice: 2^20 readings.
+        let mut files: Vec<(String, String)> = (0..20)
+            .map(|k| (format!("l{k}.cao"), format!("V1\nload(\"l{}.cao\")\nload(\"l{}.cao\")\n", k + 1, k + 1)))
+            .collect();
+        files.push(("l20.cao".to_string(), SQUARE.to_string()));
+        let files: Vec<(&str, &str)> = files.iter().map(|(p, t)| (p.as_str(), t.as_str())).collect();
+        let dir = folder("many-times", &files);
+        let (_, msg) = read_err(&dir.join("l0.cao"));
+        assert!(msg.contains("more than 10000 files read"), "{msg}");
     }
 }
