@@ -3,8 +3,9 @@
 //!
 //! The format (one record per line; a `#` starts a comment, outside quoted
 //! strings; after the numbers a record needs, the rest of its line is
-//! `key=value` parameters such as `name="left wing"` and free comment text,
-//! both ignored here, as ViSP ignores all but a few parameters):
+//! `key=value` parameters such as `name="left wing"` and free comment text
+//! such as `// left wing`, both ignored here, as ViSP ignores all but a few
+//! parameters; a further number there is an error, a miscounted record):
 //!
 //! ```text
 //! V1                      header: V1 (or V0), or V2 whose points carry two more numbers
@@ -48,6 +49,7 @@
 //!   0 in every file); the merged model lists the parts in the order ViSP
 //!   reads them, depth first: a file's includes, in order, then its own
 //!   points, so its indices are offset by the number of vertices before it.
+//!   This is the model-vertex order of `init.json`'s corners.
 //! - A file of only a header and includes is a whole model (a file with
 //!   neither includes nor points is an error).
 //! - Points of different parts that coincide (within
@@ -422,10 +424,17 @@ impl Parser {
         self.records.last().map_or(1, |r| r.line)
     }
 
-    /// The next record, or an error saying `what` was expected.
+    /// The next record, or an error saying `what` was expected; a
+    /// `load(...)` line here is out of place.
     fn record(&mut self, what: &str) -> std::result::Result<&Record, Failure> {
         let line = self.last_line();
         let r = self.records.get(self.next).ok_or_else(|| (line, format!("file ends where {what} was expected")))?;
+        if is_load(r) {
+            return Err((
+                r.line,
+                "load(...) may stand only right after the V1 header, before the number of points".to_string(),
+            ));
+        }
         self.next += 1;
         Ok(r)
     }
@@ -468,12 +477,6 @@ impl Parser {
     /// A line holding a count, then perhaps a comment.
     fn count(&mut self, what: &str) -> std::result::Result<(usize, usize), Failure> {
         let r = self.record(&format!("the number of {what}"))?;
-        if is_load(r) {
-            return Err((
-                r.line,
-                "load(...) may stand only right after the V1 header, before the number of points".to_string(),
-            ));
-        }
         let n = &r.tokens[0];
         if r.tokens.get(1).is_some_and(|t| t.parse::<f64>().is_ok()) {
             return Err((
@@ -982,6 +985,8 @@ mod tests {
     fn misplaced_and_malformed_loads_are_refused() {
         let msg = err(&CUBE.replace("# 3D lines\n1", "load(\"part.cao\")\n1"));
         assert!(msg.starts_with("line 12: load(...) may stand only right after the V1 header"), "{msg}");
+        let msg = err(&CUBE.replace("0 1 1\n", "load(\"part.cao\")\n"));
+        assert!(msg.starts_with("line 6: load(...) may stand only"), "{msg}");
         for (load, needle) in [
             ("load(part.cao)", "in double quotes"),
             ("load(\"part.cao\"", "no closing parenthesis"),
