@@ -54,7 +54,7 @@ fn without_pixels(scene: &BoxScene, frames: usize) -> SyntheticSequence {
     let bands: Vec<_> = (0..frames).map(|k| scene.occluder(k)).collect();
     SyntheticSequence {
         scene: scene.options.kind.name().to_string(),
-        camera: scene.camera.clone(),
+        camera: scene.camera,
         model: scene.model.clone(),
         init: Default::default(),
         truth,
