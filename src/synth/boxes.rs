@@ -1107,16 +1107,20 @@ mod tests {
     fn every_phase_of_the_path_keeps_the_box_in_view() {
         // The seven terms independently at -1, -0.5, 0, 0.5, 1: every corner of the path's box of states.
         let cam = camera();
-        let geometry = ModelGeometry::new(&model(BoxKind::Hinged)).expect("model");
         let levels = [-1.0, -0.5, 0.0, 0.5, 1.0];
         let mut margin = f64::INFINITY;
-        for index in 0..levels.len().pow(7) {
-            let terms: [f64; 7] = std::array::from_fn(|i| levels[index / levels.len().pow(i as u32) % levels.len()]);
-            let (rotation, translation, lid) = BoxPath::state_from_terms(terms);
-            let pose = geometry::Pose::new(rotation, translation);
-            for p in geometry.camera_vertices(&pose, &[lid]).expect("pose") {
-                let [u, v] = cam.project(p);
-                margin = margin.min(u).min(v).min(WIDTH as f64 - 1.0 - u).min(HEIGHT as f64 - 1.0 - v);
+        for kind in [BoxKind::Rigid, BoxKind::Hinged] {
+            let geometry = ModelGeometry::new(&model(kind)).expect("model");
+            for index in 0..levels.len().pow(7) {
+                let terms: [f64; 7] =
+                    std::array::from_fn(|i| levels[index / levels.len().pow(i as u32) % levels.len()]);
+                let (rotation, translation, lid) = BoxPath::state_from_terms(terms);
+                let pose = geometry::Pose::new(rotation, translation);
+                let params = if kind == BoxKind::Hinged { vec![lid] } else { Vec::new() };
+                for p in geometry.camera_vertices(&pose, &params).expect("pose") {
+                    let [u, v] = cam.project(p);
+                    margin = margin.min(u).min(v).min(WIDTH as f64 - 1.0 - u).min(HEIGHT as f64 - 1.0 - v);
+                }
             }
         }
         assert!(margin > 10.0, "{margin}");

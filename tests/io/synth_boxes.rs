@@ -21,7 +21,7 @@ use pipetrack::io::formats::{Camera, Model, TruthFrame, Visibility};
 use pipetrack::synth::boxes::{
     self, BoxKind, BoxOptions, BoxScene, HEIGHT, LID_MAX_RAD, LID_MIN_RAD, LID_PATH_RANGE, RAMP_FRAMES, WIDTH,
 };
-use pipetrack::synth::{self, Background, render_box};
+use pipetrack::synth::{self, Background, SyntheticSequence, render_box};
 
 fn extra(pairs: &[(&str, &str)]) -> Vec<(String, String)> {
     pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect()
@@ -32,6 +32,38 @@ fn options(kind: BoxKind, speed: f64, occlude: f64, noise: f64, frames: usize) -
 }
 
 const KINDS: [BoxKind; 2] = [BoxKind::Rigid, BoxKind::Hinged];
+
+/// The first `frames` frames' truth, occluded fractions and bands of `scene`, without rendering.
+fn without_pixels(scene: &BoxScene, frames: usize) -> SyntheticSequence {
+    let truth: Vec<TruthFrame> = (0..frames)
+        .map(|k| TruthFrame {
+            frame: k,
+            visible: Visibility::Vertices(scene.visible(k).unwrap()),
+            pose: Some(scene.pose(k)),
+            params: scene.params(k),
+            corners: scene.corners(k).unwrap(),
+        })
+        .collect();
+    let truth_extra = (0..frames)
+        .map(|k| {
+            let mut extra = serde_json::Map::new();
+            extra.insert("occluded_fraction".into(), scene.occluded_fraction(k).unwrap().into());
+            extra
+        })
+        .collect();
+    let bands: Vec<_> = (0..frames).map(|k| scene.occluder(k)).collect();
+    SyntheticSequence {
+        scene: scene.options.kind.name().to_string(),
+        camera: scene.camera,
+        model: scene.model.clone(),
+        init: Default::default(),
+        truth,
+        truth_extra,
+        frames: Vec::new(),
+        rgb_frames: Vec::new(),
+        meta: serde_json::json!({ "occluder_bands": bands }),
+    }
+}
 
 #[test]
 fn synth_boxes_are_registered_with_string_options() {
@@ -144,8 +176,26 @@ fn projected(geometry: &ModelGeometry, cam: &Camera, truth: &TruthFrame) -> Vec<
 #[test]
 fn synth_boxes_truth_corners_are_the_projection_of_the_model() {
     for kind in KINDS {
-        let seq = render_box(&options(kind, 8.0, 0.3, 2.0, 90)).unwrap();
+        let seq = render_box(&options(kind, 8.0, 0.3, 0.0, 90)).unwrap();
+        let unrendered = without_pixels(&BoxScene::new(&options(kind, 8.0, 0.3, 0.0, 90)).unwrap(), 90);
+        assert_eq!(seq.truth, unrendered.truth);
+        assert_eq!(seq.truth_extra, unrendered.truth_extra);
+        assert_eq!(seq.meta["occluder_bands"], unrendered.meta["occluder_bands"]);
         let geometry = ModelGeometry::new(&seq.model).unwrap();
+        // The band is drawn where it is said to be: every pixel wholly inside it has its grey.
+        let mut banded = 0;
+        for k in 0..90 {
+            let Some(bd) = band(&seq.meta, k) else { continue };
+            for y in (0..HEIGHT).step_by(3) {
+                for x in (0..WIDTH).step_by(3) {
+                    if band_offset(bd, [x as f64, y as f64]).abs() < bd.2 / 2.0 - 1.0 {
+                        assert_eq!(f32::from(seq.frames[k].get(x, y)), boxes::OCCLUDER_GREY, "frame {k} ({x}, {y})");
+                        banded += 1;
+                    }
+                }
+            }
+        }
+        assert!(banded > 1000, "{banded}");
         assert_eq!(seq.init.pose, seq.truth[0].pose);
         assert_eq!(seq.init.params, seq.truth[0].params);
         assert_eq!(seq.init.corners, seq.truth[0].corners);
@@ -238,10 +288,10 @@ fn synth_boxes_gradient_peaks_lie_on_the_projected_visible_edges() {
     let mut worst: f64 = 0.0;
     let mut checked = 0;
     for kind in KINDS {
-        let opts = BoxOptions { background: Background::Flat, ..options(kind, 10.0, 0.3, 0.0, 200) };
+        let opts = BoxOptions { background: Background::Flat, ..options(kind, 10.0, 0.3, 0.0, 120) };
         let seq = render_box(&opts).unwrap();
         let geometry = ModelGeometry::new(&seq.model).unwrap();
-        for k in (0..200).step_by(13) {
+        for k in (0..120).step_by(8) {
             let truth = &seq.truth[k];
             let cam = camera_vertices(&geometry, truth);
             let corners = &truth.corners;
@@ -393,7 +443,7 @@ fn synth_boxes_faces_differ_from_their_neighbours_by_20_levels() {
 fn synth_boxes_occluders_hide_the_requested_share_of_the_visible_edges() {
     for kind in KINDS {
         let fraction = 0.35;
-        let seq = render_box(&options(kind, 6.0, fraction, 2.0, 300)).unwrap();
+        let seq = without_pixels(&BoxScene::new(&options(kind, 6.0, fraction, 2.0, 300)).unwrap(), 300);
         let geometry = ModelGeometry::new(&seq.model).unwrap();
         let occluded: Vec<f64> = seq.truth_extra.iter().map(|e| e["occluded_fraction"].as_f64().unwrap()).collect();
         assert_eq!(occluded.len(), 300);
@@ -466,7 +516,7 @@ fn synth_boxes_occluders_hide_the_requested_share_of_the_visible_edges() {
 
 #[test]
 fn synth_boxes_vertex_visibility_agrees_with_ray_casting() {
-    let seq = render_box(&options(BoxKind::Hinged, 12.0, 0.0, 2.0, 240)).unwrap();
+    let seq = without_pixels(&BoxScene::new(&options(BoxKind::Hinged, 12.0, 0.0, 2.0, 240)).unwrap(), 240);
     let geometry = ModelGeometry::new(&seq.model).unwrap();
     let mut hidden_by_lid_or_body = 0;
     for truth in &seq.truth {
