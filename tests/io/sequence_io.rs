@@ -398,6 +398,15 @@ fn model_units_duplicate_vertices_and_bent_faces_are_refused() {
 
     f.write("model.json", &model("m", "[[0,0,0],[0.1,0,0],[0.1,0.1,0],[0.1,0,0]]"));
     assert!(input_error(f.open(), "model.json").starts_with("line 1: vertex 3 repeats vertex 1"));
+    // Coincident vertices of parts moved by different joints (a closed lid
+    // on its box) are two vertices, not one listed twice.
+    let jointed = r#"{"name":"sq","units":"m","vertices":[[0,0,0],[0.1,0,0],[0.1,0.1,0],[0.1,0,0]],"edges":[[0,1],[1,2],[2,0],[2,3]],"joints":[{"name":"lid","origin":[0,0,0],"axis":[0,1,0],"vertices":[3],"min":0,"max":1}]}"#;
+    f.write("model.json", jointed);
+    f.write("init.json", r#"{"pose":{"rotation":[0,0,0],"translation":[0,0,1]},"params":[0]}"#);
+    f.open().expect("vertex 3 moves with the joint, vertex 1 does not");
+    f.write("model.json", &jointed.replace(r#""vertices":[3]"#, r#""vertices":[1,3]"#));
+    assert!(input_error(f.open(), "model.json").contains("vertex 3 repeats vertex 1"));
+    f.write("init.json", r#"{"pose":{"rotation":[0,0,0],"translation":[0,0,1]}}"#);
 
     // A corner lifted by 10 % of the size is far outside the tolerance; a
     // rounding-sized lift (1e-6 of the size) is not.

@@ -10,6 +10,7 @@ mod blue_logic;
 mod condensation_e2e;
 mod embed;
 mod finite;
+mod lowe_e2e;
 mod motion_edge_e2e;
 mod motion_edge_logic;
 mod status;
