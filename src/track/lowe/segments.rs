@@ -162,9 +162,10 @@ pub const MAX_LENGTH_PX: f64 = 10_000.0;
 /// than a segment's orientation is known.
 pub const MAX_ORIENTATION_BINS: usize = 180;
 
-/// Most cells of [`SegmentIndex`] along each axis: over a larger window the
-/// cells grow, so the array stays bounded whatever the window.
-pub const MAX_CELLS_PER_AXIS: usize = 1024;
+/// Most cells of [`SegmentIndex`] along each axis: over a window wider than
+/// this many cells the cells grow, so the array stays bounded whatever the
+/// window (a 4K frame at the default 16 px needs 240).
+pub const MAX_CELLS_PER_AXIS: usize = 256;
 
 /// Default [`SegmentParams::cell_size`], px.
 pub const DEFAULT_CELL_SIZE: f64 = 16.0;
@@ -282,19 +283,17 @@ const KEPT: u8 = 1;
 const VISITED: u8 = 2;
 
 /// Links zero crossings into chains and cuts them into [`ImageSegment`]s
-/// (module doc), reusing its buffers from frame to frame: after the first
-/// frames of a window size, a frame allocates nothing unless it has more
-/// edgels or segments than any before.
+/// (module doc), reusing its buffers from frame to frame: a frame
+/// allocates nothing unless it has more edgels, chains or segments, or a
+/// wider spread of edgels, than any before.
 #[derive(Clone, Debug)]
 pub struct SegmentExtractor {
     params: SegmentParams,
-    /// Edgel number + 1 per pixel of the window padded by one pixel on
-    /// each side (0 = none); all zero between calls.
+    /// Edgel number + 1 per pixel of the candidates' bounding box, padded
+    /// by one empty pixel on each side (0 = none); all zero between calls.
     grid: Vec<u32>,
-    /// Width of `grid`'s rows (window width + 2).
+    /// Width of `grid`'s rows (bounding box width + 2).
     grid_width: usize,
-    /// Top-left pixel of `grid` in frame coordinates (the window's minus 1).
-    grid_origin: [i64; 2],
     /// The candidate edgels (magnitude ≥ low), in list order.
     edgels: Vec<Feature>,
     /// `grid` cell of each edgel.
@@ -344,7 +343,6 @@ impl SegmentExtractor {
             params,
             grid: Vec::new(),
             grid_width: 0,
-            grid_origin: [0, 0],
             edgels: Vec::new(),
             cells: Vec::new(),
             flags: Vec::new(),
@@ -400,14 +398,15 @@ impl SegmentExtractor {
         self.chains.len()
     }
 
-    /// The edgels of chain `c` in chain order (`c < chain_count()`); a
-    /// junction edgel ends every chain that reaches it.
+    /// The edgels of chain `c` in chain order; a junction edgel ends every
+    /// chain that reaches it. Panics unless `c < chain_count()`.
     pub fn chain(&self, c: usize) -> impl ExactSizeIterator<Item = Feature> + '_ {
         let chain = self.chains[c];
         self.chain_pixels[chain.first..chain.end].iter().map(|&e| self.edgels[e as usize])
     }
 
     /// Whether chain `c` is closed (a loop with no end and no junction).
+    /// Panics unless `c < chain_count()`.
     #[must_use]
     pub fn chain_is_closed(&self, c: usize) -> bool {
         self.chains[c].closed
@@ -416,23 +415,30 @@ impl SegmentExtractor {
     /// Fill `edgels` with the features of `window` at least `low_threshold`
     /// strong and mark them in `grid`.
     fn collect_candidates(&mut self, crossings: &[Feature], window: Window) {
-        let (w, h) = (window.width() as usize, window.height() as usize);
-        self.grid_width = w + 2;
-        self.grid_origin = [i64::from(window.x0) - 1, i64::from(window.y0) - 1];
-        let cells = (w + 2) * (h + 2);
+        self.edgels.clear();
+        self.cells.clear();
+        self.flags.clear();
+        self.degree.clear();
+        let low = self.params.low_threshold;
+        let candidate = |f: &&Feature| {
+            (window.x0..window.x1).contains(&f.x) && (window.y0..window.y1).contains(&f.y) && f.magnitude >= low
+        };
+        // The grid spans the candidates' bounding box (at most the window).
+        let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
+        for f in crossings.iter().filter(candidate) {
+            (x0, y0, x1, y1) = (x0.min(f.x), y0.min(f.y), x1.max(f.x), y1.max(f.y));
+        }
+        if x0 > x1 {
+            return;
+        }
+        self.grid_width = (x1 - x0) as usize + 3;
+        let cells = self.grid_width * ((y1 - y0) as usize + 3);
         if self.grid.len() < cells {
             // The grid is all zero between calls, so growing keeps it so.
             self.grid.resize(cells, 0);
         }
-        self.edgels.clear();
-        self.cells.clear();
-        let low = self.params.low_threshold;
-        for f in crossings {
-            let inside = (window.x0..window.x1).contains(&f.x) && (window.y0..window.y1).contains(&f.y);
-            if !inside || !(f.magnitude >= low) {
-                continue;
-            }
-            let cell = (f.y - window.y0 + 1) as usize * self.grid_width + (f.x - window.x0 + 1) as usize;
+        for f in crossings.iter().filter(candidate) {
+            let cell = (f.y - y0 + 1) as usize * self.grid_width + (f.x - x0 + 1) as usize;
             if self.grid[cell] != 0 {
                 continue;
             }
@@ -440,9 +446,7 @@ impl SegmentExtractor {
             self.cells.push(cell);
             self.grid[cell] = self.edgels.len() as u32;
         }
-        self.flags.clear();
         self.flags.resize(self.edgels.len(), 0);
-        self.degree.clear();
         self.degree.resize(self.edgels.len(), 0);
     }
 
@@ -1386,5 +1390,14 @@ mod tests {
         assert_eq!(segments.len(), 1);
         extractor.extract(&list, window(4, 4, 4, 9), &mut segments);
         assert_eq!((extractor.chain_count(), segments.len()), (0, 0));
+        // A window far larger than the frame costs no more than the edgels' spread.
+        let huge = window(0, 0, u32::MAX, u32::MAX);
+        extractor.extract(&list, huge, &mut segments);
+        assert_eq!(segments.len(), 1);
+        let mut index = SegmentIndex::default();
+        index.build(&segments, huge);
+        let mut found = Vec::new();
+        index.query(0.0..=30.0, 0.0..=10.0, 0.0, 0.1, &mut found);
+        assert_eq!(found, vec![0]);
     }
 }
