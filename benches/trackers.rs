@@ -75,38 +75,62 @@ fn fastest_ms(passes: usize, mut f: impl FnMut()) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// Margin of the tracking-sized window around the target's true corners, px.
+const TARGET_MARGIN: f64 = 20.0;
+
 /// Time segment extraction on target3dof frames against the zero-crossing
 /// request of the CPU backend (and of the GPU backend when there is an
 /// adapter, at its fastest of [`GPU_PASSES`]), each frame at its fastest of
-/// [`PASSES`].
+/// [`PASSES`]: over the whole frame, then over a tracker-sized window (the
+/// target's true corners widened by [`TARGET_MARGIN`]).
 fn time_segments() -> pipetrack::Result<()> {
     let seq = pipetrack::synth::render_scene("target3dof", Some(SEGMENT_FRAMES), 0, &[])?;
     let (w, h) = seq.frames[0].size();
-    let window = Window::full(w, h);
-    let request = FrameRequest {
-        zero_crossings: Some(ZeroCrossingRequest {
-            log: LogParams::default(),
-            crossings: ZeroCrossingParams::default(),
-            list: ListSpec::full(w, h),
-        }),
-        ..FrameRequest::default()
-    };
+    let full: Vec<Window> = vec![Window::full(w, h); seq.frames.len()];
+    let around: Vec<Window> = seq
+        .truth
+        .iter()
+        .map(|t| Window::around(&t.corners, TARGET_MARGIN, w, h).unwrap_or(Window::full(w, h)))
+        .collect();
+    let mut gpu = pipetrack::GpuContext::new().ok().map(|ctx| (ctx.adapter_name().to_string(), GpuBackend::new(ctx)));
+    if let Some((name, _)) = &gpu {
+        println!("\nGPU: {name}");
+    }
+    time_segments_in(&seq, &full, "whole frame", &mut gpu)?;
+    time_segments_in(&seq, &around, "window around the target", &mut gpu)
+}
+
+/// [`time_segments`] with one window per frame.
+fn time_segments_in(
+    seq: &pipetrack::synth::SyntheticSequence,
+    windows: &[Window],
+    what: &str,
+    gpu: &mut Option<(String, GpuBackend)>,
+) -> pipetrack::Result<()> {
+    let (w, h) = seq.frames[0].size();
     let params = SegmentParams::default();
     let mut extractor = SegmentExtractor::new(params.clone())?;
     let mut index = SegmentIndex::with_params(&params);
     let mut segments: Vec<ImageSegment> = Vec::new();
     let mut cpu = CpuBackend::new();
-    let mut gpu = pipetrack::GpuContext::new().ok().map(|ctx| (ctx.adapter_name().to_string(), GpuBackend::new(ctx)));
     let mut rows: Vec<(&str, Vec<f64>)> =
         ["zero crossings, CPU", "link", "link + subdivide", "index", "segments total"].map(|r| (r, Vec::new())).into();
     let mut gpu_times = Vec::new();
-    let (mut edgels, mut chains, mut count) = (0, 0, 0);
-    for frame in &seq.frames {
+    let (mut area, mut edgels, mut chains, mut count) = (0, 0, 0, 0);
+    for (frame, &window) in seq.frames.iter().zip(windows) {
+        let request = FrameRequest {
+            zero_crossings: Some(ZeroCrossingRequest {
+                log: LogParams::default(),
+                crossings: ZeroCrossingParams::default(),
+                list: ListSpec { window, cap: None, seed: 0 },
+            }),
+            ..FrameRequest::default()
+        };
         let mut crossings = Vec::new();
         rows[0].1.push(fastest_ms(PASSES, || {
             crossings = cpu.process(frame, &request).expect("CPU zero crossings").zero_crossings.unwrap_or_default();
         }));
-        if let Some((_, backend)) = &mut gpu {
+        if let Some((_, backend)) = gpu {
             gpu_times.push(fastest_ms(GPU_PASSES, || {
                 backend.process(frame, &request).expect("GPU zero crossings");
             }));
@@ -118,20 +142,22 @@ fn time_segments() -> pipetrack::Result<()> {
             extractor.extract(&crossings, window, &mut segments);
             index.build(&segments, window);
         }));
+        area += window.area();
         edgels += crossings.len();
         chains += extractor.chain_count();
         count += segments.len();
     }
     let n = seq.frames.len();
     println!(
-        "\nlowe segments, target3dof {w}x{h}, {n} frames, one thread; per frame: {} edgels, {} chains, {} segments",
+        "\nlowe segments, target3dof {w}x{h}, {what}, {n} frames, one thread; per frame: {} pixels, {} edgels, \
+         {} chains, {} segments",
+        area / n,
         edgels / n,
         chains / n,
         count / n
     );
-    if let Some((name, _)) = &gpu {
+    if gpu.is_some() {
         rows.insert(1, ("zero crossings, GPU", gpu_times));
-        println!("GPU: {name}");
     }
     println!("{:<22} {:>10} {:>9} {:>8}", "step", "median ms", "mean ms", "max ms");
     for (step, times) in &rows {
