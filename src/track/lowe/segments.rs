@@ -67,11 +67,11 @@
 //! - a piece of fewer than three pixels, or whose deviation is at most the
 //!   floor, is represented by itself (one segment);
 //! - otherwise both pieces `p_i ..= p_k` and `p_k ..= p_j` are represented
-//!   recursively, and the representation of a piece's *significance* is the
-//!   largest significance among the segments it consists of. When the
-//!   larger of the two pieces' significances exceeds the piece's own, the
-//!   piece is represented by its two pieces' segments (which share `p_k`);
-//!   otherwise by itself, as one segment.
+//!   recursively; the significance of a representation is the largest
+//!   significance among the segments it consists of. When the larger of the
+//!   two pieces' representations' significances exceeds the piece's own,
+//!   the piece is represented by its two pieces' segments (which share
+//!   `p_k`); otherwise by itself, as one segment.
 //!
 //! An open chain is subdivided from its first to its last pixel. A closed
 //! chain has no ends: it is cut at the pixel `A` farthest from its first
@@ -89,9 +89,11 @@
 //! 001: "all of the line segments are indexed into a three-dimensional array
 //! on the basis of 2-D position of the midpoint and orientation."
 //! [`SegmentIndex`] is that array: square cells of `cell_size` pixels over the
-//! window times `orientation_bins` bins of `[0, π)`, held as one sorted list
-//! of segment numbers with an offset per cell. A query visits only the cells
-//! whose position range and orientation bins intersect its bounds (the
+//! window (larger cells over a window wider than [`MAX_CELLS_PER_AXIS`]
+//! cells; a midpoint outside the window goes to the nearest border cell)
+//! times `orientation_bins` bins of `[0, π)`, held as one list of segment
+//! numbers grouped by cell with an offset per cell. A query visits only the
+//! cells whose position range and orientation bins intersect its bounds (the
 //! orientation range wraps around at 0 = π) and checks each segment found
 //! there against the exact bounds.
 //!
@@ -178,24 +180,27 @@ pub const DEFAULT_ORIENTATION_BINS: usize = 12;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SegmentParams {
-    /// Canny's high threshold on the zero-crossing strength (module doc,
-    /// "Defaults of the thresholds": 2.5 keeps steps of contrast ≥ 15). A
-    /// chain is kept only when joined to an edgel at least this strong.
-    /// The paper gives no value. Range: [`low_threshold`](Self::low_threshold)
+    /// Canny's high threshold on the zero-crossing strength: a chain is
+    /// kept only when joined to an edgel at least this strong. 2.5: above
+    /// the strongest zero crossing of pixel noise σ = 2 (2.34), below the
+    /// median edgel of a step of contrast 15 (2.79); module doc, "Defaults
+    /// of the thresholds". The paper gives no value. Range: [`low_threshold`](Self::low_threshold)
     /// ..= [`MAX_THRESHOLD`].
     pub high_threshold: f32,
     /// Canny's low threshold: weaker edgels are dropped before linking.
-    /// 1.5: above the median of σ = 1 pixel noise, below the weakest edgel of
-    /// a contrast-10 step. The paper gives no value. Range: (0, [`MAX_THRESHOLD`]].
+    /// 1.5: above every zero crossing of pixel noise σ = 1 (at most 1.09)
+    /// and 90 % of those of σ = 2, below 95 % of the edgels of a clean step
+    /// of contrast 10. The paper gives no value. Range: (0, [`MAX_THRESHOLD`]].
     pub low_threshold: f32,
     /// Shortest segment kept, px. 8: a segment's orientation is known to
     /// about 1/length radians from its ±½ px pixel quantisation, so shorter
     /// ones say little about the model's edges and are mostly noise.
     /// Range: [0, [`MAX_LENGTH_PX`]].
     pub min_length: f64,
-    /// Floor on a piece's deviation in its significance, px (Lowe 1987
-    /// floors it to allow for pixel quantisation). 2: the LoG at σ = 1.2
-    /// rounds a corner over about two pixels. Range: (0, [`MAX_LENGTH_PX`]].
+    /// Floor on a piece's deviation in its significance, px, so that pixel
+    /// quantisation does not make short, nearly straight pieces arbitrarily
+    /// significant. 2: the LoG at σ = 1.2 rounds a corner over about two
+    /// pixels. Range: (0, [`MAX_LENGTH_PX`]].
     pub deviation_floor: f64,
     /// Side of the index's square cells, px. 16: a matcher's position
     /// bounds are a few pixels to a few tens of pixels wide, so a query
