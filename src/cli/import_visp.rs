@@ -294,12 +294,12 @@ fn list_images(images: &Path) -> Result<Vec<(u64, PathBuf)>> {
         if a == b {
             return Err(Error::input(pb, format!("frame {b} also in {}: keep one file per frame", file_name(pa))));
         }
-        if b - a != 1 {
-            return Err(Error::input(
-                pb,
-                format!("frames {} to {} are missing: the frames must follow each other", a + 1, b - 1),
-            ));
-        }
+        let missing = match b - a {
+            1 => continue,
+            2 => format!("frame {} is missing", a + 1),
+            _ => format!("frames {} to {} are missing", a + 1, b - 1),
+        };
+        return Err(Error::input(pb, format!("{missing} before it: the frames must follow each other")));
     }
     Ok(found)
 }
