@@ -71,27 +71,23 @@ pub struct ModelGeometry {
 }
 
 impl ModelGeometry {
-    /// The geometry of `model`. Errors (`Error::Parameter`) when an edge is
-    /// not a pair of distinct vertices, a face has fewer than three vertices
-    /// or one out of range, or a joint names a vertex out of range or has a
-    /// zero or non-finite axis. Other checks of `model.json` (finite
-    /// coordinates, repeated edges) are [`Model::validate`]'s.
+    /// The geometry of `model`. Errors (`Error::Parameter`) when its
+    /// indices are unsafe to follow ([`Model::check_indices`]: an edge not a
+    /// pair of distinct vertices, a face of fewer than three distinct
+    /// vertices or one out of range, a joint moving a vertex out of range or
+    /// with a zero or non-finite axis). The other checks of a model file
+    /// (finite coordinates, repeated edges, planar faces) are
+    /// [`Model::validate`]'s.
     pub fn new(model: &Model) -> Result<Self> {
-        let bad = |msg: String| Err(Error::Parameter(msg));
+        model.check_indices().map_err(|problem| Error::Parameter(problem.message))?;
         let nv = model.vertices.len();
         let mut vertex_edges = vec![Vec::new(); nv];
         for (k, &[i, j]) in model.edges.iter().enumerate() {
-            if i >= nv || j >= nv || i == j {
-                return bad(format!("edge {k} [{i}, {j}] is not a pair of distinct vertices of the {nv}"));
-            }
             vertex_edges[i].push(k);
             vertex_edges[j].push(k);
         }
         let mut edge_faces = vec![Vec::new(); model.edges.len()];
         for (f, face) in model.faces.iter().enumerate() {
-            if face.len() < 3 || face.iter().any(|&i| i >= nv) {
-                return bad(format!("face {f} needs at least 3 vertices of the {nv}"));
-            }
             for (a, &i) in face.iter().enumerate() {
                 let j = face[(a + 1) % face.len()];
                 for (k, &[ei, ej]) in model.edges.iter().enumerate() {
@@ -101,22 +97,18 @@ impl ModelGeometry {
                 }
             }
         }
-        let mut joints = Vec::with_capacity(model.joints.len());
-        for joint in &model.joints {
-            let axis = DVec3::from_array(joint.axis);
-            let length = axis.length();
-            if !(length > 0.0 && length.is_finite()) {
-                return bad(format!("joint \"{}\": the axis must be finite and non-zero", joint.name));
-            }
-            if let Some(&v) = joint.vertices.iter().find(|&&v| v >= nv) {
-                return bad(format!("joint \"{}\" moves vertex {v}, not one of the {nv}", joint.name));
-            }
-            joints.push(JointAxis {
-                origin: DVec3::from_array(joint.origin),
-                axis: axis / length,
-                vertices: joint.vertices.clone(),
-            });
-        }
+        let joints = model
+            .joints
+            .iter()
+            .map(|joint| {
+                let axis = DVec3::from_array(joint.axis);
+                JointAxis {
+                    origin: DVec3::from_array(joint.origin),
+                    axis: axis / axis.length(),
+                    vertices: joint.vertices.clone(),
+                }
+            })
+            .collect();
         Ok(Self {
             vertices: model.vertices.iter().map(|v| DVec3::from_array(*v)).collect(),
             edges: model.edges.clone(),

@@ -341,82 +341,112 @@ pub const DUPLICATE_VERTEX_TOLERANCE: f64 = 1e-9;
 /// printed with a few decimals, tight enough to catch a bent face.
 pub const FACE_PLANARITY_TOLERANCE: f64 = 1e-3;
 
+/// A part of a model that a problem lies in, so that the reader of a model
+/// file can name the line the part was written on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModelPart {
+    /// Vertex `i`.
+    Vertex(usize),
+    /// Edge `e`.
+    Edge(usize),
+    /// Face `f`.
+    Face(usize),
+    /// Joint `j`.
+    Joint(usize),
+    /// Entry `k` of joint `j`'s `vertices`.
+    JointVertex(usize, usize),
+}
+
+/// What is wrong with a model, and in which part (none for the model as a
+/// whole, e.g. its units or too few vertices).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelProblem {
+    /// The part the problem lies in.
+    pub part: Option<ModelPart>,
+    /// One line saying what is wrong.
+    pub message: String,
+}
+
+impl ModelProblem {
+    fn of(part: ModelPart, message: String) -> Self {
+        Self { part: Some(part), message }
+    }
+
+    fn whole(message: String) -> Self {
+        Self { part: None, message }
+    }
+}
+
+/// Where a part of a model was written: a file and a 1-based line.
+pub type SourceLine = (std::path::PathBuf, usize);
+
 impl Model {
     /// Check the model: `units` one of [`MODEL_UNITS`], at least two
     /// vertices and one edge, finite coordinates, no vertex listed twice
-    /// (within [`DUPLICATE_VERTEX_TOLERANCE`] of the model's size),
-    /// edge/face/joint indices in range, no edge from a vertex to itself, no
-    /// edge listed twice (either direction), faces of at least three distinct
-    /// vertices that enclose an area and lie in a plane (within
-    /// [`FACE_PLANARITY_TOLERANCE`] of the model's size), joints with a
-    /// finite non-zero axis, `min <= max`, distinct names and no vertex
-    /// listed twice. `path` names the model file in the error.
+    /// (within [`DUPLICATE_VERTEX_TOLERANCE`] of the model's size), the
+    /// indices of [`Model::check_indices`], no edge listed twice (either
+    /// direction), faces that enclose an area and lie in a plane (within
+    /// [`FACE_PLANARITY_TOLERANCE`] of the model's size), joints with
+    /// distinct names and `min <= max`. `path` names the model file in the
+    /// error.
     pub fn validate(&self, path: &Path) -> Result<()> {
-        let fail = |msg: String| Err(input_error(path, msg));
+        self.validate_at(path, |_| None)
+    }
+
+    /// [`Model::validate`], naming in the error the file and line that
+    /// `locate` gives for the part at fault, or `path` when it gives none.
+    pub fn validate_at(&self, path: &Path, locate: impl Fn(ModelPart) -> Option<SourceLine>) -> Result<()> {
+        self.check().map_err(|problem| match problem.part.and_then(locate) {
+            Some((file, line)) => input_error(&file, format!("line {line}: {}", problem.message)),
+            None => input_error(path, problem.message),
+        })
+    }
+
+    /// The checks of [`Model::validate`], returning the first problem.
+    pub fn check(&self) -> std::result::Result<(), ModelProblem> {
         if !MODEL_UNITS.contains(&self.units.as_str()) {
-            return fail(format!(
+            return Err(ModelProblem::whole(format!(
                 "units {:?} is not one pipetrack reads: use one of {}",
                 self.units,
                 MODEL_UNITS.join(", ")
-            ));
+            )));
         }
         let n = self.vertices.len();
         if n < 2 {
-            return fail(format!("the model has {n} vertices: it needs at least 2"));
+            return Err(ModelProblem::whole(format!("the model has {n} vertices: it needs at least 2")));
         }
         if let Some(i) = self.vertices.iter().position(|v| !all_finite(v)) {
-            return fail(format!("vertex {i} has a coordinate that is not a finite number"));
+            return Err(ModelProblem::of(
+                ModelPart::Vertex(i),
+                format!("vertex {i} has a coordinate that is not a finite number"),
+            ));
         }
         let size = self.size();
         if let Some((i, j)) = self.duplicate_vertex(DUPLICATE_VERTEX_TOLERANCE * size) {
-            return fail(format!("vertex {j} repeats vertex {i} ({:?}): list each point once", self.vertices[i]));
+            return Err(ModelProblem::of(
+                ModelPart::Vertex(j),
+                format!("vertex {j} repeats vertex {i} ({:?}): list each point once", self.vertices[i]),
+            ));
         }
         if self.edges.is_empty() {
-            return fail("the model has no edges".to_string());
+            return Err(ModelProblem::whole("the model has no edges".to_string()));
         }
+        self.check_indices()?;
         let mut seen = std::collections::HashMap::with_capacity(self.edges.len());
         for (e, &[a, b]) in self.edges.iter().enumerate() {
-            if a >= n || b >= n {
-                return fail(format!("edge {e} [{a}, {b}] refers to a vertex beyond the last one ({})", n - 1));
-            }
-            if a == b {
-                return fail(format!("edge {e} [{a}, {b}] joins a vertex to itself"));
-            }
             if let Some(first) = seen.insert((a.min(b), a.max(b)), e) {
-                return fail(format!("edge {e} [{a}, {b}] repeats edge {first}"));
+                return Err(ModelProblem::of(ModelPart::Edge(e), format!("edge {e} [{a}, {b}] repeats edge {first}")));
             }
         }
-        // Sets, not list scans, so a face or joint of many vertices costs
-        // time linear in their number.
-        let mut listed = std::collections::HashSet::new();
         for (f, face) in self.faces.iter().enumerate() {
-            if face.len() < 3 {
-                return fail(format!("face {f} has {} vertices: a face needs at least 3", face.len()));
-            }
-            listed.clear();
-            for &v in face {
-                if v >= n {
-                    return fail(format!("face {f} refers to vertex {v}, beyond the last one ({})", n - 1));
-                }
-                if !listed.insert(v) {
-                    return fail(format!("face {f} lists vertex {v} twice"));
-                }
-            }
-            if let Err(msg) = self.check_planar(f, face, size) {
-                return fail(msg);
-            }
+            self.check_planar(f, face, size).map_err(|msg| ModelProblem::of(ModelPart::Face(f), msg))?;
         }
         let mut names = std::collections::HashSet::new();
         for (j, joint) in self.joints.iter().enumerate() {
             let name = &joint.name;
+            let fail = |msg: String| Err(ModelProblem::of(ModelPart::Joint(j), msg));
             if !names.insert(name.as_str()) {
                 return fail(format!("joint {j} \"{name}\": another joint has the same name"));
-            }
-            if !all_finite(&joint.origin) || !all_finite(&joint.axis) {
-                return fail(format!("joint \"{name}\": origin and axis must be finite numbers"));
-            }
-            if joint.axis.iter().map(|a| a * a).sum::<f64>() == 0.0 {
-                return fail(format!("joint \"{name}\": the axis is the zero vector"));
             }
             if !(joint.min.is_finite() && joint.max.is_finite() && joint.min <= joint.max) {
                 return fail(format!(
@@ -424,10 +454,71 @@ impl Model {
                     joint.min, joint.max
                 ));
             }
+        }
+        Ok(())
+    }
+
+    /// The checks that make the model's indices safe to follow: edges join
+    /// two distinct vertices; faces have at least three distinct vertices;
+    /// joints move existing vertices, each once, about a finite non-zero
+    /// axis through a finite origin. [`Model::check`] makes them too;
+    /// geometry built from a model needs only these.
+    pub fn check_indices(&self) -> std::result::Result<(), ModelProblem> {
+        let n = self.vertices.len();
+        let last = n.saturating_sub(1);
+        for (e, &[a, b]) in self.edges.iter().enumerate() {
+            let fail = |msg: String| Err(ModelProblem::of(ModelPart::Edge(e), msg));
+            if a >= n || b >= n {
+                return fail(format!("edge {e} [{a}, {b}] refers to a vertex beyond the last one ({last})"));
+            }
+            if a == b {
+                return fail(format!("edge {e} [{a}, {b}] joins a vertex to itself"));
+            }
+        }
+        // Sets, not list scans, so a face or joint of many vertices costs
+        // time linear in their number.
+        let mut listed = std::collections::HashSet::new();
+        for (f, face) in self.faces.iter().enumerate() {
+            let fail = |msg: String| Err(ModelProblem::of(ModelPart::Face(f), msg));
+            if face.len() < 3 {
+                return fail(format!("face {f} has {} vertices: a face needs at least 3", face.len()));
+            }
             listed.clear();
-            for &v in &joint.vertices {
+            for &v in face {
                 if v >= n {
-                    return fail(format!("joint \"{name}\" moves vertex {v}, beyond the last one ({})", n - 1));
+                    return fail(format!("face {f} refers to vertex {v}, beyond the last one ({last})"));
+                }
+                if !listed.insert(v) {
+                    return fail(format!("face {f} lists vertex {v} twice"));
+                }
+            }
+        }
+        for (j, joint) in self.joints.iter().enumerate() {
+            let name = &joint.name;
+            if !all_finite(&joint.origin) || !all_finite(&joint.axis) {
+                return Err(ModelProblem::of(
+                    ModelPart::Joint(j),
+                    format!("joint \"{name}\": origin and axis must be finite numbers"),
+                ));
+            }
+            let length2 = joint.axis.iter().map(|a| a * a).sum::<f64>();
+            if length2 == 0.0 {
+                return Err(ModelProblem::of(
+                    ModelPart::Joint(j),
+                    format!("joint \"{name}\": the axis is the zero vector"),
+                ));
+            }
+            if !length2.is_finite() {
+                return Err(ModelProblem::of(
+                    ModelPart::Joint(j),
+                    format!("joint \"{name}\": the axis is too long to normalise"),
+                ));
+            }
+            listed.clear();
+            for (k, &v) in joint.vertices.iter().enumerate() {
+                let fail = |msg: String| Err(ModelProblem::of(ModelPart::JointVertex(j, k), msg));
+                if v >= n {
+                    return fail(format!("joint \"{name}\" moves vertex {v}, beyond the last one ({last})"));
                 }
                 if !listed.insert(v) {
                     return fail(format!("joint \"{name}\" lists vertex {v} twice"));
@@ -436,72 +527,22 @@ impl Model {
         }
         Ok(())
     }
-}
 
-impl Model {
-    /// The diagonal of the vertices' bounding box (0 for fewer than two
-    /// distinct points): the scale of the model's tolerances.
+    /// The diagonal of the vertices' bounding box ([`bounding_diagonal`]):
+    /// the scale of the model's tolerances.
     fn size(&self) -> f64 {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for v in &self.vertices {
-            for k in 0..3 {
-                lo[k] = lo[k].min(v[k]);
-                hi[k] = hi[k].max(v[k]);
-            }
-        }
-        let d2: f64 = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum();
-        if d2.is_finite() { d2.sqrt() } else { 0.0 }
+        bounding_diagonal(&self.vertices)
     }
 
     /// The first vertex `j` within `tolerance` of an earlier vertex, as
-    /// `(i, j)` with `i` the earliest such vertex. Vertices go into a grid of
-    /// cells `tolerance` wide (for a zero tolerance, one cell per distinct
-    /// point), and each is compared only with those in its own and the 26
-    /// neighbouring cells: as the search stops at the first repeat, a cell
-    /// holds only a few vertices, so the time is linear in their number.
+    /// `(i, j)` with `i` the earliest such vertex ([`PointGrid`]).
     fn duplicate_vertex(&self, tolerance: f64) -> Option<(usize, usize)> {
-        let v = &self.vertices;
-        let mut lo = [f64::INFINITY; 3];
-        for p in v {
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-            }
-        }
-        // Within the bounding box, (p - lo) / tolerance is at most
-        // 1 / DUPLICATE_VERTEX_TOLERANCE, far inside i64.
-        let cell = |p: &[f64; 3]| -> [i64; 3] {
-            std::array::from_fn(|k| {
-                if tolerance > 0.0 {
-                    ((p[k] - lo[k]) / tolerance).floor() as i64
-                } else {
-                    // Adding 0.0 makes -0.0 the same point as 0.0.
-                    (p[k] + 0.0).to_bits() as i64
-                }
-            })
-        };
-        let reach: i64 = if tolerance > 0.0 { 1 } else { 0 };
-        let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = std::collections::HashMap::new();
-        for (j, p) in v.iter().enumerate() {
-            let c = cell(p);
-            let mut earliest: Option<usize> = None;
-            for dx in -reach..=reach {
-                for dy in -reach..=reach {
-                    for dz in -reach..=reach {
-                        let Some(near) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else { continue };
-                        for &i in near {
-                            let d2: f64 = (0..3).map(|k| (v[i][k] - p[k]).powi(2)).sum();
-                            if d2.sqrt() <= tolerance && earliest.is_none_or(|e| i < e) {
-                                earliest = Some(i);
-                            }
-                        }
-                    }
-                }
-            }
-            if let Some(i) = earliest {
+        let mut grid = PointGrid::new(&self.vertices, tolerance);
+        for j in 0..self.vertices.len() {
+            if let Some(i) = grid.earliest_near(j) {
                 return Some((i, j));
             }
-            grid.entry(c).or_default().push(j);
+            grid.insert(j);
         }
         None
     }
@@ -512,13 +553,9 @@ impl Model {
     /// vector area, through the centroid of its vertices.
     fn check_planar(&self, f: usize, face: &[usize], size: f64) -> std::result::Result<(), String> {
         let p: Vec<[f64; 3]> = face.iter().map(|&i| self.vertices[i]).collect();
-        let mut normal = [0.0; 3];
+        let normal = newell_normal(&self.vertices, face);
         let mut centroid = [0.0; 3];
-        for (k, a) in p.iter().enumerate() {
-            let b = p[(k + 1) % p.len()];
-            normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
-            normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
-            normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+        for a in &p {
             for c in 0..3 {
                 centroid[c] += a[c] / p.len() as f64;
             }
@@ -540,6 +577,102 @@ impl Model {
             }
         }
         Ok(())
+    }
+}
+
+/// Newell's normal of the polygon `face` (indices into `vertices`): the
+/// normal of its vector area, twice the area long, pointing outwards for a
+/// loop counter-clockwise seen from outside; for a loop p₀…p_{n−1},
+/// n_x = Σ (y_k − y_{k+1})(z_k + z_{k+1}), and cyclically for n_y, n_z.
+pub(crate) fn newell_normal(vertices: &[[f64; 3]], face: &[usize]) -> [f64; 3] {
+    let mut normal = [0.0; 3];
+    for (k, &i) in face.iter().enumerate() {
+        let (a, b) = (vertices[i], vertices[face[(k + 1) % face.len()]]);
+        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    normal
+}
+
+/// The diagonal of the bounding box of `points` (0 for fewer than two
+/// distinct points, or when it overflows).
+pub(crate) fn bounding_diagonal(points: &[[f64; 3]]) -> f64 {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for v in points {
+        for k in 0..3 {
+            lo[k] = lo[k].min(v[k]);
+            hi[k] = hi[k].max(v[k]);
+        }
+    }
+    let d2: f64 = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum();
+    if d2.is_finite() { d2.sqrt() } else { 0.0 }
+}
+
+/// Finds, among the points inserted so far, the earliest one within a
+/// tolerance of a given point. Points go into a grid of cells `tolerance`
+/// wide (for a zero tolerance, one cell per distinct point), and each query
+/// looks only in its own and the 26 neighbouring cells; while few inserted
+/// points share a cell, each query takes constant time.
+pub(crate) struct PointGrid<'a> {
+    points: &'a [[f64; 3]],
+    lo: [f64; 3],
+    tolerance: f64,
+    cells: std::collections::HashMap<[i64; 3], Vec<usize>>,
+}
+
+impl<'a> PointGrid<'a> {
+    /// An empty grid over `points` (finite coordinates).
+    pub(crate) fn new(points: &'a [[f64; 3]], tolerance: f64) -> Self {
+        let mut lo = [f64::INFINITY; 3];
+        for p in points {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+            }
+        }
+        Self { points, lo, tolerance, cells: std::collections::HashMap::new() }
+    }
+
+    fn cell(&self, p: &[f64; 3]) -> [i64; 3] {
+        // Within the bounding box, (p - lo) / tolerance is at most
+        // 1 / DUPLICATE_VERTEX_TOLERANCE, far inside i64.
+        std::array::from_fn(|k| {
+            if self.tolerance > 0.0 {
+                ((p[k] - self.lo[k]) / self.tolerance).floor() as i64
+            } else {
+                // Adding 0.0 makes -0.0 the same point as 0.0.
+                (p[k] + 0.0).to_bits() as i64
+            }
+        })
+    }
+
+    /// Add point `j` to the grid.
+    pub(crate) fn insert(&mut self, j: usize) {
+        let c = self.cell(&self.points[j]);
+        self.cells.entry(c).or_default().push(j);
+    }
+
+    /// The earliest inserted point within the tolerance of point `j`.
+    pub(crate) fn earliest_near(&self, j: usize) -> Option<usize> {
+        let p = &self.points[j];
+        let c = self.cell(p);
+        let reach: i64 = if self.tolerance > 0.0 { 1 } else { 0 };
+        let mut earliest: Option<usize> = None;
+        for dx in -reach..=reach {
+            for dy in -reach..=reach {
+                for dz in -reach..=reach {
+                    let Some(near) = self.cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else { continue };
+                    for &i in near {
+                        let d2: f64 = (0..3).map(|k| (self.points[i][k] - p[k]).powi(2)).sum();
+                        if d2.sqrt() <= self.tolerance && earliest.is_none_or(|e| i < e) {
+                            earliest = Some(i);
+                        }
+                    }
+                }
+            }
+        }
+        earliest
     }
 }
 
@@ -657,4 +790,45 @@ impl FrameResult {
         }
         Ok(())
     }
+}
+
+/// The 1-based line of `text`, the JSON text of a model, on which `part`
+/// starts: a vertex, edge, face or joint, or one entry of a joint's
+/// `vertices`; `None` when `text` is not a model or lacks the part. The
+/// positions come from serde_json's raw values, which borrow their text
+/// from `text`.
+#[must_use]
+pub fn model_json_line(text: &str, part: ModelPart) -> Option<usize> {
+    use serde_json::value::RawValue;
+
+    #[derive(Deserialize)]
+    struct Lists<'a> {
+        #[serde(borrow, default)]
+        vertices: Vec<&'a RawValue>,
+        #[serde(borrow, default)]
+        edges: Vec<&'a RawValue>,
+        #[serde(borrow, default)]
+        faces: Vec<&'a RawValue>,
+        #[serde(borrow, default)]
+        joints: Vec<&'a RawValue>,
+    }
+    #[derive(Deserialize)]
+    struct JointLists<'a> {
+        #[serde(borrow, default)]
+        vertices: Vec<&'a RawValue>,
+    }
+
+    let lists: Lists = serde_json::from_str(text).ok()?;
+    let raw: &str = match part {
+        ModelPart::Vertex(i) => lists.vertices.get(i)?.get(),
+        ModelPart::Edge(e) => lists.edges.get(e)?.get(),
+        ModelPart::Face(f) => lists.faces.get(f)?.get(),
+        ModelPart::Joint(j) => lists.joints.get(j)?.get(),
+        ModelPart::JointVertex(j, k) => {
+            let joint: JointLists = serde_json::from_str(lists.joints.get(j)?.get()).ok()?;
+            joint.vertices.get(k)?.get()
+        }
+    };
+    let offset = (raw.as_ptr() as usize).checked_sub(text.as_ptr() as usize)?;
+    Some(text.get(..offset)?.matches('\n').count() + 1)
 }

@@ -1,12 +1,14 @@
 //! Everything that reads or writes files: sequence folders (SPEC §4) and
-//! their frames, the file formats as serde types, ViSP `.cao` models, Y4M
-//! streams, JSON with one-line errors, atomic output files, and overlays.
+//! their frames, the file formats as serde types, ViSP `.cao` and Wavefront
+//! `.obj` models, Y4M streams, JSON with one-line errors, atomic output
+//! files, and overlays.
 
 pub mod atomic;
 pub mod cao;
 pub mod formats;
 pub mod frames;
 pub mod json;
+pub mod obj;
 pub mod overlay;
 pub mod sequence;
 pub mod y4m;

@@ -1,6 +1,6 @@
 //! Sequence folders (SPEC §4): reading and validating `camera.json`, the
-//! model (`model.json`, else `model.cao`) and `init.json`, handing out the
-//! frames as a stream, and reading the optional `truth.jsonl` on request
+//! model (`model.json`, else `model.cao`, else `model.obj`) and `init.json`,
+//! handing out the frames as a stream, and reading the optional `truth.jsonl` on request
 //! (only scoring reads it, so tracking never depends on it).
 //!
 //! Every problem with a user's file is an [`Error::Input`] whose one-line
@@ -11,20 +11,21 @@ use std::fs::{self};
 use std::io::{self};
 use std::path::{Path, PathBuf};
 
-use super::cao;
-use super::formats::{Camera, InitState, Model, TruthFrame};
+use super::formats::{Camera, InitState, Model, TruthFrame, model_json_line};
 use super::frames::*;
 use super::json::*;
 use super::y4m::STDIN_NAME;
+use super::{cao, obj};
 use crate::{Error, Result};
 
 /// `camera.json`.
 pub const CAMERA_FILE: &str = "camera.json";
-/// `model.json` (wins over `model.cao`).
+/// `model.json` (wins over `model.cao` and `model.obj`).
 pub const MODEL_JSON_FILE: &str = "model.json";
 /// `model.cao`, ViSP's format, read when there is no `model.json`.
 pub const MODEL_CAO_FILE: &str = "model.cao";
-/// `model.obj`, the third model file SPEC §4 names.
+/// `model.obj`, Wavefront's format, read when there is neither `model.json`
+/// nor `model.cao`.
 pub const MODEL_OBJ_FILE: &str = "model.obj";
 /// `init.json`.
 pub const INIT_FILE: &str = "init.json";
@@ -101,7 +102,7 @@ impl Sequence {
         &self.dir
     }
 
-    /// The model file that was read (`model.json` or `model.cao`).
+    /// The model file that was read (`model.json`, `model.cao` or `model.obj`).
     #[must_use]
     pub fn model_path(&self) -> &Path {
         &self.model_path
@@ -189,21 +190,30 @@ fn check_folder(dir: &Path) -> Result<()> {
     Ok(())
 }
 
+/// The model of the folder: `model.json`, else `model.cao`, else
+/// `model.obj` (SPEC §4), validated; a problem with one of its parts names
+/// the file and line the part was written on.
 fn read_model(dir: &Path) -> Result<(Model, PathBuf)> {
     let json_path = dir.join(MODEL_JSON_FILE);
     let cao_path = dir.join(MODEL_CAO_FILE);
-    if json_path.exists() || !cao_path.exists() {
-        let model: Model = read_json(&json_path).map_err(|e| match e {
-            Error::Input { path, message } if message == MISSING => {
-                Error::input(path, "missing (and there is no model.cao either)")
-            }
-            other => other,
-        })?;
-        model.validate(&json_path)?;
-        Ok((model, json_path))
-    } else {
-        Ok((cao::read_cao(&cao_path)?, cao_path))
+    let obj_path = dir.join(MODEL_OBJ_FILE);
+    if !json_path.exists() && cao_path.exists() {
+        return Ok((cao::read_cao(&cao_path)?, cao_path));
     }
+    if !json_path.exists() && obj_path.exists() {
+        return Ok((obj::read_obj(&obj_path)?, obj_path));
+    }
+    let model: Model = read_json(&json_path).map_err(|e| match e {
+        Error::Input { path, message } if message == MISSING => {
+            Error::input(path, "missing (and there is no model.cao or model.obj either)")
+        }
+        other => other,
+    })?;
+    model.validate_at(&json_path, |part| {
+        let text = read_text(&json_path).ok()?;
+        model_json_line(&text, part).map(|line| (json_path.clone(), line))
+    })?;
+    Ok((model, json_path))
 }
 
 fn read_truth(path: &Path, model: &Model, model_path: &Path, frame_count: Option<usize>) -> Result<Vec<TruthFrame>> {
