@@ -103,6 +103,10 @@ enum Command {
         /// Also draw the true projection of the model over every frame into this folder.
         #[arg(long)]
         overlay: Option<PathBuf>,
+        /// A further part of the object, as ViSP's load() arguments: FILE.cao (relative to SRC)
+        /// [, t=[x; y; z], tu=[a; b; c] or R=[r11; ...; r33]] (repeatable).
+        #[arg(long, value_name = "FILE[, PLACEMENT]")]
+        include: Vec<String>,
     },
     /// Score a tracker's output against the sequence's truth.jsonl.
     Score {
@@ -330,9 +334,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             note(format_args!("pipetrack: wrote {} frames of '{}' to {}", seq.frames.len(), scene, out_dir.display()));
             Ok(())
         }
-        Command::ImportVisp { src, out_dir, model, camera, frames, overlay } => {
+        Command::ImportVisp { src, out_dir, model, camera, frames, overlay, include } => {
             use pipetrack::cli::import_visp::{ImportOptions, import_visp};
-            let r = import_visp(&src, &out_dir, &ImportOptions { model, camera, frames, overlay })?;
+            let r = import_visp(&src, &out_dir, &ImportOptions { model, camera, frames, overlay, include })?;
             let a = &r.alignment;
             note(format_args!(
                 "pipetrack: wrote {} frames of {}x{} and a model of {} vertices ({} files) to {}; \

@@ -26,7 +26,10 @@
 //! The output holds `frames/NNNNNN.png` (grey, through the crate's colour
 //! conversion; frame k is the k-th source image), `camera.json` (the image
 //! size of the frames), `model.cao` (the source model, byte for byte) and
-//! every file it `load()`s at the same path relative to it, `init.json`
+//! every file it `load()`s at the same path relative to it (with parts
+//! added by `--include`, as in ViSP's own test that places a cube beside the
+//! castle, `model.cao` is a file that loads the model and the parts, all
+//! copied under their own names), `init.json`
 //! (frame 0's true pose, no params, every vertex projected), `truth.jsonl`
 //! (per frame the pose, the projected vertices and which vertices are in
 //! front of the camera and inside the image; self-occlusion is not
@@ -97,6 +100,13 @@ pub struct ImportOptions {
     /// Also draw the true projection (visible edges, every vertex) over
     /// every frame into this folder, one PNG per frame.
     pub overlay: Option<PathBuf>,
+    /// More parts of the object, each the arguments of a ViSP `load()`: a
+    /// `.cao` file relative to the source folder, optionally followed by its
+    /// placement in the model's frame, e.g.
+    /// `Models/cube.cao, t=[-0.2; 0.12; -0.15], R=[-1; 0; 0; 0; 0; 1; 0; 1; 0]`
+    /// (as ViSP's own test places the cube of `Castle-simu`). With parts,
+    /// `model.cao` is a file that loads the model and the parts.
+    pub include: Vec<String>,
 }
 
 /// What [`import_visp`] wrote and measured.
@@ -162,22 +172,33 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
     let camera_path = choose_camera(src, opts.camera.as_deref(), &model_path)?;
     let first = decode_gray(&images[0].1)?;
     let camera = read_camera(&camera_path, first.width(), first.height())?;
-    let model_files = model_files(&model_path)?;
+    let parts = opts.include.iter().map(|arg| Part::parse(src, arg)).collect::<Result<Vec<_>>>()?;
+    let model_copies = model_copies(&model_path, &parts)?;
+    let model_files: Vec<PathBuf> = model_copies.iter().map(|(_, to)| to.clone()).collect();
 
     let staged = StagedDir::create(out_dir)?;
     let overlay = opts.overlay.as_deref().map(StagedDir::create).transpose()?;
     let dir = staged.path();
-    let model_dir = model_path.parent().unwrap_or(Path::new("."));
-    for (k, rel) in model_files.iter().enumerate() {
-        let from = if k == 0 { model_path.clone() } else { model_dir.join(rel) };
-        let to = if k == 0 { dir.join(MODEL_CAO_FILE) } else { dir.join(rel) };
+    for (from, to) in &model_copies {
+        let to = dir.join(to);
         if let Some(parent) = to.parent() {
             fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
         }
-        fs::copy(&from, &to).map_err(|e| Error::input(&from, format!("cannot copy: {e}")))?;
+        fs::copy(from, &to).map_err(|e| Error::input(from, format!("cannot copy: {e}")))?;
     }
-    let model = crate::io::cao::read_cao(&dir.join(MODEL_CAO_FILE))
-        .map_err(|e| relocate_error(e, &dir.join(MODEL_CAO_FILE), &model_path))?;
+    if !parts.is_empty() {
+        let path = dir.join(MODEL_CAO_FILE);
+        fs::write(&path, loading_model(&model_path, &parts)).map_err(|e| Error::io(&path, e))?;
+    }
+    let model = crate::io::cao::read_cao(&dir.join(MODEL_CAO_FILE)).map_err(|e| {
+        match e {
+            // An error in the written model.cao is one in the --include arguments.
+            Error::Input { path, message } if !parts.is_empty() && path == dir.join(MODEL_CAO_FILE) => {
+                Error::Parameter(format!("--include: {message}"))
+            }
+            e => source_error(e, dir, &model_copies),
+        }
+    })?;
     let geometry = ModelGeometry::new(&model).map_err(|e| Error::input(&model_path, e.to_string()))?;
 
     let truth = poses
@@ -241,6 +262,7 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
         "camera": file_name(&camera_path),
         "model": file_name(&model_path),
         "model_files": model_files,
+        "include": opts.include,
         "visible": "per vertex: in front of the camera and inside the image; self-occlusion not computed",
     });
     write_json(&dir.join("meta.json"), &meta)?;
@@ -490,14 +512,84 @@ pub fn read_camera(path: &Path, width: usize, height: usize) -> Result<Camera> {
     Ok(camera)
 }
 
-/// The model file `top` and every file it `load()`s, directly or through
-/// another loaded file: `top`'s name first, then the loaded files' paths
-/// relative to `top`'s folder. A loaded path is relative to the folder of
-/// the file that loads it and must stay inside `top`'s folder (the sequence
-/// folder holds the copies at the same relative paths).
-pub fn model_files(top: &Path) -> Result<Vec<PathBuf>> {
+/// A part added to the model with `--include`.
+#[derive(Clone, Debug, PartialEq)]
+struct Part {
+    /// The part's `.cao` file.
+    file: PathBuf,
+    /// Its placement, the `load()` arguments after the file (may be empty).
+    placement: String,
+}
+
+impl Part {
+    /// `FILE[, placement]`, `FILE` relative to `src`.
+    fn parse(src: &Path, arg: &str) -> Result<Self> {
+        let (file, placement) = arg.split_once(',').unwrap_or((arg, ""));
+        let file = src.join(file.trim().trim_matches('"'));
+        if !file.is_file() {
+            return Err(Error::input(&file, "missing: the part given with --include"));
+        }
+        Ok(Self { file, placement: placement.trim().to_string() })
+    }
+}
+
+/// The model files to copy, `(source, path in the sequence folder)`:
+/// without `parts`, `model` as `model.cao` and every file it `load()`s
+/// ([`loaded_files`]); with parts, `model` and each part under its own name
+/// with the files they load (`model.cao` is then [`loading_model`]). Two
+/// different sources for one path are an error.
+fn model_copies(model: &Path, parts: &[Part]) -> Result<Vec<(PathBuf, PathBuf)>> {
+    let tops: Vec<&Path> = std::iter::once(model).chain(parts.iter().map(|p| p.file.as_path())).collect();
+    let mut copies: Vec<(PathBuf, PathBuf)> = Vec::new();
+    for top in tops {
+        let name = if parts.is_empty() { PathBuf::from(MODEL_CAO_FILE) } else { PathBuf::from(file_name(top)) };
+        if !parts.is_empty() && is_sequence_file(&name) {
+            return Err(Error::input(top, "has the name of a sequence file: copy it under another name"));
+        }
+        for (from, to) in std::iter::once((top.to_path_buf(), name)).chain(loaded_files(top)?) {
+            match copies.iter().find(|(_, t)| *t == to) {
+                Some((other, _)) if !same_file(other, &from) => {
+                    return Err(Error::input(
+                        &from,
+                        format!("would be copied to {} as {} is: rename one", to.display(), other.display()),
+                    ));
+                }
+                Some(_) => {}
+                None => copies.push((from, to)),
+            }
+        }
+    }
+    Ok(copies)
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (fs::canonicalize(a), fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    }
+}
+
+/// The `model.cao` that loads `model` and the `parts` (copied beside it
+/// under their own names), each part with its placement.
+fn loading_model(model: &Path, parts: &[Part]) -> String {
+    let mut text = String::from("V1\n# The model and the parts added to it, each placed in the model's frame.\n");
+    text.push_str(&format!("load(\"{}\")\n", file_name(model)));
+    for part in parts {
+        let placement = if part.placement.is_empty() { String::new() } else { format!(", {}", part.placement) };
+        text.push_str(&format!("load(\"{}\"{placement})\n", file_name(&part.file)));
+    }
+    // No points, lines, faces from lines, faces from points, cylinders, circles of its own.
+    text.push_str("0\n0\n0\n0\n0\n0\n");
+    text
+}
+
+/// Every file `top` `load()`s, directly or through another loaded file, as
+/// `(source, path relative to top's folder)`. A loaded path is relative to
+/// the folder of the file that loads it and must stay inside `top`'s folder
+/// (the sequence folder holds the copies at the same relative paths).
+pub fn loaded_files(top: &Path) -> Result<Vec<(PathBuf, PathBuf)>> {
     let top_dir = top.parent().unwrap_or(Path::new(".")).to_path_buf();
-    let mut files = vec![PathBuf::from(file_name(top))];
+    let mut files = Vec::new();
     let mut seen = HashSet::new();
     let mut pending = vec![(top.to_path_buf(), PathBuf::new())];
     while let Some((path, rel_dir)) = pending.pop() {
@@ -516,7 +608,7 @@ pub fn model_files(top: &Path) -> Result<Vec<PathBuf>> {
                 return Err(at(format!("load({target:?}): {} is missing", full.display())));
             }
             if seen.insert(rel.clone()) {
-                files.push(rel.clone());
+                files.push((full.clone(), rel.clone()));
                 pending.push((full, rel.parent().map(Path::to_path_buf).unwrap_or_default()));
             }
         }
@@ -524,11 +616,16 @@ pub fn model_files(top: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// The file named by a `load("file.cao")` line of a `.cao` file, if `line` is one.
+/// The file named by a `load("file.cao")` line of a `.cao` file (placement
+/// arguments after the file allowed), if `line` is one.
 fn loaded_file(line: &str) -> Option<String> {
     let code = line.split('#').next()?.trim();
-    let inner = code.strip_prefix("load(")?.rsplit_once(')')?.0.trim();
-    Some(inner.trim_matches('"').to_string())
+    let args = code.strip_prefix("load(")?.trim_start();
+    let file = match args.strip_prefix('"') {
+        Some(quoted) => quoted.split('"').next()?,
+        None => args.split([',', ')']).next()?.trim(),
+    };
+    (!file.is_empty()).then(|| file.to_string())
 }
 
 /// `path` with `.` and `name/..` removed; `None` if it is absolute or climbs
@@ -558,10 +655,21 @@ fn is_sequence_file(rel: &Path) -> bool {
 /// An error about `from` (a file in the staging folder) told about `to`.
 fn relocate_error(e: Error, from: &Path, to: &Path) -> Error {
     match e {
-        Error::Input { path, message } if path == from => Error::Input { path: to.to_path_buf(), message },
         Error::Input { path, message } => match path.strip_prefix(from) {
             Ok(rest) => Error::Input { path: to.join(rest), message },
             Err(_) => Error::Input { path, message },
+        },
+        other => other,
+    }
+}
+
+/// An error about a model file copied into the staging folder `dir` told
+/// about the file it was copied from.
+fn source_error(e: Error, dir: &Path, copies: &[(PathBuf, PathBuf)]) -> Error {
+    match e {
+        Error::Input { path, message } => match copies.iter().find(|(_, to)| dir.join(to) == path) {
+            Some((from, _)) => Error::Input { path: from.clone(), message },
+            None => Error::Input { path, message },
         },
         other => other,
     }
@@ -769,6 +877,7 @@ mod tests {
         assert_eq!(loaded_file("  load( b.cao ) "), Some("b.cao".to_string()));
         assert_eq!(loaded_file("# load(\"c.cao\")"), None);
         assert_eq!(loaded_file("4 0 1 2 3"), None);
+        assert_eq!(loaded_file("load(\"cube.cao\", t=[0; 0; 1], tu=[0; 0; 90deg])").as_deref(), Some("cube.cao"));
         assert_eq!(normalise(Path::new("parts/./x/../a.cao")), Some(PathBuf::from("parts/a.cao")));
         assert_eq!(normalise(Path::new("../a.cao")), None);
         assert_eq!(normalise(Path::new("/abs/a.cao")), None);

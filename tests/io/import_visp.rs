@@ -242,3 +242,75 @@ fn a_bad_pose_or_a_gap_in_the_frames_is_refused_by_name() {
     std::fs::remove_file(src.join("Images/Image_0002.png")).unwrap();
     expect_refused(&root, &src, &["Image_0003.png", "frame 2 is missing before it"]);
 }
+
+/// The tetrahedron as a file of only includes, its points and faces in
+/// `parts/tetra_body.cao`.
+const TETRAHEDRON_BY_LOAD: &str = "V1\nload(\"parts/tetra_body.cao\")  # the body\n0\n0\n0\n0\n0\n0\n";
+
+#[test]
+fn loaded_files_are_copied_and_included_parts_placed() {
+    let root = crate::common::scratch("import-visp", "load");
+    let src = visp_data_set(&root);
+    std::fs::create_dir_all(src.join("Models/parts")).unwrap();
+    std::fs::write(src.join("Models/parts/tetra_body.cao"), TETRAHEDRON).unwrap();
+    std::fs::write(src.join("Models/tetra.cao"), TETRAHEDRON_BY_LOAD).unwrap();
+    std::fs::create_dir_all(src.join("Extra")).unwrap();
+    std::fs::write(src.join("Extra/wedge.cao"), TETRAHEDRON).unwrap();
+
+    // The model alone: model.cao and the file it loads, as they are.
+    let seq = root.join("seq");
+    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(std::fs::read_to_string(seq.join("model.cao")).unwrap(), TETRAHEDRON_BY_LOAD);
+    assert_eq!(std::fs::read_to_string(seq.join("parts/tetra_body.cao")).unwrap(), TETRAHEDRON);
+    let truth: TruthFrame =
+        serde_json::from_str(std::fs::read_to_string(seq.join("truth.jsonl")).unwrap().lines().next().unwrap())
+            .unwrap();
+    assert_eq!(truth.corners.len(), 4);
+
+    // With a second tetrahedron placed 0.3 m along x (and turned a quarter
+    // turn about z): four more vertices, projected where the placement puts them.
+    let seq = root.join("seq-with-part");
+    let out = pipetrack(&[
+        "import-visp",
+        src.to_str().unwrap(),
+        seq.to_str().unwrap(),
+        "--include",
+        "Extra/wedge.cao, t=[0.3; 0; 0], tu=[0; 0; 90deg]",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for file in ["model.cao", "tetra.cao", "parts/tetra_body.cao", "wedge.cao"] {
+        assert!(seq.join(file).is_file(), "{file} copied");
+    }
+    let truth: Vec<TruthFrame> = std::fs::read_to_string(seq.join("truth.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let (r, t) = &true_poses()[1];
+    let frame = &truth[1];
+    assert_eq!(frame.corners.len(), 8);
+    // R_z(90°)·(x, y, z) + (0.3, 0, 0) = (0.3 − y, x, z): no point of the first.
+    let placed: Vec<[f64; 3]> = vertices().iter().map(|p| [0.3 - p[1], p[0], p[2]]).collect();
+    for p in vertices().iter().chain(&placed) {
+        let (pixel, _) = project(r, t, p);
+        assert!(
+            frame.corners.iter().any(|c| (c[0] - pixel[0]).abs() < 1e-9 && (c[1] - pixel[1]).abs() < 1e-9),
+            "vertex {p:?} at {pixel:?} among {:?}",
+            frame.corners
+        );
+    }
+
+    // A bad placement is named as the --include argument's.
+    let out = pipetrack(&[
+        "import-visp",
+        src.to_str().unwrap(),
+        root.join("seq-bad").to_str().unwrap(),
+        "--include",
+        "Extra/wedge.cao, t=[0.2; 0]",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--include"), "{stderr}");
+    assert!(!root.join("seq-bad").exists());
+}
