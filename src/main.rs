@@ -39,7 +39,7 @@ struct Cli {
 enum Command {
     /// Track a sequence folder; JSON Lines to stdout (or --out), summary to stderr.
     Track {
-        /// Sequence folder (camera.json, model.json or model.cao, init.json, frames/).
+        /// Sequence folder (camera.json, model.json, model.cao or model.obj, init.json, frames/).
         seq_dir: PathBuf,
         /// Tracker: motion-edge (000), blue (002) or condensation (004).
         #[arg(long)]

@@ -14,6 +14,7 @@ use std::sync::OnceLock;
 use pipetrack::cli::score::{read_predictions, score_file};
 use pipetrack::io::cao::read_cao;
 use pipetrack::io::formats::TruthFrame;
+use pipetrack::io::obj::read_obj;
 use pipetrack::io::y4m::Y4mReader;
 use pipetrack::track::make_tracker;
 use pipetrack::{GrayImage, Sequence};
@@ -124,6 +125,15 @@ pub fn cao(data: &[u8]) {
     let path = dir.join("model.cao");
     put(&path, data);
     let _ = read_cao(&path);
+}
+
+/// A Wavefront `.obj` model.
+pub fn obj(data: &[u8]) {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    let dir = DIR.get_or_init(|| scratch("obj"));
+    let path = dir.join("model.obj");
+    put(&path, data);
+    let _ = read_obj(&path);
 }
 
 /// A Y4M stream's header: [`Y4mReader::with_name`].

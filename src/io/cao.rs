@@ -3,8 +3,9 @@
 //!
 //! The format (one record per line; a `#` starts a comment, outside quoted
 //! strings; after the numbers a record needs, the rest of its line is
-//! `key=value` parameters such as `name="left wing"` and free comment text,
-//! both ignored here, as ViSP ignores all but a few parameters):
+//! `key=value` parameters such as `name="left wing"` and free comment text
+//! such as `// left wing`, both ignored here, as ViSP ignores all but a few
+//! parameters; a further number there is an error, a miscounted record):
 //!
 //! ```text
 //! V1                      header: V1 (or V0), or V2 whose points carry two more numbers
@@ -48,6 +49,7 @@
 //!   0 in every file); the merged model lists the parts in the order ViSP
 //!   reads them, depth first: a file's includes, in order, then its own
 //!   points, so its indices are offset by the number of vertices before it.
+//!   This is the model-vertex order of `init.json`'s corners.
 //! - A file of only a header and includes is a whole model (a file with
 //!   neither includes nor points is an error).
 //! - Points of different parts that coincide (within
@@ -58,7 +60,8 @@
 //!   (ViSP warns and skips the include) naming the including file, its line
 //!   and the chain of files; so is the `load` of a missing file. A file
 //!   included twice (not in a cycle) is read twice, as ViSP does: give the
-//!   copies different placements.
+//!   copies different placements. At most [`MAX_FILES_READ`] readings make
+//!   one model.
 //!
 //! Errors name the file they are in (an included file's own errors name
 //! it) and the line; problems of the merged model found by
@@ -248,6 +251,12 @@ fn read_part(
                 chain.join(" → ")
             )));
         }
+        if merged.files.len() + reading.len() >= MAX_FILES_READ {
+            return Err(fail(format!(
+                "load(\"{}\"): more than {MAX_FILES_READ} files read for one model: are files included many times over?",
+                include.path
+            )));
+        }
         let text = read_text(&included)?;
         read_part(&text, &included, &placement.after(&include.placement), reading, merged)?;
     }
@@ -257,6 +266,11 @@ fn read_part(
     merged.files.push(path.to_path_buf());
     parser.body(!includes.is_empty(), placement, file, merged).map_err(fail)
 }
+
+/// The most file readings one model may take (a file included twice
+/// counts twice), so that files including each other many times over
+/// fail rather than run for ever.
+pub const MAX_FILES_READ: usize = 10_000;
 
 /// One `load(...)` line.
 struct Include {
@@ -410,10 +424,17 @@ impl Parser {
         self.records.last().map_or(1, |r| r.line)
     }
 
-    /// The next record, or an error saying `what` was expected.
+    /// The next record, or an error saying `what` was expected; a
+    /// `load(...)` line here is out of place.
     fn record(&mut self, what: &str) -> std::result::Result<&Record, Failure> {
         let line = self.last_line();
         let r = self.records.get(self.next).ok_or_else(|| (line, format!("file ends where {what} was expected")))?;
+        if is_load(r) {
+            return Err((
+                r.line,
+                "load(...) may stand only right after the V1 header, before the number of points".to_string(),
+            ));
+        }
         self.next += 1;
         Ok(r)
     }
@@ -456,12 +477,6 @@ impl Parser {
     /// A line holding a count, then perhaps a comment.
     fn count(&mut self, what: &str) -> std::result::Result<(usize, usize), Failure> {
         let r = self.record(&format!("the number of {what}"))?;
-        if is_load(r) {
-            return Err((
-                r.line,
-                "load(...) may stand only right after the V1 header, before the number of points".to_string(),
-            ));
-        }
         let n = &r.tokens[0];
         if r.tokens.get(1).is_some_and(|t| t.parse::<f64>().is_ok()) {
             return Err((
@@ -970,6 +985,8 @@ mod tests {
     fn misplaced_and_malformed_loads_are_refused() {
         let msg = err(&CUBE.replace("# 3D lines\n1", "load(\"part.cao\")\n1"));
         assert!(msg.starts_with("line 12: load(...) may stand only right after the V1 header"), "{msg}");
+        let msg = err(&CUBE.replace("0 1 1\n", "load(\"part.cao\")\n"));
+        assert!(msg.starts_with("line 6: load(...) may stand only"), "{msg}");
         for (load, needle) in [
             ("load(part.cao)", "in double quotes"),
             ("load(\"part.cao\"", "no closing parenthesis"),
@@ -994,5 +1011,18 @@ mod tests {
         let outer = Placement { rotation: DMat3::IDENTITY, translation: DVec3::new(10.0, 0.0, 0.0) };
         let q = outer.after(&p).apply([1.0, 0.0, 0.0]);
         assert!((DVec3::from(q) - DVec3::new(11.0, 3.0, 3.0)).length() < 1e-12, "{q:?}");
+    }
+
+    #[test]
+    fn files_included_many_times_over_are_refused() {
+        // Each level includes the next twice: 2^20 readings.
+        let mut files: Vec<(String, String)> = (0..20)
+            .map(|k| (format!("l{k}.cao"), format!("V1\nload(\"l{}.cao\")\nload(\"l{}.cao\")\n", k + 1, k + 1)))
+            .collect();
+        files.push(("l20.cao".to_string(), SQUARE.to_string()));
+        let files: Vec<(&str, &str)> = files.iter().map(|(p, t)| (p.as_str(), t.as_str())).collect();
+        let dir = folder("many-times", &files);
+        let (_, msg) = read_err(&dir.join("l0.cao"));
+        assert!(msg.contains("more than 10000 files read"), "{msg}");
     }
 }

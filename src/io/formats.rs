@@ -832,3 +832,76 @@ pub fn model_json_line(text: &str, part: ModelPart) -> Option<usize> {
     let offset = (raw.as_ptr() as usize).checked_sub(text.as_ptr() as usize)?;
     Some(text.get(..offset)?.matches('\n').count() + 1)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SQUARE: &str = r#"{"name": "sq",
+ "vertices": [[0, 0, 0], [1, 0, 0],
+              [1, 1, 0], [0, 1, 0]],
+ "edges": [[0, 1], [1, 2],
+           [2, 3], [3, 9]],
+ "faces": [
+   [0, 1, 2, 3]],
+ "joints": [{"name": "lid", "origin": [0, 0, 0], "axis": [1, 0, 0], "min": 0, "max": 1,
+             "vertices": [2,
+                          7]}]}"#;
+
+    #[test]
+    fn json_lines_of_model_parts() {
+        assert_eq!(model_json_line(SQUARE, ModelPart::Vertex(0)), Some(2));
+        assert_eq!(model_json_line(SQUARE, ModelPart::Vertex(3)), Some(3));
+        assert_eq!(model_json_line(SQUARE, ModelPart::Edge(3)), Some(5));
+        assert_eq!(model_json_line(SQUARE, ModelPart::Face(0)), Some(7));
+        assert_eq!(model_json_line(SQUARE, ModelPart::Joint(0)), Some(8));
+        assert_eq!(model_json_line(SQUARE, ModelPart::JointVertex(0, 1)), Some(10));
+        assert_eq!(model_json_line(SQUARE, ModelPart::Edge(4)), None);
+        assert_eq!(model_json_line("not json", ModelPart::Edge(0)), None);
+    }
+
+    #[test]
+    fn validate_at_names_the_line_of_the_part_at_fault() {
+        let model: Model = serde_json::from_str(SQUARE).unwrap();
+        let path = Path::new("seq/model.json");
+        let locate = |part| model_json_line(SQUARE, part).map(|line| (path.to_path_buf(), line));
+        let message = |result: Result<()>| match result {
+            Err(Error::Input { path, message }) => {
+                assert_eq!(path, Path::new("seq/model.json"));
+                message
+            }
+            other => panic!("expected an input error, got {other:?}"),
+        };
+        let msg = message(model.validate_at(path, locate));
+        assert_eq!(msg, "line 5: edge 3 [3, 9] refers to a vertex beyond the last one (3)");
+        let mut fixed = model.clone();
+        fixed.edges[3] = [3, 0];
+        let msg = message(fixed.validate_at(path, locate));
+        assert_eq!(msg, "line 10: joint \"lid\" moves vertex 7, beyond the last one (3)");
+        // Without a line for the part, or for the model as a whole, no line.
+        assert!(!message(model.validate(path)).starts_with("line"));
+        fixed.units = "mm".into();
+        assert!(message(fixed.validate_at(path, locate)).starts_with("units \"mm\""));
+    }
+
+    #[test]
+    fn index_checks_are_part_of_the_model_checks() {
+        let mut model: Model = serde_json::from_str(SQUARE).unwrap();
+        model.edges[3] = [3, 0];
+        model.joints[0].vertices = vec![2, 3];
+        assert_eq!(model.check(), Ok(()));
+        for (change, part) in [
+            (Box::new(|m: &mut Model| m.edges[1] = [2, 2]) as Box<dyn Fn(&mut Model)>, ModelPart::Edge(1)),
+            (Box::new(|m: &mut Model| m.faces[0].truncate(2)), ModelPart::Face(0)),
+            (Box::new(|m: &mut Model| m.faces[0][3] = 4), ModelPart::Face(0)),
+            (Box::new(|m: &mut Model| m.joints[0].axis = [1e300, 1e300, 0.0]), ModelPart::Joint(0)),
+            (Box::new(|m: &mut Model| m.joints[0].vertices.push(2)), ModelPart::JointVertex(0, 2)),
+        ] {
+            let mut bad = model.clone();
+            change(&mut bad);
+            let problem = bad.check_indices().unwrap_err();
+            assert_eq!(problem.part, Some(part), "{}", problem.message);
+            assert_eq!(bad.check().unwrap_err(), problem);
+        }
+    }
+}

@@ -240,3 +240,128 @@ fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
     let length = v.iter().map(|c| c * c).sum::<f64>().sqrt();
     (length > 0.0 && length.is_finite()).then(|| v.map(|c| c / length))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Model> {
+        parse_obj(text, Path::new("dir/shape.obj"))
+    }
+
+    fn err(text: &str) -> String {
+        match parse(text) {
+            Err(Error::Input { path, message }) => {
+                assert_eq!(path, Path::new("dir/shape.obj"));
+                message
+            }
+            other => panic!("expected an input error, got {other:?}"),
+        }
+    }
+
+    /// The unit cube's corners (vertex i has x, y, z from bits 0, 1, 2 of
+    /// i, 1-based in the file) and its six sides, counter-clockwise seen
+    /// from outside, each as two triangles.
+    const CUBE_TRIANGLES: &str = "# unit cube
+o cube
+v 0 0 0
+v 1 0 0
+v 0 1 0
+v 1 1 0
+v 0 0 1
+v 1 0 1
+v 0 1 1
+v 1 1 1
+vn 0 0 -1
+vt 0 0
+g sides
+s off
+usemtl grey
+f 1//1 3//1 4//1
+f 1//1 4//1 2//1
+f 5 6 8
+f 5 8 7
+f 1/1 2/1 6/1
+f 1/1 6/1 5/1
+f 3/1/1 7/1/1 8/1/1
+f 3/1/1 8/1/1 4/1/1
+f 1 5 7
+f 1 7 3
+f 2 4 8
+f 2 8 6
+";
+
+    #[test]
+    fn a_cube_of_twelve_triangles_has_its_twelve_edges_only() {
+        let m = parse(CUBE_TRIANGLES).unwrap();
+        assert_eq!(m.name, "shape");
+        assert_eq!(m.vertices.len(), 8);
+        assert_eq!(m.vertices[5], [1.0, 0.0, 1.0]);
+        assert_eq!(m.faces.len(), 12);
+        assert_eq!(m.faces[0], vec![0, 2, 3]);
+        assert_eq!(m.edges.len(), 12, "{:?}", m.edges);
+        // Every edge joins corners that differ in one coordinate: no face diagonal.
+        for &[a, b] in &m.edges {
+            assert_eq!((a ^ b).count_ones(), 1, "edge {a}-{b}");
+        }
+        // In order of first appearance, in the direction the first face runs it.
+        assert_eq!(m.edges[0], [0, 2]);
+        assert_eq!(m.edges[1], [2, 3]);
+    }
+
+    #[test]
+    fn a_bent_quad_split_in_two_triangles_keeps_its_diagonal() {
+        // The quad (0,0,0) (1,0,0) (1,1,0.2) (0,1,0): its two halves meet at 5.7°.
+        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0.2\nv 0 1 0\nf 1 2 3\nf 1 3 4\n";
+        let m = parse(text).unwrap();
+        assert_eq!(m.edges, vec![[0, 1], [1, 2], [2, 0], [2, 3], [3, 0]]);
+        // Flat, the diagonal goes.
+        let m = parse(&text.replace("1 1 0.2", "1 1 0")).unwrap();
+        assert_eq!(m.edges, vec![[0, 1], [1, 2], [2, 3], [3, 0]]);
+        // Within FLAT_EDGE_ANGLE_DEGREES it is flat too: a rise of 0.005 is 0.29°.
+        let m = parse(&text.replace("1 1 0.2", "1 1 0.005")).unwrap();
+        assert_eq!(m.edges.len(), 4);
+    }
+
+    #[test]
+    fn negative_references_count_back_from_the_last_vertex_read() {
+        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nf -3 -2 -1\nv 0 1 0\nf 1 -2 -1\nl 4/1 2\n";
+        let m = parse(text).unwrap();
+        assert_eq!(m.faces, vec![vec![0, 1, 2], vec![0, 2, 3]]);
+        // Three outer sides of each triangle; their shared side 0-2 is flat;
+        // the polyline's segment 3-1 is an edge of its own.
+        assert_eq!(m.edges, vec![[0, 1], [1, 2], [2, 3], [3, 0], [3, 1]]);
+    }
+
+    #[test]
+    fn vertices_may_carry_a_weight_or_a_colour() {
+        let m = parse("v 0 0 0 1\nv 1 0 0 0.5 0.5 0.5\nv 0 1 0\nf 1 2 3\n").unwrap();
+        assert_eq!(m.vertices[1], [1.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn bad_statements_name_their_line() {
+        let ok = "v 0 0 0\nv 1 0 0\nv 1 1 0\n";
+        let cases = [
+            (format!("{ok}f 1 2\n"), "line 4: face has 2 vertices: a face needs at least 3"),
+            (format!("{ok}f 1 2 9\n"), "line 4: vertex reference 9 but the file has 3 vertices"),
+            (format!("{ok}f 1 2 -4\n"), "line 4: face: vertex reference -4 goes back past the first vertex"),
+            (format!("{ok}f 1 2 0\n"), "line 4: face: vertex reference 0"),
+            (format!("{ok}f 1 2 2\n"), "line 4: face lists vertex 2 twice"),
+            (format!("{ok}f 1 2 x/1\n"), "line 4: face: \"x/1\" is not a vertex reference"),
+            (format!("{ok}l 1\n"), "line 4: polyline has 1 vertices"),
+            ("v 0 0\n".to_string(), "line 1: vertex 1: expected x y z, found 2 numbers"),
+            ("v 0 0 nan\n".to_string(), "line 1: vertex 1: \"nan\" is not a finite number"),
+            (format!("{ok}cstype bspline\n"), "line 4: \"cstype\": free-form curves and surfaces"),
+            (format!("{ok}vertex 1 2 3\n"), "line 4: unknown statement \"vertex\""),
+            // Problems of the whole model name the line of the part at fault.
+            (format!("{ok}v 1 0 0\nf 1 2 3\n"), "line 4: vertex 3 repeats vertex 1"),
+            (format!("{ok}v 2 0 0\nf 1 2 4\n"), "line 5: face 0 encloses no area"),
+        ];
+        for (text, expected) in cases {
+            let msg = err(&text);
+            assert!(msg.starts_with(expected), "{text:?}: {msg}");
+        }
+        assert!(err(ok).contains("no edges"));
+    }
+}

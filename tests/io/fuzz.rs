@@ -784,6 +784,52 @@ fn fuzz_cao() {
     });
 }
 
+const CUBE_OBJ: &str = "# a unit cube of triangles
+o cube
+mtllib cube.mtl
+v 0 0 0
+v 1 0 0
+v 0 1 0
+v 1 1 0
+v 0 0 1
+v 1 0 1
+v 0 1 1
+v 1 1 1 0.5 0.5 0.5
+vn 0 0 -1
+vt 0 0
+g sides
+s off
+usemtl grey
+f 1//1 3//1 4//1
+f 1//1 4//1 2//1
+f 5 6 8
+f 5 8 7
+f 1/1 2/1 6/1
+f 1/1 6/1 5/1
+f 3/1/1 7/1/1 8/1/1
+f -6/1/1 -1/1/1 -5/1/1
+f 1 5 7 3
+f 2 4 8 6
+l 1 8
+";
+
+#[test]
+fn fuzz_obj() {
+    run(Target {
+        name: "obj",
+        rng_seed: 0x0B1E_C7F0,
+        seeds: seeds(&[CUBE_OBJ]),
+        dictionary: dict(&[
+            "v", "f", "l", "vn", "vt", "o", "g", "s", "-1", "0", "/", "//", "#", "curv", "nan", "1e308",
+        ]),
+        setup: |name| scratch(name).join("model.obj"),
+        check: |path, input| {
+            put(path, input)?;
+            check_result(pipetrack::io::obj::read_obj(path), &[path])
+        },
+    });
+}
+
 /// A Y4M stream: `header`, then `frames` frames of `w`×`h` luma plus `extra`
 /// chroma bytes each.
 fn y4m(header: &str, w: usize, h: usize, extra: usize, frames: usize) -> Vec<u8> {
@@ -1060,7 +1106,7 @@ fn messages_quoting_the_file_stay_one_short_line() {
     let joint = LID_BOX.replace("\"lid\"", &format!("\"lid\\n{long}\""));
     put(&f.model, joint.replace("\"min\":-1.5", "\"min\":2").as_bytes()).expect("write");
     let message = input_message("a joint name with a newline", &f.model, || Sequence::open(&f.dir, false));
-    assert!(message.starts_with(r#"joint "lid\na.a."#) && message.contains("min <= max"), "{message}");
+    assert!(message.starts_with(r#"line 5: joint "lid\na.a."#) && message.contains("min <= max"), "{message}");
 
     // Found by fuzz_cao: a 3-D point's coordinate of 40 kB was quoted whole.
     let cao = dir.join("model.cao");

@@ -9,6 +9,7 @@ mod bounds;
 mod cli;
 mod fuzz;
 mod import_visp;
+mod model_files;
 mod plot;
 mod score;
 mod sequence_io;

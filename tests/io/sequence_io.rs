@@ -346,8 +346,9 @@ fn bad_models_are_named() {
             "model.json",
             &format!(r#"{{"name":"sq","vertices":[[0,0,0],[1,0,0],[1,1,0],[0,1,0]],"edges":{edges}}}"#),
         );
+        // Each edge's problem names its line (the one line of this file).
         let msg = input_error(f.open(), "model.json");
-        assert!(msg.starts_with(expected), "{msg}");
+        assert!(msg.strip_prefix("line 1: ").unwrap_or(&msg).starts_with(expected), "{msg}");
     }
     let f = Folder::good("bad-face");
     f.write(
@@ -396,12 +397,12 @@ fn model_units_duplicate_vertices_and_bent_faces_are_refused() {
     assert!(msg.contains("\"furlong\"") && msg.contains("m, px"), "{msg}");
 
     f.write("model.json", &model("m", "[[0,0,0],[0.1,0,0],[0.1,0.1,0],[0.1,0,0]]"));
-    assert!(input_error(f.open(), "model.json").starts_with("vertex 3 repeats vertex 1"));
+    assert!(input_error(f.open(), "model.json").starts_with("line 1: vertex 3 repeats vertex 1"));
 
     // A corner lifted by 10 % of the size is far outside the tolerance; a
     // rounding-sized lift (1e-6 of the size) is not.
     f.write("model.json", &model("m", "[[0,0,0],[0.1,0,0],[0.1,0.1,0.01],[0,0.1,0]]"));
-    assert!(input_error(f.open(), "model.json").starts_with("face 0 is not planar"));
+    assert!(input_error(f.open(), "model.json").starts_with("line 1: face 0 is not planar"));
     f.write("model.json", &model("m", "[[0,0,0],[0.1,0,0],[0.1,0.1,1e-7],[0,0.1,0]]"));
     f.open().expect("a face within the tolerance is planar");
     // The tolerance scales with the model: the same shape in kilometres.

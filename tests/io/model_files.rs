@@ -1,0 +1,287 @@
+//! The three model files of a sequence folder (SPEC §4) through the
+//! command line: a ViSP `.cao` model made of several files and a Wavefront
+//! `.obj` model track like the `model.json` they describe, and each bad
+//! model gets one line naming the file and the line at fault, exit status
+//! 2 and no output file.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use pipetrack::Sequence;
+use pipetrack::io::formats::Model;
+
+fn pipetrack(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    crate::common::scratch("model-files", name)
+}
+
+fn synth(scene: &str, dir: &Path, frames: &str) {
+    let out = pipetrack(&["synth", scene, dir.to_str().unwrap(), "--frames", frames, "--seed", "3"]);
+    assert!(out.status.success(), "synth {scene}: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// `track DIR --tracker blue --backend cpu`: the JSON lines it printed.
+fn track_blue(seq: &Path) -> Vec<serde_json::Value> {
+    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "blue", "--backend", "cpu"]);
+    assert!(out.status.success(), "track {}: {}", seq.display(), String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).lines().map(|l| serde_json::from_str(l).expect("JSON line")).collect()
+}
+
+/// The `target3dof` truck (`model.json` of `seq`) as the sequence folder
+/// `dir` with no `model.json`: its frames, camera and init, and the model
+/// written by `write_model`.
+fn truck_without_json(seq: &Path, dir: &Path, write_model: impl Fn(&Model, &Path)) -> Model {
+    let model = Sequence::open(seq, false).expect("synthesised sequence").model;
+    std::fs::create_dir_all(dir.join("frames")).unwrap();
+    for file in ["camera.json", "init.json"] {
+        std::fs::copy(seq.join(file), dir.join(file)).unwrap();
+    }
+    for entry in std::fs::read_dir(seq.join("frames")).unwrap() {
+        let entry = entry.unwrap();
+        std::fs::copy(entry.path(), dir.join("frames").join(entry.file_name())).unwrap();
+    }
+    write_model(&model, dir);
+    model
+}
+
+/// `.cao` text of the vertices `range` of `model` and the faces `faces`
+/// (which use only those vertices), indices counted from the range's start.
+fn cao_part(model: &Model, range: std::ops::Range<usize>, faces: std::ops::Range<usize>) -> String {
+    let mut text = format!("V1\n# {} points\n{}\n", range.len(), range.len());
+    for v in &model.vertices[range.clone()] {
+        writeln!(text, "{:?} {:?} {:?}", v[0], v[1], v[2]).unwrap();
+    }
+    writeln!(text, "0\n0\n{}", faces.len()).unwrap();
+    for face in &model.faces[faces] {
+        let local: Vec<String> = face.iter().map(|&i| (i - range.start).to_string()).collect();
+        writeln!(text, "{} {}  // a comment ViSP allows", face.len(), local.join(" ")).unwrap();
+    }
+    text.push_str("0\n0\n");
+    text
+}
+
+/// The edges of `model` as a set of unordered pairs.
+fn edge_set(model: &Model) -> std::collections::BTreeSet<(usize, usize)> {
+    model.edges.iter().map(|&[a, b]| (a.min(b), a.max(b))).collect()
+}
+
+#[test]
+fn a_multi_file_cao_model_tracks_as_its_model_json() {
+    let root = scratch("cao");
+    let seq = root.join("json");
+    synth("target3dof", &seq, "5");
+    // The truck's parts (see synth::target3dof): body, bumper, two light
+    // boxes; the right light box is the left one moved along x.
+    let cao = root.join("cao");
+    let json_model = truck_without_json(&seq, &cao, |m, dir| {
+        std::fs::create_dir_all(dir.join("parts")).unwrap();
+        std::fs::write(dir.join("parts/body.cao"), cao_part(m, 0..10, 0..7)).unwrap();
+        std::fs::write(dir.join("parts/bumper.cao"), cao_part(m, 10..18, 7..13)).unwrap();
+        std::fs::write(dir.join("parts/light.cao"), cao_part(m, 18..26, 13..19)).unwrap();
+        let dx = m.vertices[26][0] - m.vertices[18][0];
+        let top = format!(
+            "V1\n# truck back\nload(\"parts/body.cao\")\nload(\"parts/bumper.cao\")\n\
+             load(\"parts/light.cao\")\nload(\"parts/light.cao\", t=[{dx:?}; 0; 0], tu=[0; 0; 0 deg]) # right\n"
+        );
+        std::fs::write(dir.join("model.cao"), top).unwrap();
+    });
+
+    let opened = Sequence::open(&cao, false).expect("the .cao sequence opens");
+    assert!(opened.model_path().ends_with("model.cao"));
+    let model = &opened.model;
+    assert_eq!(model.vertices.len(), json_model.vertices.len());
+    for (k, (a, b)) in model.vertices.iter().zip(&json_model.vertices).enumerate() {
+        assert!((0..3).all(|c| (a[c] - b[c]).abs() < 1e-12), "vertex {k}: {a:?} vs {b:?}");
+    }
+    assert_eq!(model.faces, json_model.faces);
+    assert_eq!(edge_set(model), edge_set(&json_model));
+
+    let from_json = track_blue(&seq);
+    let from_cao = track_blue(&cao);
+    assert_eq!(from_json.len(), 5);
+    assert_eq!(from_cao.len(), 5);
+    for (a, b) in from_json.iter().zip(&from_cao) {
+        assert_eq!(a["status"], b["status"], "frame {}", a["frame"]);
+        let (ca, cb) = (a["corners"].as_array().unwrap(), b["corners"].as_array().unwrap());
+        assert_eq!(ca.len(), 34);
+        assert_eq!(ca.len(), cb.len());
+        for (p, q) in ca.iter().zip(cb) {
+            for c in 0..2 {
+                assert!((p[c].as_f64().unwrap() - q[c].as_f64().unwrap()).abs() < 1e-6, "frame {}", a["frame"]);
+            }
+        }
+    }
+    assert!(from_cao.iter().any(|r| r["status"] == "tracking"));
+}
+
+#[test]
+fn an_obj_model_tracks_with_the_edges_where_the_surface_bends() {
+    let root = scratch("obj");
+    let seq = root.join("json");
+    synth("target3dof", &seq, "3");
+    let obj = root.join("obj");
+    let json_model = truck_without_json(&seq, &obj, |m, dir| {
+        let mut text = String::from("# truck back\no truck\nmtllib truck.mtl\n");
+        for v in &m.vertices {
+            writeln!(text, "v {:?} {:?} {:?}", v[0], v[1], v[2]).unwrap();
+        }
+        text.push_str("vn 0 0 -1\ng body\nusemtl grey\ns off\n");
+        for (f, face) in m.faces.iter().enumerate() {
+            // Mixed reference forms, and negative ones for the last face.
+            let refs: Vec<String> = face
+                .iter()
+                .map(|&i| match f % 3 {
+                    _ if f + 1 == m.faces.len() => format!("{}", i as i64 - m.vertices.len() as i64),
+                    0 => format!("{}", i + 1),
+                    1 => format!("{}//1", i + 1),
+                    _ => format!("{}/1/1", i + 1),
+                })
+                .collect();
+            writeln!(text, "f {}", refs.join(" ")).unwrap();
+        }
+        std::fs::write(dir.join("model.obj"), text).unwrap();
+    });
+
+    let opened = Sequence::open(&obj, false).expect("the .obj sequence opens");
+    assert!(opened.model_path().ends_with("model.obj"));
+    assert_eq!(opened.model.vertices, json_model.vertices);
+    assert_eq!(opened.model.faces, json_model.faces);
+    // The two rear doors are one plane: the line between them (vertices 1
+    // and 4, a painted divider in model.json) is no bend of the surface.
+    let mut expected = edge_set(&json_model);
+    assert!(expected.remove(&(1, 4)));
+    assert_eq!(edge_set(&opened.model), expected);
+
+    let lines = track_blue(&obj);
+    assert_eq!(lines.len(), 3);
+    assert!(lines.iter().all(|r| r["corners"].as_array().is_none_or(|c| c.len() == 34)));
+    assert_eq!(lines[0]["status"], "tracking");
+}
+
+/// A good pendulum sequence in `root/seq` whose model files are replaced
+/// by `files` (name, text): `track` must exit 2 with one line on stderr
+/// naming `file` and holding every `needles`, and leave no output.
+fn expect_bad_model(name: &str, files: &[(&str, &str)], file: &str, needles: &[&str]) {
+    let root = scratch(name);
+    let seq = root.join("seq");
+    synth("pendulum", &seq, "2");
+    std::fs::remove_file(seq.join("model.json")).unwrap();
+    for (path, text) in files {
+        let path = seq.join(path);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, text).unwrap();
+    }
+    let out_file = root.join("out.jsonl");
+    let out = pipetrack(&[
+        "track",
+        seq.to_str().unwrap(),
+        "--tracker",
+        "motion-edge",
+        "--backend",
+        "cpu",
+        "--out",
+        out_file.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{name}: {stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
+    assert_eq!(lines.len(), 1, "{name}: one error line expected, got: {stderr}");
+    let expected_file = seq.join(file);
+    assert!(lines[0].contains(&format!("{}: ", expected_file.display())), "{name}: {file} not named: {}", lines[0]);
+    for n in needles {
+        assert!(lines[0].contains(n), "{name}: {n:?} missing from: {}", lines[0]);
+    }
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(!out_file.exists() && !root.join("out.jsonl.partial").exists(), "{name}: output left behind");
+}
+
+/// A rectangle `model.json` (the pendulum's four corners), one element a line.
+const RECTANGLE_JSON: &str = r#"{"name": "rect", "units": "px",
+ "vertices": [
+  [-40, -20, 0],
+  [40, -20, 0],
+  [40, 20, 0],
+  [-40, 20, 0]],
+ "edges": [
+  [0, 1],
+  [1, 2],
+  [2, 3],
+  [3, 0]],
+ "faces": [
+  [0, 3, 2, 1]],
+ "joints": [
+  {"name": "flap", "origin": [0, 0, 0], "axis": [1, 0, 0], "min": -1, "max": 1,
+   "vertices": [2,
+                3]}]}
+"#;
+
+#[test]
+fn bad_model_json_names_the_line_of_the_element() {
+    let edge = RECTANGLE_JSON.replace("  [2, 3],\n", "  [2, 7],\n");
+    expect_bad_model("json-edge", &[("model.json", &edge)], "model.json", &["line 10: edge 2 [2, 7]"]);
+    let face = RECTANGLE_JSON.replace("[0, 3, 2, 1]]", "[0, 3]]");
+    expect_bad_model("json-face", &[("model.json", &face)], "model.json", &["line 13: face 0 has 2 vertices"]);
+    let joint = RECTANGLE_JSON.replace("                3]", "                5]");
+    expect_bad_model(
+        "json-joint",
+        &[("model.json", &joint)],
+        "model.json",
+        &["line 17: joint \"flap\" moves vertex 5"],
+    );
+}
+
+/// A rectangle `.cao` part: four points, its face.
+const RECTANGLE_CAO: &str = "V1\n4\n-40 -20 0\n40 -20 0\n40 20 0\n-40 20 0\n0\n0\n1\n4 0 3 2 1\n0\n0\n";
+
+#[test]
+fn bad_model_cao_names_the_file_and_line() {
+    let edge = RECTANGLE_CAO.replace("\n0\n0\n1\n", "\n1\n0 4\n0\n1\n");
+    expect_bad_model("cao-edge", &[("model.cao", &edge)], "model.cao", &["line 8: 3-D line 0: point index 4"]);
+    let face = RECTANGLE_CAO.replace("4 0 3 2 1", "2 0 3");
+    expect_bad_model("cao-face", &[("model.cao", &face)], "model.cao", &["line 10: face from points 0 has 2 points"]);
+    let missing = "V1\n# the rectangle\nload(\"parts/rect.cao\")\n";
+    expect_bad_model(
+        "cao-missing",
+        &[("model.cao", missing)],
+        "model.cao",
+        &["line 3: load(\"parts/rect.cao\"): no such file"],
+    );
+    // model.cao ⊃ parts/a.cao ⊃ b.cao ⊃ a.cao: the file closing the cycle is named.
+    expect_bad_model(
+        "cao-cycle",
+        &[
+            ("model.cao", "V1\nload(\"parts/a.cao\")\n"),
+            ("parts/a.cao", "V1\nload(\"b.cao\")\n"),
+            ("parts/b.cao", "V1\nload(\"rect.cao\")\nload(\"a.cao\")\n"),
+            ("parts/rect.cao", RECTANGLE_CAO),
+        ],
+        "parts/b.cao",
+        &["line 3: load(\"a.cao\") makes a cycle of includes (a.cao → b.cao → a.cao)"],
+    );
+    // An error inside an included file names that file.
+    let bad_part = RECTANGLE_CAO.replace("40 20 0\n-40", "40 20\n-40");
+    expect_bad_model(
+        "cao-part",
+        &[("model.cao", "V1\nload(\"rect.cao\")\n"), ("rect.cao", &bad_part)],
+        "rect.cao",
+        &["line 5: 3-D point 2: expected 3 numbers, found 2"],
+    );
+}
+
+#[test]
+fn bad_model_obj_names_the_line() {
+    let good = "v -40 -20 0\nv 40 -20 0\nv 40 20 0\nv -40 20 0\n";
+    let face = format!("{good}# the face\nf 1 4\n");
+    expect_bad_model("obj-face", &[("model.obj", &face)], "model.obj", &["line 6: face has 2 vertices"]);
+    let edge = format!("{good}f 1 4 3 2\nl 2 5\n");
+    expect_bad_model(
+        "obj-edge",
+        &[("model.obj", &edge)],
+        "model.obj",
+        &["line 6: vertex reference 5 but the file has 4"],
+    );
+}
