@@ -678,8 +678,6 @@ fn source_error(e: Error, dir: &Path, copies: &[(PathBuf, PathBuf)]) -> Error {
 /// One frame's truth and what the alignment check needs of it.
 struct FrameState {
     truth: TruthFrame,
-    /// Vertices in the camera frame.
-    camera_vertices: Vec<DVec3>,
     /// Whether each model edge borders a face towards the camera.
     visible_edges: Vec<bool>,
 }
@@ -716,7 +714,6 @@ fn true_state(
             params: Vec::new(),
             corners,
         },
-        camera_vertices,
         visible_edges,
     })
 }
@@ -742,7 +739,7 @@ fn motion(truth: &[FrameState]) -> (f64, f64) {
 /// sampled point without a strong image edge in range.
 fn edge_distances(frame: &GrayImage, state: &FrameState, edges: &[[usize; 2]]) -> Vec<Option<f64>> {
     let gradient = sobel(&frame.to_f32());
-    let visible = |i: usize| state.truth.visible.vertex(i) && state.camera_vertices[i].z > 0.0;
+    let visible = |i: usize| state.truth.visible.vertex(i);
     let mut out = Vec::new();
     for (&[i, j], &facing) in edges.iter().zip(&state.visible_edges) {
         if !(facing && visible(i) && visible(j)) {
