@@ -85,6 +85,29 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
+    /// Convert a ViSP model-based-tracking data set (Images/, CameraPose/, Config/, Models/) to a sequence folder.
+    ImportVisp {
+        /// The ViSP data set folder, e.g. mbt-depth/Castle-simu of ViSP's test images.
+        src: PathBuf,
+        /// Output sequence folder (must be absent or empty).
+        out_dir: PathBuf,
+        /// The .cao model, relative to SRC (default: the one in Models/ named like a Config/ file).
+        #[arg(long)]
+        model: Option<PathBuf>,
+        /// The ViSP settings .xml with the <camera> intrinsics, relative to SRC (default: Config/<model>.xml).
+        #[arg(long)]
+        camera: Option<PathBuf>,
+        /// Convert only the first N frames.
+        #[arg(long)]
+        frames: Option<usize>,
+        /// Also draw the true projection of the model over every frame into this folder.
+        #[arg(long)]
+        overlay: Option<PathBuf>,
+        /// A further part of the object, as ViSP's load() arguments: FILE.cao (relative to SRC)
+        /// [, t=[x; y; z], tu=[a; b; c] or R=[r11; ...; r33]] (repeatable).
+        #[arg(long, value_name = "FILE[, PLACEMENT]")]
+        include: Vec<String>,
+    },
     /// Score a tracker's output against the sequence's truth.jsonl.
     Score {
         /// Sequence folder holding truth.jsonl.
@@ -309,6 +332,29 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             let seq = synth::generate(&scene, &out_dir, frames, seed, &extra)?;
             note(format_args!("pipetrack: wrote {} frames of '{}' to {}", seq.frames.len(), scene, out_dir.display()));
+            Ok(())
+        }
+        Command::ImportVisp { src, out_dir, model, camera, frames, overlay, include } => {
+            use pipetrack::cli::import_visp::{ImportOptions, import_visp};
+            let r = import_visp(&src, &out_dir, &ImportOptions { model, camera, frames, overlay, include })?;
+            let a = &r.alignment;
+            note(format_args!(
+                "pipetrack: wrote {} frames of {}x{} and a model of {} vertices ({} files) to {}; \
+                 true vertex motion {:.2} px/frame mean, {:.2} max; visible edges to image edges: \
+                 {:.3} px mean, {:.3} px median over {} of {} points",
+                r.frames,
+                r.camera.width,
+                r.camera.height,
+                r.vertices,
+                r.model_files.len(),
+                out_dir.display(),
+                r.mean_motion_px,
+                r.max_motion_px,
+                a.mean_px,
+                a.median_px,
+                a.found,
+                a.samples
+            ));
             Ok(())
         }
         Command::Score { seq_dir, pred, false_tracking_px, plot, plot_size } => {

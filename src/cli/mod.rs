@@ -6,6 +6,7 @@ pub mod batch;
 pub mod bench;
 pub mod bench_windows;
 pub mod demo;
+pub mod import_visp;
 pub mod plot;
 pub mod reproduce;
 pub mod reproduce_condensation;

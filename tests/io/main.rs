@@ -8,6 +8,7 @@ mod batch;
 mod bounds;
 mod cli;
 mod fuzz;
+mod import_visp;
 mod model_files;
 mod plot;
 mod score;

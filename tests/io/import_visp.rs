@@ -1,0 +1,316 @@
+//! `pipetrack import-visp`: a small data set in ViSP's layout, made here,
+//! becomes a sequence folder whose poses, corners and frames are checked
+//! against values worked out independently; missing poses exit 2 and leave
+//! nothing behind.
+
+use std::f64::consts::FRAC_PI_2;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use pipetrack::io::formats::{Camera, InitState, TruthFrame};
+
+fn pipetrack(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
+}
+
+const WIDTH: u32 = 64;
+const HEIGHT: u32 = 48;
+const FX: f64 = 100.0;
+const FY: f64 = 110.0;
+const CX: f64 = 31.5;
+const CY: f64 = 24.0;
+
+/// A tetrahedron with its right angle at the origin, 0.1 m legs along x, y, z.
+const TETRAHEDRON: &str = "V1
+# points
+4
+0 0 0
+0.1 0 0
+0 0.1 0
+0 0 0.1
+# lines
+0
+# faces from lines
+0
+# faces from points
+4
+3 0 2 1  name=bottom
+3 0 1 3
+3 0 3 2
+3 1 2 3
+# cylinders
+0
+# circles
+0
+";
+
+/// The true poses: R (row-major) and t of frames 1..=3. Frame 1 is a
+/// quarter turn about x that puts vertex 3 above the image, frame 2 the
+/// identity rotation, frame 3 a quarter turn about z.
+fn true_poses() -> [([[f64; 3]; 3], [f64; 3]); 3] {
+    [
+        ([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]], [0.01, -0.02, 0.5]),
+        ([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], [0.0, 0.0, 0.6]),
+        ([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [0.12, 0.0, 0.5]),
+    ]
+}
+
+/// Their axis-angle vectors, worked out by hand.
+const TRUE_AXIS_ANGLES: [[f64; 3]; 3] = [[FRAC_PI_2, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, FRAC_PI_2]];
+
+/// The colour of pixel (x, y) of source frame `k`.
+fn colour(k: u32, x: u32, y: u32) -> [u8; 3] {
+    [(x * 4) as u8, (y * 5) as u8, (k * 60 + (x + y) % 7) as u8]
+}
+
+/// A data set in ViSP's layout in `root/src`: three colour frames, the poses
+/// of frames 1 and 3 as 4×4 matrices and of frame 2 as a pose vector, a
+/// camera in a settings file and the tetrahedron model.
+fn visp_data_set(root: &Path) -> PathBuf {
+    let src = root.join("src");
+    for dir in ["Images", "CameraPose", "Config", "Models", "Depth"] {
+        std::fs::create_dir_all(src.join(dir)).unwrap();
+    }
+    for k in 1..=3u32 {
+        let img = image::RgbImage::from_fn(WIDTH, HEIGHT, |x, y| image::Rgb(colour(k, x, y)));
+        img.save(src.join(format!("Images/Image_{k:04}.png"))).unwrap();
+    }
+    for (k, (r, t)) in true_poses().iter().enumerate() {
+        let text = if k == 1 {
+            // θu = 0 for the identity rotation.
+            format!("{}\n{}\n{}\n0\n0\n0\n", t[0], t[1], t[2])
+        } else {
+            let row = |i: usize| format!("{} {} {} {}\n", r[i][0], r[i][1], r[i][2], t[i]);
+            format!("{}{}{}0 0 0 1\n", row(0), row(1), row(2))
+        };
+        std::fs::write(src.join(format!("CameraPose/Camera_{:03}.txt", k + 1)), text).unwrap();
+    }
+    let settings = format!(
+        "<?xml version=\"1.0\"?>\n<conf>\n  <ecm><range><tracking>8</tracking></range></ecm>\n  \
+         <camera>\n    <px>{FX}</px>\n    <py>{FY}</py>\n    <u0>{CX}</u0>\n    <v0>{CY}</v0>\n  </camera>\n</conf>\n"
+    );
+    std::fs::write(src.join("Config/tetra.xml"), settings).unwrap();
+    std::fs::write(src.join("Models/tetra.cao"), TETRAHEDRON).unwrap();
+    src
+}
+
+fn vertices() -> Vec<[f64; 3]> {
+    vec![[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0], [0.0, 0.0, 0.1]]
+}
+
+/// u = fx·X/Z + cx, v = fy·Y/Z + cy of R·p + t, and whether it is in front
+/// of the camera and on the image (−½ ≤ u ≤ W − ½, −½ ≤ v ≤ H − ½).
+fn project(r: &[[f64; 3]; 3], t: &[f64; 3], p: &[f64; 3]) -> ([f64; 2], bool) {
+    let c: Vec<f64> = (0..3).map(|i| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2] + t[i]).collect();
+    let (u, v) = (FX * c[0] / c[2] + CX, FY * c[1] / c[2] + CY);
+    let inside = (-0.5..=f64::from(WIDTH) - 0.5).contains(&u) && (-0.5..=f64::from(HEIGHT) - 0.5).contains(&v);
+    ([u, v], c[2] > 0.0 && inside)
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() < 1e-9
+}
+
+#[test]
+fn a_visp_data_set_becomes_a_sequence_with_its_truth() {
+    let root = crate::common::scratch("import-visp", "ok");
+    let src = visp_data_set(&root);
+    let seq = root.join("seq");
+    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("wrote 3 frames of 64x48"), "{stderr}");
+
+    let camera: Camera = serde_json::from_str(&std::fs::read_to_string(seq.join("camera.json")).unwrap()).unwrap();
+    assert_eq!(camera, Camera { width: WIDTH, height: HEIGHT, fx: FX, fy: FY, cx: CX, cy: CY });
+    assert_eq!(std::fs::read_to_string(seq.join("model.cao")).unwrap(), TETRAHEDRON);
+
+    let truth: Vec<TruthFrame> = std::fs::read_to_string(seq.join("truth.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(truth.len(), 3);
+    let mut hidden = 0;
+    for (k, ((r, t), line)) in true_poses().iter().zip(&truth).enumerate() {
+        assert_eq!(line.frame, k);
+        let pose = line.pose.expect("a pose per frame");
+        for a in 0..3 {
+            assert!(close(pose.rotation[a], TRUE_AXIS_ANGLES[k][a]), "frame {k}: rotation {:?}", pose.rotation);
+            assert!(close(pose.translation[a], t[a]), "frame {k}: translation {:?}", pose.translation);
+        }
+        assert!(line.params.is_empty());
+        assert_eq!(line.corners.len(), 4);
+        for (i, p) in vertices().iter().enumerate() {
+            let (pixel, seen) = project(r, t, p);
+            let got = line.corners[i];
+            assert!(close(got[0], pixel[0]) && close(got[1], pixel[1]), "frame {k} vertex {i}: {got:?} vs {pixel:?}");
+            assert_eq!(line.visible.vertex(i), seen, "frame {k} vertex {i}");
+            hidden += usize::from(!seen);
+        }
+    }
+    assert!(hidden > 0, "frame 0 has a vertex above the image");
+
+    let init: InitState = serde_json::from_str(&std::fs::read_to_string(seq.join("init.json")).unwrap()).unwrap();
+    assert_eq!(init.pose, truth[0].pose);
+    assert_eq!(init.corners, truth[0].corners);
+    assert!(init.params.is_empty());
+
+    for k in 0..3u32 {
+        let frame = image::open(seq.join(format!("frames/{k:06}.png"))).unwrap();
+        let grey = frame.as_luma8().expect("frames are written grey");
+        for (x, y, p) in grey.enumerate_pixels() {
+            let [r, g, b] = colour(k + 1, x, y);
+            assert_eq!(p.0[0], pipetrack::image::luma(r, g, b), "frame {k} pixel ({x}, {y})");
+        }
+    }
+
+    // The folder is a sequence `track` and `score` accept.
+    let opened = pipetrack::io::Sequence::open(&seq, false).unwrap();
+    assert_eq!(opened.frame_count(), Some(3));
+    assert_eq!(opened.read_truth().unwrap().len(), 3);
+}
+
+#[test]
+fn the_first_frames_only_and_an_overlay() {
+    let root = crate::common::scratch("import-visp", "frames");
+    let src = visp_data_set(&root);
+    let (seq, overlay) = (root.join("seq"), root.join("overlay"));
+    let out = pipetrack(&[
+        "import-visp",
+        src.to_str().unwrap(),
+        seq.to_str().unwrap(),
+        "--frames",
+        "2",
+        "--overlay",
+        overlay.to_str().unwrap(),
+        "--model",
+        "Models/tetra.cao",
+        "--camera",
+        "Config/tetra.xml",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(std::fs::read_to_string(seq.join("truth.jsonl")).unwrap().lines().count(), 2);
+    assert_eq!(std::fs::read_dir(seq.join("frames")).unwrap().count(), 2);
+    let drawn = image::open(overlay.join("000000.png")).unwrap().to_rgb8();
+    assert_eq!(drawn.dimensions(), (WIDTH, HEIGHT));
+    assert!(drawn.pixels().any(|p| p.0 == pipetrack::io::overlay::TRACKING_COLOUR), "the model is drawn");
+}
+
+/// Run the import on `src`, expect exit 2 with one line containing every
+/// `needles`, and neither the sequence folder nor a staging folder left.
+fn expect_refused(root: &Path, src: &Path, needles: &[&str]) {
+    let seq = root.join("seq");
+    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert_eq!(lines.len(), 1, "one line: {stderr}");
+    for n in needles {
+        assert!(lines[0].contains(n), "{n:?} missing from {}", lines[0]);
+    }
+    assert!(!seq.exists(), "no sequence folder");
+    let left: Vec<_> = std::fs::read_dir(root).unwrap().filter_map(|e| e.ok()).map(|e| e.file_name()).collect();
+    assert!(left.iter().all(|n| n.to_string_lossy() == "src"), "nothing half-written: {left:?}");
+}
+
+#[test]
+fn missing_poses_are_refused_by_name() {
+    let root = crate::common::scratch("import-visp", "no-poses");
+    let src = visp_data_set(&root);
+    std::fs::remove_dir_all(src.join("CameraPose")).unwrap();
+    expect_refused(&root, &src, &["CameraPose", "missing"]);
+}
+
+#[test]
+fn a_frame_without_a_pose_is_refused_by_name() {
+    let root = crate::common::scratch("import-visp", "no-pose");
+    let src = visp_data_set(&root);
+    std::fs::remove_file(src.join("CameraPose/Camera_002.txt")).unwrap();
+    expect_refused(&root, &src, &["Camera_002.txt", "Image_0002.png has no true pose"]);
+}
+
+#[test]
+fn a_bad_pose_or_a_gap_in_the_frames_is_refused_by_name() {
+    let root = crate::common::scratch("import-visp", "bad-pose");
+    let src = visp_data_set(&root);
+    std::fs::write(src.join("CameraPose/Camera_003.txt"), "1 0 0\n0 1\n").unwrap();
+    expect_refused(&root, &src, &["Camera_003.txt", "5 numbers: expected 16"]);
+
+    let root = crate::common::scratch("import-visp", "gap");
+    let src = visp_data_set(&root);
+    std::fs::remove_file(src.join("Images/Image_0002.png")).unwrap();
+    expect_refused(&root, &src, &["Image_0003.png", "frame 2 is missing before it"]);
+}
+
+/// The tetrahedron as a file of only includes, its points and faces in
+/// `parts/tetra_body.cao`.
+const TETRAHEDRON_BY_LOAD: &str = "V1\nload(\"parts/tetra_body.cao\")  # the body\n0\n0\n0\n0\n0\n0\n";
+
+#[test]
+fn loaded_files_are_copied_and_included_parts_placed() {
+    let root = crate::common::scratch("import-visp", "load");
+    let src = visp_data_set(&root);
+    std::fs::create_dir_all(src.join("Models/parts")).unwrap();
+    std::fs::write(src.join("Models/parts/tetra_body.cao"), TETRAHEDRON).unwrap();
+    std::fs::write(src.join("Models/tetra.cao"), TETRAHEDRON_BY_LOAD).unwrap();
+    std::fs::create_dir_all(src.join("Extra")).unwrap();
+    std::fs::write(src.join("Extra/wedge.cao"), TETRAHEDRON).unwrap();
+
+    // The model alone: model.cao and the file it loads, as they are.
+    let seq = root.join("seq");
+    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(std::fs::read_to_string(seq.join("model.cao")).unwrap(), TETRAHEDRON_BY_LOAD);
+    assert_eq!(std::fs::read_to_string(seq.join("parts/tetra_body.cao")).unwrap(), TETRAHEDRON);
+    let truth: TruthFrame =
+        serde_json::from_str(std::fs::read_to_string(seq.join("truth.jsonl")).unwrap().lines().next().unwrap())
+            .unwrap();
+    assert_eq!(truth.corners.len(), 4);
+
+    // With a second tetrahedron placed 0.3 m along x (and turned a quarter
+    // turn about z): four more vertices, projected where the placement puts them.
+    let seq = root.join("seq-with-part");
+    let out = pipetrack(&[
+        "import-visp",
+        src.to_str().unwrap(),
+        seq.to_str().unwrap(),
+        "--include",
+        "Extra/wedge.cao, t=[0.3; 0; 0], tu=[0; 0; 90deg]",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for file in ["model.cao", "tetra.cao", "parts/tetra_body.cao", "wedge.cao"] {
+        assert!(seq.join(file).is_file(), "{file} copied");
+    }
+    let truth: Vec<TruthFrame> = std::fs::read_to_string(seq.join("truth.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let (r, t) = &true_poses()[1];
+    let frame = &truth[1];
+    assert_eq!(frame.corners.len(), 8);
+    // R_z(90°)·(x, y, z) + (0.3, 0, 0) = (0.3 − y, x, z): no point of the first.
+    let placed: Vec<[f64; 3]> = vertices().iter().map(|p| [0.3 - p[1], p[0], p[2]]).collect();
+    for p in vertices().iter().chain(&placed) {
+        let (pixel, _) = project(r, t, p);
+        assert!(
+            frame.corners.iter().any(|c| (c[0] - pixel[0]).abs() < 1e-9 && (c[1] - pixel[1]).abs() < 1e-9),
+            "vertex {p:?} at {pixel:?} among {:?}",
+            frame.corners
+        );
+    }
+
+    // A bad placement is named as the --include argument's.
+    let out = pipetrack(&[
+        "import-visp",
+        src.to_str().unwrap(),
+        root.join("seq-bad").to_str().unwrap(),
+        "--include",
+        "Extra/wedge.cao, t=[0.2; 0]",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--include"), "{stderr}");
+    assert!(!root.join("seq-bad").exists());
+}
