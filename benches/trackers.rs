@@ -7,6 +7,9 @@
 //! recursive subdivision, indexing) against the early-vision request that
 //! feeds it (LoG σ = 1.2, zero crossings, compaction of the whole frame) on
 //! the same frames and thread: target3dof at 640×480.
+//!
+//! `lowe-split` (also alone: `-- lowe-split`) splits the `lowe` tracker's time
+//! per frame into early vision, segments, matching and estimation.
 
 use std::time::Instant;
 
@@ -52,6 +55,51 @@ fn main() -> pipetrack::Result<()> {
     if names.is_empty() || names.iter().any(|n| n == "segments") {
         pool.install(time_segments)?;
     }
+    if names.is_empty() || names.iter().any(|n| n == "lowe-split") {
+        pool.install(time_lowe_split)?;
+    }
+    Ok(())
+}
+
+/// The `lowe` tracker's time per frame split into early vision (the CPU
+/// backend's request), linking and segmentation, matching and search, and
+/// estimation (the tracker's own timers), on the `box` scene at 640×480,
+/// one thread: means over its 300 frames.
+fn time_lowe_split() -> pipetrack::Result<()> {
+    use pipetrack::synth::boxes::{BoxOptions, render_box};
+    use pipetrack::track::{LoweParams, LoweTracker, Observations, Tracker};
+    let seq = render_box(&BoxOptions::default())?;
+    let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, LoweParams::default())?;
+    let mut backend = CpuBackend::new();
+    let (mut early, mut segments, mut matching, mut estimation, mut branches) = (0.0, 0.0, 0.0, 0.0, 0usize);
+    for (i, frame) in seq.frames.iter().enumerate() {
+        let (w, h) = frame.size();
+        let request = tracker.request(w, h);
+        let start = Instant::now();
+        let features = backend.process(frame, &request)?;
+        early += start.elapsed().as_secs_f64() * 1e3;
+        tracker.track(i, &Observations::from(&features));
+        let d = tracker.diagnostics();
+        segments += d.segments_ms;
+        matching += d.matching_ms;
+        estimation += d.estimation_ms;
+        branches += d.branches;
+    }
+    let n = seq.frames.len().max(1) as f64;
+    println!("\nlowe on box 640x480, one thread, mean ms per frame over {} frames", seq.frames.len());
+    println!(
+        "{:>12} {:>12} {:>12} {:>12} {:>10} {:>10}",
+        "early vision", "segments", "matching", "estimation", "total", "branches"
+    );
+    println!(
+        "{:>12.3} {:>12.3} {:>12.3} {:>12.3} {:>10.3} {:>10.2}",
+        early / n,
+        segments / n,
+        matching / n,
+        estimation / n,
+        (early + segments + matching + estimation) / n,
+        branches as f64 / n
+    );
     Ok(())
 }
 

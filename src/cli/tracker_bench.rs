@@ -14,12 +14,15 @@ use serde::Serialize;
 use crate::backend::{CpuBackend, EarlyVision, FrameFeatures, FrameRequest};
 use crate::io::formats::Status;
 use crate::synth::{SyntheticSequence, render_scene};
-use crate::track::{BlueParams, BlueTracker, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker};
+use crate::track::{
+    BlueParams, BlueTracker, LoweParams, LoweTracker, MotionEdgeParams, MotionEdgeTracker, Observations, Tracker,
+};
 use crate::{Error, Result};
 
 /// Each tracker with the synthetic scene of its paper, at the scene's defaults
-/// (motion-edge: `pendulum`, 256×242; blue: `target3dof`, 640×480).
-pub const CASES: &[(&str, &str)] = &[("motion-edge", "pendulum"), ("blue", "target3dof")];
+/// (motion-edge: `pendulum`, 256×242; blue: `target3dof`, 640×480; lowe:
+/// `box`, 640×480).
+pub const CASES: &[(&str, &str)] = &[("motion-edge", "pendulum"), ("blue", "target3dof"), ("lowe", "box")];
 
 /// A tracker's per-frame host time over one sequence.
 #[derive(Clone, Debug, Serialize)]
@@ -53,6 +56,7 @@ pub fn new_tracker(name: &str, seq: &SyntheticSequence) -> Result<Box<dyn Tracke
             MotionEdgeParams::default(),
         )?),
         "blue" => Box::new(BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), BlueParams::default())?),
+        "lowe" => Box::new(LoweTracker::new(seq.camera, &seq.model, &seq.init, LoweParams::default())?),
         other => return Err(Error::Parameter(format!("unknown tracker {other:?}"))),
     })
 }

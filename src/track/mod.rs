@@ -195,6 +195,7 @@ impl FrameOutcome {
             covariance: self.covariance.clone().filter(|c| finite(c)),
             velocity_screw: None,
             effective_sample_size: None,
+            search_branches: None,
             ms: if ms.is_finite() { ms } else { 0.0 },
         }
     }
@@ -238,6 +239,8 @@ pub struct FrameExtras {
     pub velocity_screw: Option<[f64; 6]>,
     /// The effective sample size of a particle filter's weights.
     pub effective_sample_size: Option<f64>,
+    /// Search branches tried on the frame (Lowe's best-first search).
+    pub search_branches: Option<usize>,
 }
 
 #[cfg(test)]

@@ -378,6 +378,7 @@ pub fn track_features(
     let extras = tracker.extras();
     result.velocity_screw = extras.velocity_screw.filter(|s| s.iter().all(|v| v.is_finite()));
     result.effective_sample_size = extras.effective_sample_size.filter(|v| v.is_finite());
+    result.search_branches = extras.search_branches;
     (outcome, result)
 }
 

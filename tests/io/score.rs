@@ -27,6 +27,7 @@ fn pred(frame: usize, status: Status, dx: f64, dy: f64, extra: f64) -> FrameResu
         covariance: None,
         velocity_screw: None,
         effective_sample_size: None,
+        search_branches: None,
         ms: 1.0,
     }
 }

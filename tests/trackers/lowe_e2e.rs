@@ -44,8 +44,7 @@ const BOX_SLOW: Case = Case {
 };
 const BOX_FAST: Case = Case { speed: 20.0, ..BOX_SLOW };
 const BOX_OCCLUDED: Case = Case { occlude: 0.5, ..BOX_SLOW };
-const HINGED_SLOW: Case =
-    Case { kind: BoxKind::Hinged, max_lid_frames_over_2deg: 40, max_lid_deg: 6.0, ..BOX_SLOW };
+const HINGED_SLOW: Case = Case { kind: BoxKind::Hinged, max_lid_frames_over_2deg: 40, max_lid_deg: 6.0, ..BOX_SLOW };
 const HINGED_FAST: Case = Case { speed: 20.0, ..HINGED_SLOW };
 const HINGED_OCCLUDED: Case =
     Case { occlude: 0.5, min_tracked: 285, max_lid_frames_over_2deg: 45, max_lid_deg: 12.0, ..HINGED_SLOW };
@@ -54,8 +53,7 @@ const HINGED_OCCLUDED: Case =
 fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<FrameResult> {
     let opts = BoxOptions { kind: case.kind, speed: case.speed, occlude: case.occlude, ..BoxOptions::default() };
     let seq = render_box(&opts).expect("render the box scene");
-    let mut tracker =
-        LoweTracker::new(seq.camera, &seq.model, &seq.init, LoweParams::default()).expect("lowe tracker");
+    let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, LoweParams::default()).expect("lowe tracker");
     let size = (seq.camera.width as usize, seq.camera.height as usize);
     let (results, lost) = common::track_lost(&mut tracker, backend, seq.frames.iter().cloned(), size);
     let s = score(&seq.truth, &results).expect("score");

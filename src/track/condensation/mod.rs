@@ -255,6 +255,7 @@ impl CondensationTracker {
         self.extras = FrameExtras {
             velocity_screw: Some(interval_motion),
             effective_sample_size: Some(steps::effective_sample_size(&weights)),
+            search_branches: None,
         };
 
         // Eq. 16–18: resample.

@@ -9,6 +9,9 @@
 //! θ_k that has moved by d from the prediction, the system solved is
 //! (JᵀJ + WᵀW) x = Jᵀe − WᵀW d (eq. 1 at k = 0, where d = 0).
 
+use std::cell::Cell;
+use std::time::{Duration, Instant};
+
 use glam::DVec3;
 
 use super::params::MAX_PARAMS;
@@ -157,11 +160,30 @@ fn normal_equations(problem: &Problem<'_>, state: &State, matches: &[Match]) -> 
     Some((h, g, sum_sq, 2 * matches.len()))
 }
 
+thread_local! {
+    /// Time spent in [`solve`] on this thread since the last [`take_solve_time`].
+    static SOLVE_TIME: Cell<Duration> = const { Cell::new(Duration::ZERO) };
+}
+
+/// The time spent in [`solve`] on this thread since the last call (for the
+/// tracker's time split).
+#[must_use]
+pub fn take_solve_time() -> Duration {
+    SOLVE_TIME.with(|t| t.replace(Duration::ZERO))
+}
+
 /// Fit `matches` by `iterations` stabilised Gauss–Newton steps from
 /// `start`; `None` when the system is singular or a matched edge leaves
 /// the front of the camera.
 #[must_use]
 pub fn solve(problem: &Problem<'_>, start: &State, matches: &[Match], iterations: usize) -> Option<Solution> {
+    let started = Instant::now();
+    let solution = solve_untimed(problem, start, matches, iterations);
+    SOLVE_TIME.with(|t| t.set(t.get() + started.elapsed()));
+    solution
+}
+
+fn solve_untimed(problem: &Problem<'_>, start: &State, matches: &[Match], iterations: usize) -> Option<Solution> {
     let n = 6 + problem.geometry.joint_count();
     let mut state = start.clone();
     for _ in 0..iterations {

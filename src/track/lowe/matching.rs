@@ -227,7 +227,7 @@ mod tests {
             let d = [ux * c - uy * s, ux * s + uy * c];
             [[m[0] - d[0] * half, m[1] - d[1] * half], [m[0] + d[0] * half, m[1] + d[1] * half]]
         };
-        let images = vec![
+        let images = [
             turned(0.1, 0.9, 1.0, 0.0),  // the true segment
             turned(0.2, 0.7, 6.0, 0.0),  // parallel clutter 6 px off
             turned(0.1, 0.6, 2.0, 0.25), // close but turned 14°

@@ -59,7 +59,7 @@ use self::params::MAX_PARAMS;
 use self::projection::{Linearised, ModelSegment, Row, State};
 use self::search::{SearchFrame, SearchSettings, segments_needed};
 use self::segments::{ImageSegment, SegmentExtractor, SegmentIndex};
-use super::{Diagnostics, FrameOutcome, Observations, Phase, Tracker};
+use super::{Diagnostics, FrameExtras, FrameOutcome, Observations, Phase, Tracker};
 use crate::backend::{FrameRequest, ListSpec, ZeroCrossingRequest};
 use crate::early::Window;
 use crate::early::log::LogParams;
@@ -87,6 +87,13 @@ pub struct LoweDiagnostics {
     pub residual_sigma: Option<f64>,
     /// Fraction of the visible model edges' length covered by matches.
     pub coverage: f64,
+    /// Host time of linking, segmentation and indexing, ms.
+    pub segments_ms: f64,
+    /// Host time of visibility, candidates and the search, estimation
+    /// excluded, ms.
+    pub matching_ms: f64,
+    /// Host time of the Gauss–Newton solutions, ms.
+    pub estimation_ms: f64,
 }
 
 /// The Lowe tracker.
@@ -356,14 +363,21 @@ impl Tracker for LoweTracker {
         }
     }
 
+    fn extras(&self) -> FrameExtras {
+        FrameExtras { search_branches: Some(self.last_diagnostics.branches), ..FrameExtras::default() }
+    }
+
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {
         let (width, height) = (self.camera.width as usize, self.camera.height as usize);
         self.window = self.window_of_interest(width, height);
+        let started = std::time::Instant::now();
         let crossings = observations.zero_crossings.unwrap_or(&[]);
         let mut image_segments = std::mem::take(&mut self.image_segments);
         self.extractor.extract(crossings, self.window, &mut image_segments);
         self.image_segments = image_segments;
         self.index.build(&self.image_segments, self.window);
+        let segmented = std::time::Instant::now();
+        let _ = estimation::take_solve_time();
 
         let n = self.n();
         let needed = segments_needed(n);
@@ -413,6 +427,10 @@ impl Tracker for LoweTracker {
                 }
             }
         }
+        let estimation = estimation::take_solve_time().as_secs_f64();
+        diag.segments_ms = (segmented - started).as_secs_f64() * 1e3;
+        diag.estimation_ms = estimation * 1e3;
+        diag.matching_ms = ((segmented.elapsed().as_secs_f64() - estimation) * 1e3).max(0.0);
         let mut lost_reason = None;
         let verified = match &accepted {
             None => {
@@ -467,18 +485,6 @@ impl Tracker for LoweTracker {
                 .iter()
                 .map(|s| EdgeBand { a: s.a, b: s.b, sigma: SegmentSpread::of(s, &p, n).perpendicular })
                 .collect();
-        }
-        if std::env::var_os("LOWE_DEBUG").is_some() {
-            eprintln!(
-                "DEBUG frame {frame} {status:?} segs {} branches {} doublings {} matches {} resid {:?} cov {:.2} {:?}",
-                diag.image_segments,
-                diag.branches,
-                diag.doublings,
-                diag.matches,
-                diag.residual_sigma,
-                diag.coverage,
-                lost_reason
-            );
         }
         let corners = self.corners_at(&reported);
         self.prediction = self.predict();
