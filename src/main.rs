@@ -41,7 +41,7 @@ enum Command {
     Track {
         /// Sequence folder (camera.json, model.json, model.cao or model.obj, init.json, frames/).
         seq_dir: PathBuf,
-        /// Tracker: motion-edge (000), blue (002) or condensation (004).
+        /// Tracker: motion-edge (000), lowe (001), blue (002) or condensation (004).
         #[arg(long)]
         tracker: String,
         /// Early-vision backend.
