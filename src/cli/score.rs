@@ -89,6 +89,49 @@ pub struct Score {
     /// `false_tracking_px`, or whose truth shows no vertex (module doc), in
     /// frame order.
     pub false_tracking: Vec<usize>,
+    /// Pose errors over the scored frames where both the prediction and the
+    /// truth have a pose; `None` without any.
+    pub pose_errors: Option<PoseErrors>,
+}
+
+/// Errors of the reported pose and joint values against the truth's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseErrors {
+    /// Frames compared.
+    pub frames: usize,
+    /// Mean and largest distance between the translations, m.
+    pub translation_m: [f64; 2],
+    /// Mean and largest angle of the relative rotation R_pred·R_truthᵀ, degrees.
+    pub rotation_deg: [f64; 2],
+    /// Mean and largest absolute joint value difference over joints and
+    /// frames, degrees; `None` for a model without joints.
+    pub joint_deg: Option<[f64; 2]>,
+}
+
+impl PoseErrors {
+    /// The errors over `(predicted, truth)` pairs of pose and joint values.
+    fn of(pairs: &[(&FrameResult, &TruthFrame)]) -> Option<Self> {
+        use crate::geometry::{Pose as RigidPose, axis_angle_from_rotation};
+        let mut translation = Vec::new();
+        let mut rotation = Vec::new();
+        let mut joints = Vec::new();
+        for (p, t) in pairs {
+            let (Some(pp), Some(tp)) = (&p.pose, &t.pose) else { continue };
+            let (a, b) = (RigidPose::from(pp), RigidPose::from(tp));
+            translation.push((a.translation - b.translation).length());
+            rotation.push(axis_angle_from_rotation(&(a.rotation * b.rotation.transpose())).length().to_degrees());
+            if let Some(params) = &p.params {
+                joints.extend(params.iter().zip(&t.params).map(|(x, y)| (x - y).abs().to_degrees()));
+            }
+        }
+        let mean_max = |v: &[f64]| [v.iter().sum::<f64>() / v.len() as f64, v.iter().copied().fold(0.0, f64::max)];
+        (!translation.is_empty()).then(|| Self {
+            frames: translation.len(),
+            translation_m: mean_max(&translation),
+            rotation_deg: mean_max(&rotation),
+            joint_deg: (!joints.is_empty()).then(|| mean_max(&joints)),
+        })
+    }
 }
 
 impl Score {
@@ -172,6 +215,7 @@ fn score_impl(
         ));
     }
     let mut frame_errors = Vec::new();
+    let mut posed = Vec::new();
     let mut false_tracking = Vec::new();
     let mut corner_sums: Vec<(f64, usize)> = Vec::new();
     for (p, t) in predictions.iter().zip(truth) {
@@ -231,6 +275,7 @@ fn score_impl(
             false_tracking.push(p.frame);
         }
         frame_errors.push((p.frame, error));
+        posed.push((p, t));
     }
     let errors: Vec<f64> = frame_errors.iter().map(|&(_, e)| e).collect();
     Ok(Score {
@@ -242,6 +287,7 @@ fn score_impl(
         frame_errors,
         false_tracking_px,
         false_tracking,
+        pose_errors: PoseErrors::of(&posed),
     })
 }
 
@@ -274,6 +320,20 @@ impl fmt::Display for Score {
             100.0 * self.false_tracking_fraction(),
             self.false_tracking_px
         )?;
+        if let Some(e) = &self.pose_errors {
+            writeln!(
+                f,
+                "pose error:          translation {:.2} mm mean, {:.2} mm max; rotation {:.3}° mean, {:.3}° max ({} frames)",
+                1e3 * e.translation_m[0],
+                1e3 * e.translation_m[1],
+                e.rotation_deg[0],
+                e.rotation_deg[1],
+                e.frames
+            )?;
+            if let Some([mean, max]) = e.joint_deg {
+                writeln!(f, "joint error:         {mean:.2}° mean, {max:.2}° max")?;
+            }
+        }
         match self.first_lost {
             Some(frame) => write!(f, "first lost frame:    {frame}"),
             None => write!(f, "first lost frame:    none"),

@@ -217,3 +217,31 @@ fn predictions_file_round_trip_and_errors() {
     let empty = TempFile::new("empty.jsonl", "");
     assert!(input_message(read_predictions(&empty.0), &empty).starts_with("empty file"));
 }
+
+/// Pose errors, hand-worked: frame 0 off by 3 mm along x and 4 mm along y
+/// (5 mm) and turned 2° about z, frame 1 exact; joint values 1° and 3° off.
+#[test]
+fn pose_errors_compare_translation_rotation_and_joints() {
+    use pipetrack::io::formats::Pose;
+    let pose = |r: [f64; 3], t: [f64; 3]| Some(Pose { rotation: r, translation: t });
+    let mut truth = vec![truth(0, true), truth(1, true)];
+    let mut preds = vec![pred(0, Status::Tracking, 0.0, 0.0, 0.0), pred(1, Status::Tracking, 0.0, 0.0, 0.0)];
+    for t in &mut truth {
+        t.pose = pose([0.0, 0.0, 0.3], [0.1, 0.0, 1.0]);
+        t.params = vec![0.5];
+    }
+    preds[0].pose = pose([0.0, 0.0, 0.3 + 2f64.to_radians()], [0.103, 0.004, 1.0]);
+    preds[0].params = Some(vec![0.5 + 1f64.to_radians()]);
+    preds[1].pose = truth[1].pose;
+    preds[1].params = Some(vec![0.5 - 3f64.to_radians()]);
+    let e = score(&truth, &preds).unwrap().pose_errors.expect("poses on both sides");
+    assert_eq!(e.frames, 2);
+    assert!((e.translation_m[0] - 0.0025).abs() < 1e-12 && (e.translation_m[1] - 0.005).abs() < 1e-12, "{e:?}");
+    assert!((e.rotation_deg[0] - 1.0).abs() < 1e-9 && (e.rotation_deg[1] - 2.0).abs() < 1e-9, "{e:?}");
+    let [mean, max] = e.joint_deg.unwrap();
+    assert!((mean - 2.0).abs() < 1e-9 && (max - 3.0).abs() < 1e-9, "{mean} {max}");
+    let text = score(&truth, &preds).unwrap().to_string();
+    assert!(text.contains("pose error:          translation 2.50 mm mean, 5.00 mm max"), "{text}");
+    // Without poses, no pose figures.
+    assert!(score(&run().0, &run().1).unwrap().pose_errors.is_none());
+}

@@ -8,7 +8,7 @@
 //!    solutions (the rotation and the centre's displacement of the last
 //!    frame interval applied once more; joints likewise, within their
 //!    limits), with a prior standard deviation per parameter
-//!    (`prior_*_sigma`).
+//!    (`prior_rotation_sigma`, `prior_translation_px`, `prior_joint_sigma`).
 //! 2. **Features** ([`segments`]): LoG σ = 1.2 zero crossings in a window
 //!    around the predicted model (wide enough for the largest search
 //!    range), linked with hysteresis, cut into straight segments, indexed
@@ -180,12 +180,14 @@ impl LoweTracker {
     /// Prior standard deviations after `doublings` doublings.
     fn prior_sigmas(&self, doublings: usize) -> Row {
         let scale = f64::from(1u32 << doublings);
+        let depth = self.prediction.pose.apply(self.centre).z.abs().max(1e-6);
+        let translation = self.params.prior_translation_px * depth / self.camera.fx;
         let mut sigmas = [0.0; MAX_PARAMS];
         for (i, s) in sigmas.iter_mut().enumerate().take(self.n()) {
             *s = scale
                 * match i {
                     0..=2 => self.params.prior_rotation_sigma,
-                    3..=5 => self.params.prior_translation_sigma,
+                    3..=5 => translation,
                     _ => self.params.prior_joint_sigma,
                 };
         }
