@@ -1,4 +1,4 @@
-//! `tracking` is a claim the tracker checks: both trackers on synthetic
+//! `tracking` is a claim the tracker checks: the trackers on synthetic
 //! sequences whose object jumps, leaves the image and comes back, is hidden
 //! for 20 frames, or is initialised far off. Per frame, the status is
 //! asserted against what the image shows: lost within a few frames of the
@@ -18,9 +18,12 @@ use pipetrack::cli::score::score;
 use pipetrack::image::GrayImage;
 use pipetrack::io::formats::{FrameResult, Status, Visibility};
 use pipetrack::synth::SyntheticSequence;
+use pipetrack::synth::boxes::{BoxOptions, render_box};
 use pipetrack::synth::pendulum::{PendulumOptions, render_pendulum};
 use pipetrack::synth::target3dof::{Target3dofOptions, render_target3dof};
-use pipetrack::track::{BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Tracker};
+use pipetrack::track::{
+    BlueParams, BlueTracker, FrameOutcome, LoweParams, LoweTracker, MotionEdgeParams, MotionEdgeTracker, Tracker,
+};
 
 /// Grey of a covered camera.
 const COVER_GREY: u8 = 100;
@@ -347,4 +350,36 @@ fn blue_wrong_initialisation_is_never_tracking() {
     let found = first(&st, 0, 'T').expect("found");
     assert!(found <= 8, "found at frame {found}");
     assert!(st[found..].chars().all(|c| c == 'T'), "holds the target once found");
+}
+
+// ---------------------------------------------------------------------------
+// lowe on the box (640×480, 4 px/frame of the fastest vertex).
+
+fn box_scene() -> SyntheticSequence {
+    render_box(&BoxOptions { frames: 150, ..BoxOptions::default() }).expect("render")
+}
+
+fn lowe(seq: &SyntheticSequence) -> Box<dyn Tracker> {
+    Box::new(LoweTracker::new(seq.camera, &seq.model, &seq.init, LoweParams::default()).expect("tracker"))
+}
+
+#[test]
+fn lowe_covered_for_20_frames_is_lost_then_reacquired_cpu() {
+    check_cover("lowe cover cpu", box_scene(), lowe, &mut CpuBackend::new(), 60..80, 85, "box");
+}
+
+#[test]
+fn lowe_wrong_initialisation_is_never_tracking() {
+    // Initialised 8 cm (≈ 37 px) to the side: lost at frame 0, found by the
+    // doubled search ranges, and never tracking off the box.
+    let mut seq = box_scene();
+    if let Some(pose) = &mut seq.init.pose {
+        pose.translation[0] += 0.08;
+    }
+    let out = run(&seq, lowe(&seq), &mut CpuBackend::new());
+    let st = check_no_false_tracking("lowe wrong init", &seq, &out);
+    assert_eq!(&st[..1], "L", "frame 0: {}", reason(&out, 0));
+    let found = first(&st, 0, 'T').expect("found");
+    println!("lowe wrong init: found at {found}");
+    assert!(found <= 5 && st[found..].chars().all(|c| c == 'T'), "found at {found}, then held: {st}");
 }
