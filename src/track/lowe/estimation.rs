@@ -16,6 +16,7 @@ use glam::DVec3;
 
 use super::params::MAX_PARAMS;
 use super::projection::{Linearised, ModelSegment, Row, State};
+use crate::estimate::linalg::invert_spd;
 use crate::geometry::{Camera, ModelGeometry};
 
 /// A symmetric n×n matrix in the top-left of a fixed array.
@@ -73,46 +74,40 @@ pub struct Solution {
     pub rows: usize,
 }
 
-/// Cholesky factorisation of the n×n top-left of `h` solved for `g`, and
-/// the inverse; `None` unless positive definite.
+/// The inverse of the n×n top-left of the symmetric `h`
+/// ([`invert_spd`] with the unused diagonal set to 1, which leaves the used
+/// block's inverse as it is); `None` unless positive definite.
 #[must_use]
-pub fn solve_spd(h: &Matrix, g: &Row, n: usize) -> Option<(Row, Matrix)> {
-    let mut l = [[0.0; MAX_PARAMS]; MAX_PARAMS];
+pub fn invert_top_left(h: &Matrix, n: usize) -> Option<Matrix> {
+    let mut padded = *h;
+    for (i, row) in padded.iter_mut().enumerate().skip(n) {
+        row.fill(0.0);
+        row[i] = 1.0;
+    }
+    for row in &mut padded[..n] {
+        row[n..].fill(0.0);
+    }
+    invert_spd(&padded)
+}
+
+/// `M · v` over the n×n top-left.
+fn times(m: &Matrix, v: &Row, n: usize) -> Row {
+    let mut out = [0.0; MAX_PARAMS];
+    for (o, row) in out.iter_mut().zip(m).take(n) {
+        *o = (0..n).map(|j| row[j] * v[j]).sum();
+    }
+    out
+}
+
+/// The diagonal covariance of independent parameters with standard
+/// deviations `sigmas` (n×n in the top-left).
+#[must_use]
+pub fn diagonal(sigmas: &Row, n: usize) -> Matrix {
+    let mut p = [[0.0; MAX_PARAMS]; MAX_PARAMS];
     for i in 0..n {
-        for j in 0..=i {
-            let s = h[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            if i == j {
-                if !(s > 1e-300 && s.is_finite()) {
-                    return None;
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
+        p[i][i] = sigmas[i] * sigmas[i];
     }
-    let forward_back = |b: &Row| {
-        let mut y = [0.0; MAX_PARAMS];
-        for i in 0..n {
-            y[i] = (b[i] - (0..i).map(|k| l[i][k] * y[k]).sum::<f64>()) / l[i][i];
-        }
-        let mut x = [0.0; MAX_PARAMS];
-        for i in (0..n).rev() {
-            x[i] = (y[i] - (i + 1..n).map(|k| l[k][i] * x[k]).sum::<f64>()) / l[i][i];
-        }
-        x
-    };
-    let x = forward_back(g);
-    let mut inverse = [[0.0; MAX_PARAMS]; MAX_PARAMS];
-    for c in 0..n {
-        let mut e = [0.0; MAX_PARAMS];
-        e[c] = 1.0;
-        let col = forward_back(&e);
-        for r in 0..n {
-            inverse[r][c] = col[r];
-        }
-    }
-    Some((x, inverse))
+    p
 }
 
 /// `row · M · rowᵀ` over the n×n top-left.
@@ -188,11 +183,11 @@ fn solve_untimed(problem: &Problem<'_>, start: &State, matches: &[Match], iterat
     let mut state = start.clone();
     for _ in 0..iterations {
         let (h, g, _, _) = normal_equations(problem, &state, matches)?;
-        let (x, _) = solve_spd(&h, &g, n)?;
+        let x = times(&invert_top_left(&h, n)?, &g, n);
         state = state.corrected(&x[..n], problem.centre, problem.limits);
     }
-    let (h, g, sum_sq, rows) = normal_equations(problem, &state, matches)?;
-    let (_, covariance) = solve_spd(&h, &g, n)?;
+    let (h, _, sum_sq, rows) = normal_equations(problem, &state, matches)?;
+    let covariance = invert_top_left(&h, n)?;
     let residual_sigma = (rows > n).then(|| (sum_sq / (rows - n) as f64).sqrt());
     Some(Solution { state, covariance, residual_sigma, rows })
 }

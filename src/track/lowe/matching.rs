@@ -209,10 +209,9 @@ mod tests {
         let lin = Linearised::at(&geometry, &state, centre).unwrap();
         let seg = ModelSegment::new(&lin, &cam, geometry.edges(), 0, [0.0, 1.0]).unwrap();
         let n = lin.n;
-        let mut p = [[0.0; MAX_PARAMS]; MAX_PARAMS];
-        for (i, s) in [0.02, 0.02, 0.02, 0.005, 0.005, 0.005, 0.05].iter().enumerate() {
-            p[i][i] = s * s;
-        }
+        let mut sigmas = [0.0; MAX_PARAMS];
+        sigmas[..7].copy_from_slice(&[0.02, 0.02, 0.02, 0.005, 0.005, 0.005, 0.05]);
+        let p = crate::track::lowe::estimation::diagonal(&sigmas, n);
         let spread = SegmentSpread::of(&seg, &p, n);
         assert!(spread.perpendicular[0] > 1.0 && spread.perpendicular[0] < 20.0, "{spread:?}");
         let [nx, ny] = seg.normal();

@@ -115,6 +115,7 @@ pub struct LoweTracker {
     /// Doubling the next frame's search starts at.
     first_doubling: usize,
     phase: Phase,
+    /// Window of interest around this frame's prediction.
     window: Window,
     last_diagnostics: LoweDiagnostics,
 }
@@ -148,7 +149,7 @@ impl LoweTracker {
         }
         let state = State { pose: Pose::from(pose), params: joint_values };
         let segment_params = params.segments.clone();
-        Ok(Self {
+        let mut tracker = Self {
             camera,
             centre: geometry.centroid(),
             limits: geometry.joint_limits(),
@@ -164,7 +165,9 @@ impl LoweTracker {
             last_diagnostics: LoweDiagnostics::default(),
             geometry,
             params,
-        })
+        };
+        tracker.window = tracker.window_at(&tracker.prediction, camera.width as usize, camera.height as usize);
+        Ok(tracker)
     }
 
     /// The diagnostics of the last frame.
@@ -194,14 +197,6 @@ impl LoweTracker {
         sigmas
     }
 
-    fn diagonal(sigmas: &Row, n: usize) -> Matrix {
-        let mut p = [[0.0; MAX_PARAMS]; MAX_PARAMS];
-        for i in 0..n {
-            p[i][i] = sigmas[i] * sigmas[i];
-        }
-        p
-    }
-
     /// The image positions of every vertex at `state` (NaN for a vertex at
     /// or behind the camera).
     fn corners_at(&self, state: &State) -> Vec<[f64; 2]> {
@@ -224,7 +219,7 @@ impl LoweTracker {
     /// reach of the widest prior.
     fn window_at(&self, state: &State, width: usize, height: usize) -> Window {
         let n = self.n();
-        let widest = Self::diagonal(&self.prior_sigmas(self.params.range_doublings), n);
+        let widest = estimation::diagonal(&self.prior_sigmas(self.params.range_doublings), n);
         let Ok(lin) = Linearised::at(&self.geometry, state, self.centre) else {
             return Window::full(width, height);
         };
@@ -350,7 +345,7 @@ impl Tracker for LoweTracker {
     }
 
     fn window_of_interest(&self, width: usize, height: usize) -> Window {
-        self.window_at(&self.prediction, width, height)
+        self.window.clipped(width, height)
     }
 
     fn request(&self, width: usize, height: usize) -> FrameRequest {
@@ -371,7 +366,6 @@ impl Tracker for LoweTracker {
 
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {
         let (width, height) = (self.camera.width as usize, self.camera.height as usize);
-        self.window = self.window_of_interest(width, height);
         let started = std::time::Instant::now();
         let crossings = observations.zero_crossings.unwrap_or(&[]);
         let mut image_segments = std::mem::take(&mut self.image_segments);
@@ -393,15 +387,15 @@ impl Tracker for LoweTracker {
         let settings = self.settings();
         let mut diag = LoweDiagnostics { image_segments: self.image_segments.len(), ..LoweDiagnostics::default() };
         let mut accepted = None;
+        let mut segs = Vec::new();
         {
             let view = FrameView { tracker: self, ctx };
-            let mut segs = Vec::new();
             let mut cands = Vec::new();
             view.visible_segments(&self.prediction, &mut segs);
             for doubling in self.first_doubling..=self.params.range_doublings {
                 diag.doublings = doubling;
                 let sigmas = self.prior_sigmas(doubling);
-                let p0 = Self::diagonal(&sigmas, n);
+                let p0 = estimation::diagonal(&sigmas, n);
                 view.candidates(&segs, &p0, &mut cands);
                 let mut with_candidates: Vec<usize> = cands.iter().map(|c| c.model).collect();
                 with_candidates.dedup();
@@ -458,12 +452,16 @@ impl Tracker for LoweTracker {
                 }
             }
         };
-        let (status, reported, covariance) = match verified {
+        // The overlay's bands: the visible model at the reported state (the
+        // search's segments at the solution, or those at the prediction) with
+        // the spread of its perpendicular position.
+        let (status, reported, covariance, band_segs) = match verified {
             Some(solution) => {
                 self.before_last = Some(std::mem::replace(&mut self.last, solution.state.clone()));
                 self.first_doubling = 0;
                 self.phase = Phase::Tracking;
-                (Status::Tracking, solution.state, Some(solution.covariance))
+                let final_segs = accepted.map(|(_, _, final_segs)| final_segs).unwrap_or_default();
+                (Status::Tracking, solution.state, Some(solution.covariance), final_segs)
             }
             None => {
                 // Coast: the prediction becomes the last state, so the next
@@ -472,24 +470,17 @@ impl Tracker for LoweTracker {
                 self.before_last = Some(std::mem::replace(&mut self.last, coasted));
                 self.first_doubling = self.params.range_doublings;
                 self.phase = Phase::Lost;
-                (Status::Lost, self.prediction.clone(), None)
+                (Status::Lost, self.prediction.clone(), None, segs)
             }
         };
-        // The overlay's bands: the visible model at the reported state with
-        // the spread of its perpendicular position.
-        let bands;
-        {
-            let view = FrameView { tracker: self, ctx };
-            let mut segs = Vec::new();
-            view.visible_segments(&reported, &mut segs);
-            let p = covariance.unwrap_or_else(|| Self::diagonal(&self.prior_sigmas(self.params.range_doublings), n));
-            bands = segs
-                .iter()
-                .map(|s| EdgeBand { a: s.a, b: s.b, sigma: SegmentSpread::of(s, &p, n).perpendicular })
-                .collect();
-        }
+        let p = covariance.unwrap_or_else(|| estimation::diagonal(&self.prior_sigmas(self.params.range_doublings), n));
+        let bands = band_segs
+            .iter()
+            .map(|s| EdgeBand { a: s.a, b: s.b, sigma: SegmentSpread::of(s, &p, n).perpendicular })
+            .collect();
         let corners = self.corners_at(&reported);
         self.prediction = self.predict();
+        self.window = self.window_at(&self.prediction, width, height);
         let covariance = covariance.map(|p| (0..n).flat_map(|i| (0..n).map(move |j| p[i][j])).collect());
         self.last_diagnostics = diag;
         FrameOutcome {

@@ -34,12 +34,6 @@ use crate::{Error, Result};
 /// A row of derivatives with respect to the correction x (first `n` used).
 pub type Row = [f64; MAX_PARAMS];
 
-/// `a · b` over the first `n` entries.
-#[must_use]
-pub fn dot(a: &Row, b: &Row, n: usize) -> f64 {
-    a[..n].iter().zip(&b[..n]).map(|(x, y)| x * y).sum()
-}
-
 /// The tracked state: pose and joint values.
 #[derive(Clone, Debug, PartialEq)]
 pub struct State {

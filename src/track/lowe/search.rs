@@ -119,13 +119,12 @@ fn node_set(
         if set.len() >= needed && product * probabilities[c] < set_probability {
             break;
         }
-        let mut trial = set.clone();
-        let at = trial.binary_search(&c).unwrap_or_else(|e| e);
-        trial.insert(at, c);
-        if contains_rejected(&trial, rejected) {
+        let at = set.binary_search(&c).unwrap_or_else(|e| e);
+        set.insert(at, c);
+        if contains_rejected(&set, rejected) {
+            set.remove(at);
             continue;
         }
-        set = trial;
         product *= probabilities[c];
     }
     (set.len() >= needed).then_some(set)
@@ -363,10 +362,7 @@ mod tests {
             measurement_sigma: 1.0,
             reference_length: 0.0,
         };
-        let mut p0 = [[0.0; MAX_PARAMS]; MAX_PARAMS];
-        for i in 0..7 {
-            p0[i][i] = sigmas[i] * sigmas[i];
-        }
+        let p0 = crate::track::lowe::estimation::diagonal(&sigmas, 7);
         let mut segs = Vec::new();
         frame.model_segments(&prediction, &mut segs);
         let mut cands = Vec::new();
