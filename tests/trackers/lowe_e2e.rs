@@ -9,7 +9,10 @@
 //! 5 px off (false tracking), the mean vertex error, and for the hinged box
 //! the lid angle's error: its largest value and how many frames are more
 //! than 2° off. The figures asserted are what the tracker achieves today
-//! with a margin; they are printed with `--nocapture`.
+//! with a margin; they are printed with `--nocapture`, with the lid's
+//! reported standard deviation on each frame more than 2° off (those are
+//! frames where the image pins the lid down poorly: seen edge-on, or half
+//! hidden).
 
 use crate::common;
 
@@ -44,9 +47,9 @@ const BOX_SLOW: Case = Case {
 };
 const BOX_FAST: Case = Case { speed: 20.0, ..BOX_SLOW };
 const BOX_OCCLUDED: Case = Case { occlude: 0.5, ..BOX_SLOW };
-const HINGED_SLOW: Case = Case { kind: BoxKind::Hinged, max_lid_frames_over_2deg: 40, max_lid_deg: 6.0, ..BOX_SLOW };
-const HINGED_FAST: Case = Case { speed: 20.0, ..HINGED_SLOW };
-const HINGED_OCCLUDED: Case = Case { occlude: 0.5, max_lid_frames_over_2deg: 45, max_lid_deg: 12.0, ..HINGED_SLOW };
+const HINGED_SLOW: Case = Case { kind: BoxKind::Hinged, max_lid_frames_over_2deg: 3, max_lid_deg: 6.0, ..BOX_SLOW };
+const HINGED_FAST: Case = Case { speed: 20.0, max_lid_frames_over_2deg: 2, max_lid_deg: 3.0, ..HINGED_SLOW };
+const HINGED_OCCLUDED: Case = Case { occlude: 0.5, max_lid_frames_over_2deg: 15, max_lid_deg: 6.0, ..HINGED_SLOW };
 
 /// Track `case` on `backend`, assert its figures and return the results.
 fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<FrameResult> {
@@ -57,21 +60,32 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<
     let (results, lost) = common::track_lost(&mut tracker, backend, seq.frames.iter().cloned(), size);
     let s = score(&seq.truth, &results).expect("score");
     let stats = s.stats.expect("scored frames");
-    let lid_errors: Vec<f64> = results
+    let lid_errors: Vec<(usize, f64)> = results
         .iter()
         .zip(&seq.truth)
-        .filter_map(|(r, t)| Some((r.params.as_ref()?.first()? - t.params.first()?).abs().to_degrees()))
+        .filter_map(|(r, t)| Some((r.frame, (r.params.as_ref()?.first()? - t.params.first()?).abs().to_degrees())))
         .collect();
-    let lid_over = lid_errors.iter().filter(|e| **e > 2.0).count();
-    let lid_max = lid_errors.iter().copied().fold(0.0, f64::max);
+    let lid_over = lid_errors.iter().filter(|(_, e)| *e > 2.0).count();
+    let lid_max = lid_errors.iter().map(|(_, e)| *e).fold(0.0, f64::max);
+    // The lid is the seventh parameter: its variance is the covariance's
+    // diagonal entry 6 of 7.
+    let lid_sigma = |frame: usize| {
+        results[frame].covariance.as_ref().and_then(|c| c.get(6 * 7 + 6)).map_or(f64::NAN, |v| v.sqrt().to_degrees())
+    };
+    let over: Vec<String> = lid_errors
+        .iter()
+        .filter(|(_, e)| *e > 2.0)
+        .map(|&(f, e)| format!("{f}: {e:.1}° (σ {:.1}°)", lid_sigma(f)))
+        .collect();
     let label = format!("{backend_name}, {}, {} px/frame, occlude {}", case.kind.name(), case.speed, case.occlude);
     eprintln!(
-        "{label}: {} of {} frames tracked, mean {:.3} px, max {:.3} px, false tracking {}; lid: {lid_over} frames > 2°, max {lid_max:.2}°",
+        "{label}: {} of {} frames tracked, mean {:.3} px, max {:.3} px, false tracking {}; lid: {lid_over} frames > 2°, max {lid_max:.2}° [{}]",
         s.tracked,
         s.frames,
         stats.mean,
         stats.max,
-        s.false_tracking.len()
+        s.false_tracking.len(),
+        over.join(", ")
     );
     assert!(
         s.tracked >= case.min_tracked,
@@ -113,15 +127,15 @@ fn lowe_holds_hinged_box_occluded_cpu() {
     check(&HINGED_OCCLUDED, &mut CpuBackend::new(), "cpu");
 }
 
-/// The GPU backend holds the fast box, the fast hinged box and the occluded
-/// hinged box as the CPU backend does, with the same statuses and corners
-/// (the early-vision stages agree, so do the features).
+/// The GPU backend holds all six scenes as the CPU backend does, with the
+/// same statuses and corners (the early-vision stages agree, so do the
+/// features).
 #[test]
 fn lowe_gpu_matches_cpu() {
     let Some((ctx, _guard)) = common::gpu("lowe_gpu_matches_cpu") else {
         return;
     };
-    for case in [&BOX_FAST, &HINGED_FAST, &HINGED_OCCLUDED] {
+    for case in [&BOX_SLOW, &BOX_FAST, &BOX_OCCLUDED, &HINGED_SLOW, &HINGED_FAST, &HINGED_OCCLUDED] {
         let gpu = check(case, &mut GpuBackend::new(ctx.clone()), "gpu");
         let cpu = check(case, &mut CpuBackend::new(), "cpu");
         for (g, c) in gpu.iter().zip(&cpu) {

@@ -245,6 +245,7 @@ impl LoweTracker {
             iterations: self.params.iterations,
             lock_iterations: self.params.lock_iterations,
             lock_probability: self.params.lock_probability,
+            swap_gap: self.params.swap_gap_px,
         }
     }
 }
@@ -306,6 +307,10 @@ impl SearchFrame for FrameView<'_> {
     fn verify(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> bool {
         coverage(segs, matches) >= self.tracker.params.min_coverage
     }
+
+    fn covered_length(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
+        covered_length(segs, matches)
+    }
 }
 
 /// Fraction of the model segments' total length covered by the matched
@@ -316,6 +321,12 @@ fn coverage(segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
     if total <= 0.0 {
         return 0.0;
     }
+    covered_length(segs, matches) / total
+}
+
+/// Length of the model segments covered by the matched image segments
+/// (each projected onto its model segment and clipped to it), px.
+fn covered_length(segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
     let mut covered = 0.0;
     for seg in segs {
         let length = seg.length();
@@ -336,7 +347,7 @@ fn coverage(segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
             end = end.max(s1);
         }
     }
-    covered / total
+    covered
 }
 
 impl Tracker for LoweTracker {

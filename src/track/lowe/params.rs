@@ -94,6 +94,15 @@ pub struct LoweParams {
     /// Extra margin of the window of interest around the predicted model,
     /// px, on top of the search range. Range: [0, 4096].
     pub window_margin_px: f64,
+    /// Widest gap between a matched model edge and an unmatched, nearly
+    /// parallel neighbour that the search tries the other way round after
+    /// a verified solution, px (the two sides of a thin face; see
+    /// [`super::search`], step 6); 0 tries none. 8 px: on the hinged box
+    /// (300 frames each) the frames with the lid more than 2° off went from
+    /// 24 to 2 at 4 px/frame, 31 to 1 at 20 px/frame and 28 to 13 with half
+    /// the edges hidden; 6 px left 3 at 20 px/frame (the lid's 1 cm front
+    /// is 2–6 px wide there). Range: [0, 50].
+    pub swap_gap_px: f64,
     /// Linking, segmentation and indexing of the zero crossings (a
     /// `[segments]` table in the TOML file; see [`SegmentParams`]).
     pub segments: SegmentParams,
@@ -120,6 +129,7 @@ impl Default for LoweParams {
             lock_iterations: 4,
             min_coverage: 0.25,
             window_margin_px: 8.0,
+            swap_gap_px: 8.0,
             segments: SegmentParams::default(),
         }
     }
@@ -152,6 +162,7 @@ impl LoweParams {
         check_count(WHO, "lock_iterations", self.lock_iterations, 0, 20)?;
         Interval::closed(0.0, 1.0).check(WHO, "min_coverage", self.min_coverage, "")?;
         Interval::closed(0.0, 4096.0).check(WHO, "window_margin_px", self.window_margin_px, " px")?;
+        Interval::closed(0.0, 50.0).check(WHO, "swap_gap_px", self.swap_gap_px, " px")?;
         self.segments.validate()
     }
 }

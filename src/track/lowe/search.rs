@@ -31,6 +31,21 @@
 //!    [`SearchFrame::verify`]); otherwise the node counts as rejected (step
 //!    3) and the search goes on — "this branch continues to be explored and
 //!    new matches are attempted until no more can be found", then judged.
+//! 6. **Neighbouring parallel edges** (our addition): the two long edges of
+//!    a thin face seen at a grazing angle (the 1 cm front of a lid) lie a
+//!    few pixels apart, and often only one of them shows as an image
+//!    segment; matching it to the wrong one of the pair fits as well and
+//!    shifts the model by the face's width, and the next frames keep the
+//!    shift. So after a verified solution, every matched model segment
+//!    with an unmatched, nearly parallel neighbour beside it within
+//!    `swap_gap` px is tried the other way round: its image segments are
+//!    given to the neighbour, the set is solved and locked on, and the swap
+//!    is kept when the new solution is verified and its matches cover more
+//!    of its visible model ([`SearchFrame::covered_length`]) by at least a
+//!    quarter of the neighbour's length: at the right state the edges
+//!    around the thin face (the lid's sides, whose image segments the
+//!    overlap test of eq. 3 refuses at the wrong one) find their matches.
+//!    At most [`MAX_SWAPS`] swaps are kept per frame.
 
 use super::estimation::{Match, Matrix, Problem, Solution, solve};
 use super::matching::{Candidate, Endpoints};
@@ -50,7 +65,12 @@ pub trait SearchFrame {
     /// segments at its state) is verified: overdetermined enough to end the
     /// search.
     fn verify(&self, segs: &[ModelSegment], matches: &[Match]) -> bool;
+    /// Length of `segs` covered by the matched image segments, px.
+    fn covered_length(&self, segs: &[ModelSegment], matches: &[Match]) -> f64;
 }
+
+/// Most parallel-edge swaps kept per frame (module doc, step 6).
+pub const MAX_SWAPS: usize = 2;
 
 /// Search settings (from `LoweParams`).
 #[derive(Clone, Copy, Debug)]
@@ -67,6 +87,9 @@ pub struct SearchSettings {
     pub lock_iterations: usize,
     /// Least probability of a match joining after acceptance.
     pub lock_probability: f64,
+    /// Widest gap between parallel neighbours tried the other way round,
+    /// px (module doc, step 6); 0 tries none.
+    pub swap_gap: f64,
 }
 
 /// The result of one frame's search.
@@ -173,6 +196,8 @@ pub fn search(
             let (solution, matches, final_segs, steps) = lock_on(frame, problem, solution, matches, settings, needed);
             outcome.lock_steps += steps;
             if frame.verify(&final_segs, &matches) {
+                let (solution, matches, final_segs) =
+                    swap_parallel(frame, problem, solution, matches, final_segs, settings, needed);
                 outcome.solution = Some(solution);
                 outcome.matches = matches;
                 outcome.model_segments = final_segs;
@@ -231,6 +256,100 @@ fn lock_on(
     frame.model_segments(&solution.state, &mut segs_now);
     (solution, matches, segs_now, steps)
 }
+
+/// Step 6 of the module doc: the solution after the kept swaps, its
+/// matches and its model segments.
+fn swap_parallel(
+    frame: &dyn SearchFrame,
+    problem: &Problem<'_>,
+    mut solution: Solution,
+    mut matches: Vec<Match>,
+    mut segs: Vec<ModelSegment>,
+    settings: &SearchSettings,
+    needed: usize,
+) -> (Solution, Vec<Match>, Vec<ModelSegment>) {
+    if settings.swap_gap <= 0.0 {
+        return (solution, matches, segs);
+    }
+    let mut tried: Vec<[usize; 2]> = Vec::new();
+    let mut kept = 0;
+    'swaps: while kept < MAX_SWAPS {
+        for [from, to] in parallel_neighbours(&segs, &matches, settings.swap_gap) {
+            let (f, t) = (&segs[from], &segs[to]);
+            if tried.contains(&[f.edge, t.edge]) {
+                continue;
+            }
+            tried.push([f.edge, t.edge]);
+            let swapped: Vec<Match> = matches
+                .iter()
+                .map(|m| {
+                    if m.edge == f.edge && m.interval == f.interval {
+                        Match { edge: t.edge, interval: t.interval, ..*m }
+                    } else {
+                        *m
+                    }
+                })
+                .collect();
+            let Some(first) = solve(problem, &solution.state, &swapped, settings.iterations) else { continue };
+            if !passes(&first, settings.residual_limit) {
+                continue;
+            }
+            let gain = 0.25 * t.length();
+            let (next, next_matches, next_segs, _) = lock_on(frame, problem, first, swapped, settings, needed);
+            if !frame.verify(&next_segs, &next_matches) {
+                continue;
+            }
+            let before = frame.covered_length(&segs, &matches);
+            let after = frame.covered_length(&next_segs, &next_matches);
+            if after >= before + gain {
+                (solution, matches, segs) = (next, next_matches, next_segs);
+                kept += 1;
+                continue 'swaps;
+            }
+        }
+        break;
+    }
+    (solution, matches, segs)
+}
+
+/// Pairs `[matched, unmatched]` of model segments of different edges,
+/// nearly parallel (within 10°), beside each other over at least half the
+/// shorter one's length, the shorter one's ends more than
+/// [`COINCIDENT_PX`] and less than `max_gap` px from the other's line;
+/// nearest first.
+fn parallel_neighbours(segs: &[ModelSegment], matches: &[Match], max_gap: f64) -> Vec<[usize; 2]> {
+    let max_sine = 10f64.to_radians().sin();
+    let matched: Vec<bool> =
+        segs.iter().map(|s| matches.iter().any(|m| m.edge == s.edge && m.interval == s.interval)).collect();
+    let mut pairs = Vec::new();
+    for (i, a) in segs.iter().enumerate().filter(|&(i, _)| matched[i]) {
+        for (j, b) in segs.iter().enumerate().filter(|&(j, _)| !matched[j]) {
+            if a.edge == b.edge {
+                continue;
+            }
+            let (long, short) = if a.length() >= b.length() { (a, b) } else { (b, a) };
+            let [ux, uy] = long.direction();
+            let [vx, vy] = short.direction();
+            if (ux * vy - uy * vx).abs() > max_sine {
+                continue;
+            }
+            let along = |p: [f64; 2]| (p[0] - long.a[0]) * ux + (p[1] - long.a[1]) * uy;
+            let across = |p: [f64; 2]| ((p[1] - long.a[1]) * ux - (p[0] - long.a[0]) * uy).abs();
+            let (ta, tb) = (along(short.a), along(short.b));
+            let overlap = ta.max(tb).min(long.length()) - ta.min(tb).max(0.0);
+            let (ga, gb) = (across(short.a), across(short.b));
+            if overlap >= 0.5 * short.length() && ga.min(gb) > COINCIDENT_PX && ga.max(gb) < max_gap {
+                pairs.push((ga + gb, [i, j]));
+            }
+        }
+    }
+    pairs.sort_by(|x, y| x.0.total_cmp(&y.0));
+    pairs.into_iter().map(|(_, pair)| pair).collect()
+}
+
+/// Model segments nearer than this to each other are one edge seen twice
+/// (a hinge, a lid resting on its box), px.
+pub const COINCIDENT_PX: f64 = 0.5;
 
 /// Each image segment joins its most probable model segment when that
 /// probability is at least `min_probability`.
@@ -305,6 +424,9 @@ mod tests {
         fn verify(&self, _segs: &[ModelSegment], matches: &[Match]) -> bool {
             matches.len() >= 8
         }
+        fn covered_length(&self, segs: &[ModelSegment], _matches: &[Match]) -> f64 {
+            segs.iter().map(ModelSegment::length).sum()
+        }
     }
 
     fn settings() -> SearchSettings {
@@ -315,6 +437,7 @@ mod tests {
             iterations: 3,
             lock_iterations: 4,
             lock_probability: 0.5,
+            swap_gap: 0.0,
         }
     }
 
@@ -412,5 +535,33 @@ mod tests {
         assert!(outcome.branches >= 2, "branches {}", outcome.branches);
         assert!(error < 0.1, "{error} px");
         assert!(outcome.matches.iter().all(|m| m.image != decoy_index));
+    }
+
+    fn flat_segment(edge: usize, a: [f64; 2], b: [f64; 2]) -> ModelSegment {
+        let zero = [[0.0; MAX_PARAMS]; 2];
+        ModelSegment { edge, interval: [0.0, 1.0], a, b, da: zero, db: zero }
+    }
+
+    /// Only an unmatched segment nearly parallel to a matched one, beside
+    /// it over half its length and more than coincident but less than the
+    /// gap away pairs with it; nearest pairs first.
+    #[test]
+    fn parallel_neighbours_of_matched_segments() {
+        let segs = vec![
+            flat_segment(0, [0.0, 0.0], [100.0, 0.0]),   // matched
+            flat_segment(1, [0.0, 3.0], [100.0, 3.0]),   // 3 px below: a pair
+            flat_segment(2, [100.0, 0.3], [0.0, 0.3]),   // coincident (a hinge)
+            flat_segment(3, [0.0, 20.0], [100.0, 20.0]), // beyond the gap
+            flat_segment(4, [0.0, 2.0], [100.0, 60.0]),  // 30° off
+            flat_segment(5, [80.0, 2.0], [200.0, 2.0]),  // beside it over 20 px only
+            flat_segment(6, [10.0, -1.5], [90.0, -1.0]), // 1.5 px above, reversed ends: a pair
+            flat_segment(0, [110.0, 2.0], [150.0, 2.0]), // another part of edge 0
+        ];
+        let matched =
+            |seg: &ModelSegment| Match { edge: seg.edge, interval: seg.interval, endpoints: [seg.a, seg.b], image: 0 };
+        let pairs = parallel_neighbours(&segs, &[matched(&segs[0])], 8.0);
+        assert_eq!(pairs, vec![[0, 6], [0, 1]]);
+        assert_eq!(parallel_neighbours(&segs, &[matched(&segs[0])], 2.5), vec![[0, 6]]);
+        assert!(parallel_neighbours(&segs, &[], 8.0).is_empty());
     }
 }
