@@ -383,3 +383,24 @@ fn lowe_wrong_initialisation_is_never_tracking() {
     println!("lowe wrong init: found at {found}");
     assert!(found <= 5 && st[found..].chars().all(|c| c == 'T'), "found at {found}, then held: {st}");
 }
+
+#[test]
+fn lowe_jump_is_lost_at_once_then_found_by_the_whole_image_search() {
+    // At frame 40 the box jumps to where it is 40 frames later: ≈ 120 px
+    // away, turned by 43° and 10 cm further. The local search loses it at
+    // once; after `search_after` lost frames the whole image is searched
+    // from the last verified pose, which finds the box once its pose comes
+    // within the search's reach, and holds it from there.
+    let mut seq = box_scene();
+    jump(&mut seq, 40, 40);
+    let out = run(&seq, lowe(&seq), &mut CpuBackend::new());
+    let st = check_no_false_tracking("lowe jump", &seq, &out);
+    assert!(st[..40].chars().all(|c| c == 'T'), "{st}");
+    let lost = first(&st, 40, 'L').expect("lost");
+    println!("lowe jump: lost at {lost}: {}", reason(&out, lost));
+    assert_eq!(lost, 40);
+    let back = first(&st, lost, 'T').expect("re-acquired");
+    println!("lowe jump: re-acquired at {back}");
+    assert!(back < 80, "re-acquired at {back}");
+    assert!(st[back..].chars().all(|c| c == 'T'), "holds the box once re-acquired: {st}");
+}

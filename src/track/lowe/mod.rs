@@ -28,12 +28,27 @@
 //! 6. **Best-first search and locking on** ([`search`]), each solution a
 //!    stabilised Gauss–Newton fit ([`estimation`], eq. 1).
 //! 7. **Verification**: the frame is `tracking` only when a set was
-//!    accepted (its residual passes) and its matched image segments cover
-//!    at least `min_coverage` of the visible model edges' length. Otherwise
-//!    it is `lost`: the output carries the prediction, the next frame
-//!    predicts from the last accepted solution without velocity and starts
-//!    its search at the widest range; when the evidence returns the search
-//!    re-acquires the model.
+//!    accepted (its residual passes), its matched image segments cover at
+//!    least `min_coverage` of the visible model edges' length, and at least
+//!    `min_support` of that length has a zero crossing along it (within
+//!    1 px across, at an edge orientation within 20°:
+//!    [`crate::track::support`]). The second test is independent of the
+//!    matching: a few long clutter segments can cover a quarter of a model
+//!    put in the wrong place, but the rest of its outline then runs over
+//!    nothing. Otherwise it is `lost`: the output carries the prediction,
+//!    which coasts on the last velocity while the model's centre stays in
+//!    the image at a depth within a factor 1.5 of the last verified one
+//!    (else it stands at the last verified state), and the next frame
+//!    starts its search at the widest range.
+//! 8. **Whole-image search** (our addition; the paper only widens the
+//!    ranges): after `search_after` lost frames the window of interest is
+//!    the whole frame and, when the search at the prediction fails, the
+//!    last verified state is moved across the image on a grid as wide as
+//!    the widest search reaches (3 σ of the doubled translation prior) and
+//!    searched at each position; of the verified solutions the one whose
+//!    outline has the most zero crossings along it is taken when that
+//!    support is at least `search_min_support`. After a loss the velocity
+//!    starts again from zero.
 //!
 //! Output per frame: status, `corners` (every model vertex projected),
 //! `pose`, `params` (joint values) and the covariance P of the correction
@@ -61,12 +76,15 @@ use self::search::{SearchFrame, SearchSettings, segments_needed};
 use self::segments::{ImageSegment, SegmentExtractor, SegmentIndex};
 use super::{Diagnostics, FrameExtras, FrameOutcome, Observations, Phase, Tracker};
 use crate::backend::{FrameRequest, ListSpec, ZeroCrossingRequest};
-use crate::early::Window;
+use std::cell::OnceCell;
+
 use crate::early::log::LogParams;
 use crate::early::zero_crossing::ZeroCrossingParams;
+use crate::early::{Feature, Window};
 use crate::geometry::{Camera, ModelGeometry, Pose};
 use crate::io::formats::{self, InitState, Model, Status};
 use crate::io::overlay::EdgeBand;
+use crate::track::support::{self, EdgeMap};
 use crate::{Error, Result};
 
 /// Model segments shorter than this in the image are not matched, px.
@@ -87,6 +105,9 @@ pub struct LoweDiagnostics {
     pub residual_sigma: Option<f64>,
     /// Fraction of the visible model edges' length covered by matches.
     pub coverage: f64,
+    /// Fraction of the visible model edges' length with a zero crossing
+    /// along it.
+    pub support: f64,
     /// Host time of linking, segmentation and indexing, ms.
     pub segments_ms: f64,
     /// Host time of visibility, candidates and the search, estimation
@@ -110,10 +131,14 @@ pub struct LoweTracker {
     /// The last accepted solution and the one before it.
     last: State,
     before_last: Option<State>,
+    /// The last verified solution (where the whole-image search starts).
+    last_tracked: State,
     /// This frame's prediction.
     prediction: State,
     /// Doubling the next frame's search starts at.
     first_doubling: usize,
+    /// Consecutive frames lost up to the last one.
+    lost_frames: usize,
     phase: Phase,
     /// Window of interest around this frame's prediction.
     window: Window,
@@ -157,9 +182,11 @@ impl LoweTracker {
             index: SegmentIndex::with_params(&segment_params),
             image_segments: Vec::new(),
             prediction: state.clone(),
+            last_tracked: state.clone(),
             last: state,
             before_last: None,
             first_doubling: 0,
+            lost_frames: 0,
             phase: Phase::Tracking,
             window: Window::full(camera.width as usize, camera.height as usize),
             last_diagnostics: LoweDiagnostics::default(),
@@ -180,10 +207,11 @@ impl LoweTracker {
         6 + self.geometry.joint_count()
     }
 
-    /// Prior standard deviations after `doublings` doublings.
-    fn prior_sigmas(&self, doublings: usize) -> Row {
+    /// Prior standard deviations around `prediction` after `doublings`
+    /// doublings.
+    fn prior_sigmas(&self, prediction: &State, doublings: usize) -> Row {
         let scale = f64::from(1u32 << doublings);
-        let depth = self.prediction.pose.apply(self.centre).z.abs().max(1e-6);
+        let depth = prediction.pose.apply(self.centre).z.abs().max(1e-6);
         let translation = self.params.prior_translation_px * depth / self.camera.fx;
         let mut sigmas = [0.0; MAX_PARAMS];
         for (i, s) in sigmas.iter_mut().enumerate().take(self.n()) {
@@ -219,7 +247,7 @@ impl LoweTracker {
     /// reach of the widest prior.
     fn window_at(&self, state: &State, width: usize, height: usize) -> Window {
         let n = self.n();
-        let widest = estimation::diagonal(&self.prior_sigmas(self.params.range_doublings), n);
+        let widest = estimation::diagonal(&self.prior_sigmas(state, self.params.range_doublings), n);
         let Ok(lin) = Linearised::at(&self.geometry, state, self.centre) else {
             return Window::full(width, height);
         };
@@ -237,6 +265,108 @@ impl LoweTracker {
         Window::around(&corners, margin.min(1e6), width, height).unwrap_or_else(|| Window::full(width, height))
     }
 
+    /// Steps 4–6 of the module doc at `prediction`, whose visible model
+    /// segments are `segs`, from doubling `first` to the widest: the first
+    /// verified solution, else the last accepted one.
+    fn search_at(
+        &self,
+        view: &FrameView<'_>,
+        prediction: &State,
+        segs: &[ModelSegment],
+        first: usize,
+        diag: &mut LoweDiagnostics,
+    ) -> Option<Found> {
+        let n = self.n();
+        let needed = segments_needed(n);
+        let settings = self.settings();
+        let mut cands = Vec::new();
+        let mut accepted = None;
+        for doubling in first..=self.params.range_doublings {
+            diag.doublings = doubling;
+            let sigmas = self.prior_sigmas(prediction, doubling);
+            let p0 = estimation::diagonal(&sigmas, n);
+            view.candidates(segs, &p0, &mut cands);
+            let mut with_candidates: Vec<usize> = cands.iter().map(|c| c.model).collect();
+            with_candidates.dedup();
+            if with_candidates.len() < needed {
+                continue;
+            }
+            let problem = Problem {
+                geometry: &self.geometry,
+                camera: &self.camera,
+                centre: self.centre,
+                limits: &self.limits,
+                prediction,
+                prior_sigmas: &sigmas,
+                measurement_sigma: self.params.measurement_sigma_px,
+                reference_length: self.params.reference_length_px,
+            };
+            let outcome = search::search(view, &problem, segs.to_vec(), &cands, &settings);
+            diag.branches += outcome.branches;
+            if let Some(solution) = outcome.solution {
+                let verified = outcome.verified;
+                accepted = Some(Found { solution, matches: outcome.matches, segs: outcome.model_segments, verified });
+                if verified {
+                    break;
+                }
+            }
+        }
+        accepted
+    }
+
+    /// Whether `state` puts the model's centre inside the image at a depth
+    /// within a factor 1.5 of the last verified state's.
+    fn plausible(&self, state: &State) -> bool {
+        let (centre, known) = (state.pose.apply(self.centre), self.last_tracked.pose.apply(self.centre));
+        let ratio = centre.z / known.z;
+        let inside = self.camera.project_in_front(centre).is_some_and(|[u, v]| {
+            (0.0..f64::from(self.camera.width)).contains(&u) && (0.0..f64::from(self.camera.height)).contains(&v)
+        });
+        inside && (1.0 / 1.5..=1.5).contains(&ratio)
+    }
+
+    /// The whole-image search of a lost model (module doc, step 8): the
+    /// last solution moved across the image on a grid as wide as the
+    /// widest search reaches, each position searched at the widest range;
+    /// the verified solution whose outline has the most zero crossings
+    /// along it, when that is at least `search_min_support`.
+    fn search_image(&self, view: &FrameView<'_>, diag: &mut LoweDiagnostics) -> Option<Found> {
+        let (width, height) = (f64::from(self.camera.width), f64::from(self.camera.height));
+        let centre = self.last_tracked.pose.apply(self.centre);
+        if !(centre.z > 0.0) {
+            return None;
+        }
+        let step = (self.params.search_sigmas
+            * self.params.prior_translation_px
+            * f64::from(1u32 << self.params.range_doublings))
+        .max(8.0);
+        let (columns, rows) = ((width / step).ceil() as usize, (height / step).ceil() as usize);
+        let mut best: Option<(f64, Found)> = None;
+        let mut segs = Vec::new();
+        for row in 0..rows {
+            for column in 0..columns {
+                let u = (column as f64 + 0.5) * width / columns as f64;
+                let v = (row as f64 + 0.5) * height / rows as f64;
+                let mut hypothesis = self.last_tracked.clone();
+                let x = (u - self.camera.cx) * centre.z / self.camera.fx;
+                let y = (v - self.camera.cy) * centre.z / self.camera.fy;
+                hypothesis.pose.translation += DVec3::new(x - centre.x, y - centre.y, 0.0);
+                view.visible_segments(&hypothesis, &mut segs);
+                let Some(found) = self.search_at(view, &hypothesis, &segs, self.params.range_doublings, diag) else {
+                    continue;
+                };
+                if !found.verified {
+                    continue;
+                }
+                let support = view.support(&found.segs);
+                if support >= self.params.search_min_support && best.as_ref().is_none_or(|(s, _)| support > *s) {
+                    best = Some((support, found));
+                }
+            }
+        }
+        best.map(|(_, found)| found)
+    }
+
     fn settings(&self) -> SearchSettings {
         SearchSettings {
             set_probability: self.params.set_probability,
@@ -250,10 +380,25 @@ impl LoweTracker {
     }
 }
 
+/// An accepted solution of a search.
+struct Found {
+    solution: estimation::Solution,
+    matches: Vec<estimation::Match>,
+    /// The visible model segments at the solution.
+    segs: Vec<ModelSegment>,
+    /// Whether it passed the verification.
+    verified: bool,
+}
+
 /// The frame as the search sees it.
 struct FrameView<'a> {
     tracker: &'a LoweTracker,
     ctx: MatchContext,
+    /// The frame's zero crossings.
+    crossings: &'a [Feature],
+    /// The crossings at or above the hysteresis' low threshold by
+    /// position, built on first use.
+    edge_map: OnceCell<EdgeMap>,
 }
 
 impl FrameView<'_> {
@@ -273,6 +418,25 @@ impl FrameView<'_> {
         }
     }
 }
+
+impl FrameView<'_> {
+    /// Fraction of `segs`' length with a zero crossing within 1 px across
+    /// it at an edge orientation within 20° of its own (a crossing's
+    /// `theta` is the gradient's direction, across the edge).
+    fn support(&self, segs: &[ModelSegment]) -> f64 {
+        let map = self.edge_map.get_or_init(|| {
+            EdgeMap::new(self.crossings, self.tracker.params.segments.low_threshold, |f| {
+                f64::from(f.theta) + std::f64::consts::FRAC_PI_2
+            })
+        });
+        let lines: Vec<([f64; 2], [f64; 2])> = segs.iter().map(|s| (s.a, s.b)).collect();
+        support::fraction(map.support(&lines, 1.0, SUPPORT_ANGLE_DEG.to_radians()))
+    }
+}
+
+/// Largest angle between a model segment and a zero crossing's edge
+/// orientation for the crossing to support it, degrees.
+const SUPPORT_ANGLE_DEG: f64 = 20.0;
 
 impl SearchFrame for FrameView<'_> {
     fn model_segments(&self, state: &State, out: &mut Vec<ModelSegment>) {
@@ -306,6 +470,7 @@ impl SearchFrame for FrameView<'_> {
 
     fn verify(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> bool {
         coverage(segs, matches) >= self.tracker.params.min_coverage
+            && self.support(segs) >= self.tracker.params.min_support
     }
 
     fn covered_length(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
@@ -387,7 +552,6 @@ impl Tracker for LoweTracker {
         let _ = estimation::take_solve_time();
 
         let n = self.n();
-        let needed = segments_needed(n);
         let ctx = MatchContext {
             segments: self.image_segments.len(),
             area: (self.window.area() as f64).max(1.0),
@@ -395,43 +559,15 @@ impl Tracker for LoweTracker {
             search_sigmas: self.params.search_sigmas,
             min_probability: self.params.min_probability,
         };
-        let settings = self.settings();
         let mut diag = LoweDiagnostics { image_segments: self.image_segments.len(), ..LoweDiagnostics::default() };
-        let mut accepted = None;
+        let view = FrameView { tracker: self, ctx, crossings, edge_map: OnceCell::new() };
         let mut segs = Vec::new();
-        {
-            let view = FrameView { tracker: self, ctx };
-            let mut cands = Vec::new();
-            view.visible_segments(&self.prediction, &mut segs);
-            for doubling in self.first_doubling..=self.params.range_doublings {
-                diag.doublings = doubling;
-                let sigmas = self.prior_sigmas(doubling);
-                let p0 = estimation::diagonal(&sigmas, n);
-                view.candidates(&segs, &p0, &mut cands);
-                let mut with_candidates: Vec<usize> = cands.iter().map(|c| c.model).collect();
-                with_candidates.dedup();
-                if with_candidates.len() < needed {
-                    continue;
-                }
-                let problem = Problem {
-                    geometry: &self.geometry,
-                    camera: &self.camera,
-                    centre: self.centre,
-                    limits: &self.limits,
-                    prediction: &self.prediction,
-                    prior_sigmas: &sigmas,
-                    measurement_sigma: self.params.measurement_sigma_px,
-                    reference_length: self.params.reference_length_px,
-                };
-                let outcome = search::search(&view, &problem, segs.clone(), &cands, &settings);
-                diag.branches += outcome.branches;
-                if let Some(solution) = outcome.solution {
-                    let verified = outcome.verified;
-                    accepted = Some((solution, outcome.matches, outcome.model_segments));
-                    if verified {
-                        break;
-                    }
-                }
+        view.visible_segments(&self.prediction, &mut segs);
+        let mut accepted = self.search_at(&view, &self.prediction, &segs, self.first_doubling, &mut diag);
+        let verified_here = accepted.as_ref().is_some_and(|found| found.verified);
+        if !verified_here && self.lost_frames >= self.params.search_after {
+            if let Some(found) = self.search_image(&view, &mut diag) {
+                accepted = Some(found);
             }
         }
         let estimation = estimation::take_solve_time().as_secs_f64();
@@ -447,15 +583,23 @@ impl Tracker for LoweTracker {
                 ));
                 None
             }
-            Some((solution, matches, segs)) => {
+            Some(Found { solution, matches, segs, .. }) => {
                 diag.matches = matches.len();
                 diag.residual_sigma = solution.residual_sigma;
                 diag.coverage = coverage(segs, matches);
+                diag.support = view.support(segs);
                 if diag.coverage < self.params.min_coverage {
                     lost_reason = Some(format!(
                         "matches cover {:.0} % of the visible edges (< {:.0} %)",
                         100.0 * diag.coverage,
                         100.0 * self.params.min_coverage
+                    ));
+                    None
+                } else if diag.support < self.params.min_support {
+                    lost_reason = Some(format!(
+                        "zero crossings lie along {:.0} % of the visible edges (< {:.0} %)",
+                        100.0 * diag.support,
+                        100.0 * self.params.min_support
                     ));
                     None
                 } else {
@@ -468,30 +612,48 @@ impl Tracker for LoweTracker {
         // the spread of its perpendicular position.
         let (status, reported, covariance, band_segs) = match verified {
             Some(solution) => {
-                self.before_last = Some(std::mem::replace(&mut self.last, solution.state.clone()));
+                // Across a loss there is no velocity to extrapolate.
+                let previous = std::mem::replace(&mut self.last, solution.state.clone());
+                self.before_last = (self.lost_frames == 0).then_some(previous);
+                self.last_tracked = solution.state.clone();
                 self.first_doubling = 0;
+                self.lost_frames = 0;
                 self.phase = Phase::Tracking;
-                let final_segs = accepted.map(|(_, _, final_segs)| final_segs).unwrap_or_default();
+                let final_segs = accepted.map(|found| found.segs).unwrap_or_default();
                 (Status::Tracking, solution.state, Some(solution.covariance), final_segs)
             }
             None => {
                 // Coast: the prediction becomes the last state, so the next
-                // frame's prediction keeps the last velocity.
+                // frame's prediction keeps the last velocity, while the
+                // coasted model stays in the image at a depth near the last
+                // verified one; past that, stand at the last verified state.
+                self.lost_frames += 1;
                 let coasted = self.prediction.clone();
-                self.before_last = Some(std::mem::replace(&mut self.last, coasted));
+                if self.plausible(&coasted) {
+                    self.before_last = Some(std::mem::replace(&mut self.last, coasted));
+                } else {
+                    self.last = self.last_tracked.clone();
+                    self.before_last = None;
+                }
                 self.first_doubling = self.params.range_doublings;
                 self.phase = Phase::Lost;
                 (Status::Lost, self.prediction.clone(), None, segs)
             }
         };
-        let p = covariance.unwrap_or_else(|| estimation::diagonal(&self.prior_sigmas(self.params.range_doublings), n));
+        let p = covariance.unwrap_or_else(|| {
+            estimation::diagonal(&self.prior_sigmas(&self.prediction, self.params.range_doublings), n)
+        });
         let bands = band_segs
             .iter()
             .map(|s| EdgeBand { a: s.a, b: s.b, sigma: SegmentSpread::of(s, &p, n).perpendicular })
             .collect();
         let corners = self.corners_at(&reported);
         self.prediction = self.predict();
-        self.window = self.window_at(&self.prediction, width, height);
+        self.window = if self.lost_frames >= self.params.search_after {
+            Window::full(width, height)
+        } else {
+            self.window_at(&self.prediction, width, height)
+        };
         let covariance = covariance.map(|p| (0..n).flat_map(|i| (0..n).map(move |j| p[i][j])).collect());
         self.last_diagnostics = diag;
         FrameOutcome {

@@ -91,6 +91,21 @@ pub struct LoweParams {
     /// lost 5 of 300 hinged-box frames that 0.25 holds (no false tracking at
     /// up to 20 px/frame either way). Range: [0, 1].
     pub min_coverage: f64,
+    /// A frame is `tracking` only when at least this fraction of the
+    /// visible model edges' length has a zero crossing along it (within
+    /// 1 px, at the edge's orientation). Frames on target of the box scenes
+    /// have 0.69–0.97 unoccluded and 0.32–0.34 at their lowest with half
+    /// the edges hidden; frames 70–230 px off that passed the coverage test
+    /// after a jump had 0.09–0.14. Range: [0, 1].
+    pub min_support: f64,
+    /// Lost frames after which the whole image is searched (the window of
+    /// interest opens to the full frame and the last solution is tried at
+    /// positions across it; see the tracker's module doc). Range: 1 ..= 1000.
+    pub search_after: usize,
+    /// Least support (as `min_support`) of a solution found by the
+    /// whole-image search: higher than `min_support`, because that search
+    /// tries dozens of positions over the clutter. Range: [0, 1].
+    pub search_min_support: f64,
     /// Extra margin of the window of interest around the predicted model,
     /// px, on top of the search range. Range: [0, 4096].
     pub window_margin_px: f64,
@@ -128,6 +143,9 @@ impl Default for LoweParams {
             iterations: 3,
             lock_iterations: 4,
             min_coverage: 0.25,
+            min_support: 0.25,
+            search_after: 3,
+            search_min_support: 0.5,
             window_margin_px: 8.0,
             swap_gap_px: 8.0,
             segments: SegmentParams::default(),
@@ -161,6 +179,9 @@ impl LoweParams {
         check_count(WHO, "iterations", self.iterations, 1, MAX_ITERATIONS)?;
         check_count(WHO, "lock_iterations", self.lock_iterations, 0, 20)?;
         Interval::closed(0.0, 1.0).check(WHO, "min_coverage", self.min_coverage, "")?;
+        Interval::closed(0.0, 1.0).check(WHO, "min_support", self.min_support, "")?;
+        check_count(WHO, "search_after", self.search_after, 1, 1000)?;
+        Interval::closed(0.0, 1.0).check(WHO, "search_min_support", self.search_min_support, "")?;
         Interval::closed(0.0, 4096.0).check(WHO, "window_margin_px", self.window_margin_px, " px")?;
         Interval::closed(0.0, 50.0).check(WHO, "swap_gap_px", self.swap_gap_px, " px")?;
         self.segments.validate()
