@@ -56,6 +56,7 @@
 //! centre's displacement, m; the joints, rad; see [`projection`]).
 
 pub mod estimation;
+pub mod evidence;
 #[cfg(test)]
 mod fixtures;
 pub mod matching;
@@ -69,6 +70,7 @@ use glam::DVec3;
 pub use params::LoweParams;
 
 use self::estimation::{Matrix, Problem};
+use self::evidence::CrossingMap;
 use self::matching::{Candidate, Endpoints, MatchContext, SegmentSpread, match_probability, search_bounds};
 use self::params::MAX_PARAMS;
 use self::projection::{Linearised, ModelSegment, Row, State};
@@ -76,15 +78,12 @@ use self::search::{SearchFrame, SearchSettings, segments_needed};
 use self::segments::{ImageSegment, SegmentExtractor, SegmentIndex};
 use super::{Diagnostics, FrameExtras, FrameOutcome, Observations, Phase, Tracker};
 use crate::backend::{FrameRequest, ListSpec, ZeroCrossingRequest};
-use std::cell::OnceCell;
-
+use crate::early::Window;
 use crate::early::log::LogParams;
 use crate::early::zero_crossing::ZeroCrossingParams;
-use crate::early::{Feature, Window};
 use crate::geometry::{Camera, ModelGeometry, Pose};
 use crate::io::formats::{self, InitState, Model, Status};
 use crate::io::overlay::EdgeBand;
-use crate::track::support::{self, EdgeMap};
 use crate::{Error, Result};
 
 /// Model segments shorter than this in the image are not matched, px.
@@ -128,6 +127,7 @@ pub struct LoweTracker {
     extractor: SegmentExtractor,
     index: SegmentIndex,
     image_segments: Vec<ImageSegment>,
+    crossing_map: CrossingMap,
     /// The last accepted solution and the one before it.
     last: State,
     before_last: Option<State>,
@@ -181,6 +181,7 @@ impl LoweTracker {
             extractor: SegmentExtractor::new(segment_params.clone())?,
             index: SegmentIndex::with_params(&segment_params),
             image_segments: Vec::new(),
+            crossing_map: CrossingMap::default(),
             prediction: state.clone(),
             last_tracked: state.clone(),
             last: state,
@@ -394,11 +395,9 @@ struct Found {
 struct FrameView<'a> {
     tracker: &'a LoweTracker,
     ctx: MatchContext,
-    /// The frame's zero crossings.
-    crossings: &'a [Feature],
-    /// The crossings at or above the hysteresis' low threshold by
-    /// position, built on first use.
-    edge_map: OnceCell<EdgeMap>,
+    /// The frame's zero crossings at or above the hysteresis' low
+    /// threshold, by position.
+    crossing_map: &'a CrossingMap,
 }
 
 impl FrameView<'_> {
@@ -424,13 +423,8 @@ impl FrameView<'_> {
     /// it at an edge orientation within 20° of its own (a crossing's
     /// `theta` is the gradient's direction, across the edge).
     fn support(&self, segs: &[ModelSegment]) -> f64 {
-        let map = self.edge_map.get_or_init(|| {
-            EdgeMap::new(self.crossings, self.tracker.params.segments.low_threshold, |f| {
-                f64::from(f.theta) + std::f64::consts::FRAC_PI_2
-            })
-        });
-        let lines: Vec<([f64; 2], [f64; 2])> = segs.iter().map(|s| (s.a, s.b)).collect();
-        support::fraction(map.support(&lines, 1.0, SUPPORT_ANGLE_DEG.to_radians()))
+        let counts = self.crossing_map.support(segs.iter().map(|s| (s.a, s.b)), SUPPORT_ANGLE_DEG.to_radians());
+        crate::track::support::fraction(counts)
     }
 }
 
@@ -548,6 +542,7 @@ impl Tracker for LoweTracker {
         self.extractor.extract(crossings, self.window, &mut image_segments);
         self.image_segments = image_segments;
         self.index.build(&self.image_segments, self.window);
+        self.crossing_map.rebuild(crossings, self.window, self.params.segments.low_threshold);
         let segmented = std::time::Instant::now();
         let _ = estimation::take_solve_time();
 
@@ -560,7 +555,7 @@ impl Tracker for LoweTracker {
             min_probability: self.params.min_probability,
         };
         let mut diag = LoweDiagnostics { image_segments: self.image_segments.len(), ..LoweDiagnostics::default() };
-        let view = FrameView { tracker: self, ctx, crossings, edge_map: OnceCell::new() };
+        let view = FrameView { tracker: self, ctx, crossing_map: &self.crossing_map };
         let mut segs = Vec::new();
         view.visible_segments(&self.prediction, &mut segs);
         let mut accepted = self.search_at(&view, &self.prediction, &segs, self.first_doubling, &mut diag);
