@@ -4,15 +4,17 @@
 use super::plan::{EdgelPart, FramePlan, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
 use super::{EarlyVision, FrameFeatures, FrameRequest, WindowRequest};
 use crate::Result;
-use crate::early::Feature;
+use crate::early::compaction::CompactionParams;
 use crate::early::compaction::compaction_cpu;
 use crate::early::gaussian::gaussian_cpu;
 use crate::early::ingest::ingest_cpu;
 use crate::early::log::log_cpu;
+use crate::early::log::log_kernels;
 use crate::early::sobel::{SobelOutput, SobelPixel, gradient_at_pixel, sobel_cpu, sobel_of_gradient};
 use crate::early::temporal_diff;
 use crate::early::window_energy;
 use crate::early::zero_crossing::{Edgels, zero_crossing_strength_direction_cpu};
+use crate::early::{Feature, Window};
 use crate::early::{cpf, edge_pyramid};
 use crate::image::{FloatImage, GrayImage, RgbImage};
 
@@ -33,6 +35,9 @@ pub struct CpuBackend {
     /// Lists and pyramids handed back by [`EarlyVision::recycle`], refilled
     /// by the next frame (no per-frame allocation, no copy of the levels).
     spare: FrameFeatures,
+    /// The frame's part the LoG is computed on when only windowed lists
+    /// read it (see [`log_region`]).
+    log_source: FloatImage,
 }
 
 /// The images a plan's steps read and write, one field per [`Plane`],
@@ -149,6 +154,7 @@ impl CpuBackend {
             sparse_sobel: [None; 2],
             gradients: Vec::new(),
             spare: FrameFeatures::default(),
+            log_source: FloatImage::new(0, 0),
         }
     }
 }
@@ -191,6 +197,9 @@ impl CpuBackend {
         let mut out = FrameFeatures::default();
         let img = &mut self.images;
         ingest_cpu(frame, &mut img.luma);
+        // The LoG and its edgels, when computed on a part of the frame, are
+        // that part's size, and the lists reading them are offset by its corner.
+        let log_part = log_region(&plan, w, h);
         for (i, step) in plan.steps().iter().enumerate() {
             let last_step = i + 1 == plan.steps().len();
             match *step {
@@ -211,7 +220,13 @@ impl CpuBackend {
                         img.sobel_into(input, output);
                     }
                 }
-                Step::Log(p) => log_cpu(&img.luma, &p, &mut self.tmp, &mut self.tmp2, &mut img.log)?,
+                Step::Log(p) => match log_part {
+                    Some(part) => {
+                        copy_part(&img.luma, part, &mut self.log_source);
+                        log_cpu(&self.log_source, &p, &mut self.tmp, &mut self.tmp2, &mut img.log)?;
+                    }
+                    None => log_cpu(&img.luma, &p, &mut self.tmp, &mut self.tmp2, &mut img.log)?,
+                },
                 // Steps read the edgels' strength and direction only
                 // (`EdgelPart`): the offsets are not computed.
                 Step::ZeroCrossings(p) => zero_crossing_strength_direction_cpu(
@@ -220,6 +235,30 @@ impl CpuBackend {
                     &mut img.edgels.strength,
                     &mut img.edgels.direction,
                 ),
+                Step::Compact { list, select, theta, magnitude, params } if log_part.is_some() && reads_log(select) => {
+                    let part = log_part.unwrap_or_default();
+                    let mut features = recycled_list(self.spare.list_mut(list));
+                    let window = params.window.clipped(w, h);
+                    let local = Window {
+                        x0: window.x0.max(part.x0) - part.x0,
+                        y0: window.y0.max(part.y0) - part.y0,
+                        x1: window.x1.min(part.x1).max(part.x0) - part.x0,
+                        y1: window.y1.min(part.y1).max(part.y0) - part.y0,
+                    };
+                    let params = CompactionParams { window: local, ..params };
+                    compaction_cpu(
+                        img.source(select),
+                        img.source(theta),
+                        img.source(magnitude),
+                        &params,
+                        &mut features,
+                    )?;
+                    for f in &mut features {
+                        f.x += part.x0;
+                        f.y += part.y0;
+                    }
+                    *out.list_mut(list) = Some(features);
+                }
                 Step::Compact { list, select, theta, magnitude, params } => {
                     let mut features = recycled_list(self.spare.list_mut(list));
                     let sparse = |source| match source {
@@ -313,6 +352,73 @@ impl CpuBackend {
             std::mem::swap(&mut img.previous, &mut img.smoothed);
         }
         Ok(out)
+    }
+}
+
+/// Whether `source` is the LoG or one of its edgel images.
+fn reads_log(source: Source) -> bool {
+    matches!(source, Source::Plane(Plane::Log) | Source::Edgels(_))
+}
+
+/// The part of a `width`×`height` frame the LoG and its zero crossings need
+/// to be computed on, when that is less than the frame: when every step
+/// reading them is a compaction that reads nothing else and lists no
+/// subsample (`cap`), the union of those compactions' windows grown by the
+/// LoG's radius plus the zero crossings' one pixel. Inside the windows the
+/// values are bit for bit those of the whole frame: every pixel a window's
+/// LoG or crossing reads lies in the part, and the part's borders clamp
+/// only where they are the frame's own.
+fn log_region(plan: &FramePlan, width: usize, height: usize) -> Option<Window> {
+    let mut radius = None;
+    let mut union: Option<Window> = None;
+    for step in plan.steps() {
+        match *step {
+            Step::Log(p) => radius = Some(log_kernels(p.sigma).ok()?.radius() as u32),
+            Step::Sobel { input: Plane::Log, .. } => return None,
+            Step::Compact { select, theta, magnitude, params, .. } => {
+                let reading = [select, theta, magnitude].map(reads_log);
+                if reading.iter().all(|&r| !r) {
+                    continue;
+                }
+                if reading.iter().any(|&r| !r) || params.cap.is_some() {
+                    return None;
+                }
+                let w = params.window.clipped(width, height);
+                if w.is_empty() {
+                    continue;
+                }
+                union = Some(union.map_or(w, |u| Window {
+                    x0: u.x0.min(w.x0),
+                    y0: u.y0.min(w.y0),
+                    x1: u.x1.max(w.x1),
+                    y1: u.y1.max(w.y1),
+                }));
+            }
+            _ => {}
+        }
+    }
+    let margin = radius? + 1;
+    let u = union?;
+    let part = Window {
+        x0: u.x0.saturating_sub(margin),
+        y0: u.y0.saturating_sub(margin),
+        x1: u.x1.saturating_add(margin),
+        y1: u.y1.saturating_add(margin),
+    }
+    .clipped(width, height);
+    (part.area() < width * height).then_some(part)
+}
+
+/// `part` of `src` into `out` (resized to it).
+fn copy_part(src: &FloatImage, part: Window, out: &mut FloatImage) {
+    let (x0, x1) = (part.x0 as usize, part.x1 as usize);
+    out.resize(x1 - x0, part.height() as usize);
+    let w = out.width();
+    if w == 0 {
+        return;
+    }
+    for (y, row) in (part.y0 as usize..part.y1 as usize).zip(out.data_mut().chunks_mut(w)) {
+        row.copy_from_slice(&src.row(y)[x0..x1]);
     }
 }
 
@@ -426,6 +532,48 @@ mod tests {
             let got = recycling.process(f, &request).unwrap();
             assert_eq!(got, expected);
             recycling.recycle(got);
+        }
+    }
+
+    /// The zero-crossing list of a window, computed on the window's part of
+    /// the frame only, equals the whole frame's list cut to the window, bit
+    /// for bit: windows inside, at each border, one pixel, empty, odd sizes.
+    #[test]
+    fn zero_crossings_of_a_window_equal_the_whole_frames_in_it() {
+        use crate::backend::{ListSpec, ZeroCrossingRequest};
+        use crate::early::log::LogParams;
+        use crate::early::zero_crossing::ZeroCrossingParams;
+        let (w, h) = (97, 61);
+        let frame = natural(w, h, 11);
+        let request = |window: Window| FrameRequest {
+            zero_crossings: Some(ZeroCrossingRequest {
+                log: LogParams { sigma: 1.2 },
+                crossings: ZeroCrossingParams { min_slope: 0.5 },
+                list: ListSpec { window, cap: None, seed: 0 },
+            }),
+            ..FrameRequest::default()
+        };
+        let mut backend = CpuBackend::new();
+        let whole = backend.process(&frame, &request(Window::full(w, h))).unwrap().zero_crossings.unwrap();
+        assert!(whole.len() > 200, "{} crossings", whole.len());
+        let bits =
+            |l: &[Feature]| l.iter().map(|f| (f.x, f.y, f.theta.to_bits(), f.magnitude.to_bits())).collect::<Vec<_>>();
+        let windows = [
+            Window { x0: 20, y0: 15, x1: 61, y1: 40 },
+            Window { x0: 0, y0: 0, x1: 13, y1: 9 },
+            Window { x0: 80, y0: 50, x1: 97, y1: 61 },
+            Window { x0: 0, y0: 30, x1: 97, y1: 31 },
+            Window { x0: 45, y0: 0, x1: 46, y1: 61 },
+            Window { x0: 33, y0: 22, x1: 34, y1: 23 },
+            Window { x0: 50, y0: 20, x1: 50, y1: 40 },
+            Window { x0: 90, y0: 55, x1: 200, y1: 300 },
+        ];
+        for window in windows {
+            assert!(log_region(&FramePlan::new(&request(window), w, h, None), w, h).is_some() || window.is_empty());
+            let got = backend.process(&frame, &request(window)).unwrap().zero_crossings.unwrap();
+            let inside = |f: &&Feature| f.x >= window.x0 && f.x < window.x1 && f.y >= window.y0 && f.y < window.y1;
+            let expected: Vec<Feature> = whole.iter().filter(inside).copied().collect();
+            assert_eq!(bits(&got), bits(&expected), "{window:?}");
         }
     }
 }
