@@ -516,10 +516,68 @@ impl BlueTracker {
             .unwrap_or_else(|| Window::full(width, height))
     }
 
+    /// The checks after steps 1–7 (module doc, "Start, loss and output" and
+    /// "Verification"): the reason `pass` loses the frame, if any, and the
+    /// verification's supported fractions (on, beside) of its outline.
+    /// `searched`: the frame was measured where the whole-image search put
+    /// the model.
+    fn judge(&self, pass: &Pass, map: &EdgeMap, searched: bool) -> (Option<String>, Option<(f64, f64)>) {
+        // Steps 5–6 refuse an estimate that puts a vertex where it cannot be
+        // projected; checked again here because every reported corner must
+        // be finite.
+        let mut failure = pass.failure.clone();
+        if failure.is_none() {
+            failure = self.unprojectable_vertex(&pass.location);
+        }
+        // A search fixes the range: an estimate far from it fitted something
+        // else than the target (clutter of another scale).
+        if failure.is_none() && searched && pass.estimated {
+            let ratio = pass.location.cz / self.last_tracked.cz;
+            if !((1.0 / SEARCH_RANGE_TOLERANCE..=SEARCH_RANGE_TOLERANCE).contains(&ratio)) {
+                failure = Some(format!(
+                    "search: the estimate's range is {ratio:.2} times the searched one (at most {SEARCH_RANGE_TOLERANCE} either way)"
+                ));
+            }
+        }
+        // Verification: the estimate's outline must stand out on the image's edges.
+        let support =
+            if pass.estimated && failure.is_none() { self.contour_support(map, &pass.location) } else { None };
+        if failure.is_none() && self.params.verify {
+            let excess = support.map_or(0.0, |(on, off)| on - off);
+            // A search picks the best of many places: the bar is higher.
+            let min_support = if searched { self.params.search_min_support } else { self.params.min_support };
+            if !(excess >= min_support) {
+                failure = Some(match support {
+                    Some((on, off)) => format!(
+                        "contour support {:.0} % on the outline against {:.0} % beside it: excess {:.0} % < min_support {:.0} %",
+                        100.0 * on,
+                        100.0 * off,
+                        100.0 * excess,
+                        100.0 * min_support
+                    ),
+                    None => "no visible contour to verify".to_string(),
+                });
+            }
+        }
+        (failure, support)
+    }
+
+    /// The motion models' image velocity (dc_x/dt, dc_y/dt) at their
+    /// latest sample, px per frame.
+    fn image_velocity(&self) -> Option<[f64; 2]> {
+        let velocity = |k: usize| self.filters[k].coefficients().map(|a| a[1]).filter(|v| v.is_finite());
+        Some([velocity(0)?, velocity(1)?])
+    }
+
     /// Process frame `frame` given its edge pixels; every call returns an
     /// outcome (also when lost). Frames must come in increasing order.
     pub fn update(&mut self, frame: usize, edges: &[Feature]) -> FrameOutcome {
         let time = frame as f64;
+        // Image velocity at the previous frame, when it was tracked (for the
+        // reversal hypotheses).
+        let previous_velocity = (self.phase == Phase::Tracking && self.last_frame.is_some_and(|f| f + 1 == frame))
+            .then(|| self.image_velocity())
+            .flatten();
         // Step 1: prediction.
         let mut predicted = self.location_at(time);
         if !predicted.is_valid() {
@@ -573,45 +631,54 @@ impl BlueTracker {
         let pass = self.reassociate(edges, pass, &predicted);
         self.next_frame = frame + 1;
         self.last_frame = Some(frame);
-        // Step 8, and the phase. Steps 5–6 refuse an estimate that puts a
-        // vertex where it cannot be projected; checked again here because
-        // every reported corner must be finite.
-        let mut failure = pass.failure.clone();
-        if failure.is_none() {
-            failure = self.unprojectable_vertex(&pass.location);
-        }
-        // A search fixes the range: an estimate far from it fitted something
-        // else than the target (clutter of another scale).
-        if failure.is_none() && searched && pass.estimated {
-            let ratio = pass.location.cz / self.last_tracked.cz;
-            if !((1.0 / SEARCH_RANGE_TOLERANCE..=SEARCH_RANGE_TOLERANCE).contains(&ratio)) {
-                failure = Some(format!(
-                    "search: the estimate's range is {ratio:.2} times the searched one (at most {SEARCH_RANGE_TOLERANCE} either way)"
-                ));
-            }
-        }
-        // Verification: the estimate's outline must stand out on the image's edges.
-        let support =
-            if pass.estimated && failure.is_none() { self.contour_support(&map, &pass.location) } else { None };
-        if failure.is_none() && self.params.verify {
-            let excess = support.map_or(0.0, |(on, off)| on - off);
-            // A search picks the best of many places: the bar is higher.
-            let min_support = if searched { self.params.search_min_support } else { self.params.min_support };
-            if !(excess >= min_support) {
-                failure = Some(match support {
-                    Some((on, off)) => format!(
-                        "contour support {:.0} % on the outline against {:.0} % beside it: excess {:.0} % < min_support {:.0} %",
-                        100.0 * on,
-                        100.0 * off,
-                        100.0 * excess,
-                        100.0 * min_support
-                    ),
-                    None => "no visible contour to verify".to_string(),
-                });
+        let (mut failure, mut support) = self.judge(&pass, &map, searched);
+        let mut pass = pass;
+        // A reversal (extension, module doc "Abrupt reversals"): after a
+        // tracked frame, when the prediction failed or the target moves so
+        // fast that a reversal leaves the association window, the frame is
+        // measured again around the target turned back and at rest; the
+        // estimate whose outline stands out most is kept.
+        let mut reversed = false;
+        let fast = |v: &[f64; 2]| v[0].hypot(v[1]) >= 0.5 * self.params.distance_tolerance;
+        if self.params.reversal_hypotheses
+            && !searched
+            && let Some([vx, vy]) = previous_velocity.filter(|v| failure.is_some() || fast(v))
+        {
+            let last = self.last_tracked;
+            let hypotheses = [
+                TargetLocation { cx: last.cx - vx, cy: last.cy - vy, ..last },
+                TargetLocation { cx: last.cx, cy: last.cy, ..last },
+            ];
+            let mut best = match (&failure, support) {
+                (None, Some((on, off))) => on - off,
+                _ => f64::NEG_INFINITY,
+            };
+            for hypothesis in &hypotheses {
+                let (model, first_distance) = self.first_association(edges, hypothesis, self.params.acquire_distance);
+                let first = self.measure(edges, &model, hypothesis, first_distance);
+                let candidate = self.reassociate(edges, first, hypothesis);
+                if let (None, Some((on, off))) = self.judge(&candidate, &map, false)
+                    && on - off > best
+                {
+                    let candidate_location = candidate.location;
+                    best = on - off;
+                    pass = candidate;
+                    failure = None;
+                    support = Some((on, off));
+                    // Restart the motion models when the target is not where they predicted.
+                    let (dx, dy) = (candidate_location.cx - predicted.cx, candidate_location.cy - predicted.cy);
+                    reversed = dx.hypot(dy) > self.params.distance_tolerance;
+                }
             }
         }
         let tracked = failure.is_none();
         let (location, covariance) = if tracked {
+            if reversed {
+                // The polynomials extrapolate the motion before the reversal:
+                // start them again from the last tracked frame, at rest.
+                let last = self.last_tracked;
+                self.restart_motion_models(&last, time - 1.0);
+            }
             self.feed_motion_models(time, &pass);
             self.phase = Phase::Tracking;
             self.last_tracked = pass.location;

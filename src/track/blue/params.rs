@@ -162,6 +162,14 @@ pub struct BlueParams {
     /// places, so chance support is higher there than around a prediction.
     /// Range: [0, 1].
     pub search_min_support: f64,
+    /// Reversal hypotheses (extension, [`super`] module doc, "Abrupt
+    /// reversals"): when the frame after a tracked one fails around the
+    /// prediction, measure it again around the last tracked location turned
+    /// back by one frame's velocity and around it at rest (with
+    /// [`BlueParams::acquire_distance`]), keep the one whose outline stands
+    /// out most if it passes the checks, and restart the motion models from
+    /// the last tracked frame. Off: only the prediction. Range: either.
+    pub reversal_hypotheses: bool,
 }
 
 /// Upper bound of the distances, margins and pixel-sized tolerances and
@@ -243,6 +251,7 @@ impl Default for BlueParams {
             support_distance: 3.0,
             search_after: 3,
             search_min_support: 0.35,
+            reversal_hypotheses: true,
         }
     }
 }
