@@ -105,11 +105,13 @@
 //!
 //! The angular speed of the line of sight is then at most `speed`, and equal
 //! to it when a run crosses the image centre (the formula above with
-//! `(ȧ, ḃ)` of the run; ≥ 0.92·`speed` anywhere in the box). In pixels: the
-//! target centre moves f·|(ȧ, ḃ)|/30 ≈ 16.7 px per frame per rad/s near the
-//! image centre (20 px/frame at 1.2 rad/s, up to ≈ 22 px/frame near the
-//! box's edges, where the gnomonic projection stretches), and a reversal
-//! changes its image velocity by up to twice that within one frame.
+//! `(ȧ, ḃ)` of the run; at least 0.9·`speed` anywhere in the box, where
+//! 1 + a² + b² ≤ 1.1). In pixels: the target centre's image is
+//! `(u₀ + f·a, v₀ + f·b)`, so it moves exactly f·`speed`/30 px per frame,
+//! 16.7 px per frame per rad/s: 20 px/frame at 1.2 rad/s (30 px/frame would
+//! be 1.8 rad/s); the vertices move 15–23 px per frame there (seed 0), as
+//! the range and the viewing direction change the target's image. A reversal changes the image velocity
+//! by 1.5–2 times that within one frame (the turn is 130°–230°).
 //!
 //! # Occluder
 //!
@@ -405,7 +407,8 @@ pub struct ShakePath {
     pub speed: f64,
     /// Bearing (a, b) of the target centre at frames 0 ..= `frames`.
     bearings: Vec<[f64; 2]>,
-    /// Frames at which a run ends and the next, turned back, begins.
+    /// Frames at which a run ends and the next, turned back, begins (those
+    /// before the last frame).
     pub reversals: Vec<usize>,
 }
 
@@ -472,7 +475,7 @@ impl ShakePath {
             reversals.push(bearings.len() - 1);
         }
         bearings.truncate(frames + 1);
-        reversals.retain(|&k| k < frames);
+        reversals.retain(|&k| k + 1 < frames);
         Ok(Self { speed, bearings, reversals })
     }
 

@@ -149,6 +149,26 @@
 //! (`SEARCH_RANGE_STEPS`). A searching frame costs several times a tracking
 //! frame.
 //!
+//! **Abrupt reversals** (extension, [`BlueParams::reversal_hypotheses`]).
+//! A target shaken back and forth turns round within a frame: the
+//! 2nd-order polynomial of eq. 13 cannot predict that whatever λ (eq. 14 is
+//! a fit to the past; a smaller λ only forgets the old motion sooner), so
+//! the frame after a reversal lies about twice a frame's displacement from
+//! the prediction (40 px at 20 px/frame), beyond the association distance,
+//! and the prediction variance of eq. 15 does not grow there (it reflects
+//! the measurements' weights, not the model's adequacy). After a tracked
+//! frame, when the prediction's measurement fails its checks or the target
+//! moves at least half [`BlueParams::distance_tolerance`] per frame (so a
+//! reversal leaves the window), the frame is also measured (steps 1–7,
+//! first association with [`BlueParams::acquire_distance`]) around two
+//! more hypotheses: the last tracked location moved back by the motion
+//! models' velocity (turned back) and the last tracked location (stopped).
+//! Of the estimates that pass every check, the one whose outline stands out
+//! most (the verification's excess) is kept; when it lies farther than
+//! `distance_tolerance` from the prediction, the motion models restart from
+//! the last tracked frame at rest before taking it, so the next prediction
+//! does not carry the motion before the reversal.
+//!
 //! Reported per frame: the projection of every model vertex (model-vertex
 //! order, hidden ones too) at the frame's BLUE (the prediction when lost),
 //! the pose, and as covariance C_l of (c_x, c_y, 1/c_z) row-major (eq. 12; when
