@@ -113,9 +113,13 @@
 //! are measured (2: four equations for three unknowns), when eq. 9 is
 //! singular, when the estimate is not in front of the camera or puts a
 //! model vertex where it cannot be projected (at or behind the camera, or
-//! so close to Z = 0 that its pixel overflows), or when the
+//! so close to Z = 0 that its pixel overflows), when the
 //! global consistency fails badly: RMS of e (eq. 11) above
-//! [`BlueParams::max_inconsistency`] px. A lost frame feeds nothing to the
+//! [`BlueParams::max_inconsistency`] px, or when the frame before was
+//! tracked and the estimated range differs from its range by more than a
+//! factor 1.3 either way (no target changes its range by 30 % in a frame;
+//! a fit that does has matched something else, e.g. clutter next to a
+//! target that turned round). A lost frame feeds nothing to the
 //! motion models (their information decays, the polynomials extrapolate),
 //! reports the predicted vertices and pose with status `lost`, and the next
 //! frames re-acquire with the wide distance around the prediction. After
@@ -157,9 +161,10 @@
 //! the prediction (40 px at 20 px/frame), beyond the association distance,
 //! and the prediction variance of eq. 15 does not grow there (it reflects
 //! the measurements' weights, not the model's adequacy). After a tracked
-//! frame, when the prediction's measurement fails its checks or the target
-//! moves at least half [`BlueParams::distance_tolerance`] per frame (so a
-//! reversal leaves the window), the frame is also measured (steps 1–7,
+//! frame at which the motion models' image velocity is at least half
+//! [`BlueParams::distance_tolerance`] per frame (so a reversal, 2 frames'
+//! displacement, leaves the association window; a slower target's stays
+//! inside it), the frame is also measured (steps 1–7,
 //! first association with [`BlueParams::acquire_distance`]) around two
 //! more hypotheses: the last tracked location moved back by the motion
 //! models' velocity (turned back) and the last tracked location (stopped).
@@ -221,8 +226,14 @@ const SEARCH_PEAKS: usize = 8;
 const SEARCH_RANGE_RATIO: f64 = std::f64::consts::SQRT_2;
 const SEARCH_RANGE_STEPS: i32 = 0;
 /// Largest ratio between a searched frame's estimated range and the range
-/// searched, either way.
+/// searched, either way; also between a frame's estimated range and that of
+/// the tracked frame just before it.
 const SEARCH_RANGE_TOLERANCE: f64 = 1.3;
+/// Excess of contour support by which a reversal hypothesis must beat an
+/// estimate around the prediction that passed its checks (module doc,
+/// "Abrupt reversals"): the two often find the same target, and the
+/// prediction's keeps the motion models' continuity.
+const REVERSAL_MARGIN: f64 = 0.05;
 /// Least distance between two of those peaks, grid steps.
 const SEARCH_SEPARATION: i64 = 3;
 
@@ -540,8 +551,14 @@ impl BlueTracker {
     /// "Verification"): the reason `pass` loses the frame, if any, and the
     /// verification's supported fractions (on, beside) of its outline.
     /// `searched`: the frame was measured where the whole-image search put
-    /// the model.
-    fn judge(&self, pass: &Pass, map: &EdgeMap, searched: bool) -> (Option<String>, Option<(f64, f64)>) {
+    /// the model; `follows_tracked`: the frame before was tracked.
+    fn judge(
+        &self,
+        pass: &Pass,
+        map: &EdgeMap,
+        searched: bool,
+        follows_tracked: bool,
+    ) -> (Option<String>, Option<(f64, f64)>) {
         // Steps 5–6 refuse an estimate that puts a vertex where it cannot be
         // projected; checked again here because every reported corner must
         // be finite.
@@ -551,11 +568,13 @@ impl BlueTracker {
         }
         // A search fixes the range: an estimate far from it fitted something
         // else than the target (clutter of another scale).
-        if failure.is_none() && searched && pass.estimated {
+        // Nor does a target tracked a frame ago change its range by 30 %.
+        if failure.is_none() && (searched || follows_tracked) && pass.estimated {
             let ratio = pass.location.cz / self.last_tracked.cz;
             if !((1.0 / SEARCH_RANGE_TOLERANCE..=SEARCH_RANGE_TOLERANCE).contains(&ratio)) {
+                let reference = if searched { "search: the searched one" } else { "the last tracked frame's" };
                 failure = Some(format!(
-                    "search: the estimate's range is {ratio:.2} times the searched one (at most {SEARCH_RANGE_TOLERANCE} either way)"
+                    "the estimate's range is {ratio:.2} times {reference} (at most {SEARCH_RANGE_TOLERANCE} either way)"
                 ));
             }
         }
@@ -593,11 +612,10 @@ impl BlueTracker {
     /// outcome (also when lost). Frames must come in increasing order.
     pub fn update(&mut self, frame: usize, edges: &[Feature]) -> FrameOutcome {
         let time = frame as f64;
-        // Image velocity at the previous frame, when it was tracked (for the
-        // reversal hypotheses).
-        let previous_velocity = (self.phase == Phase::Tracking && self.last_frame.is_some_and(|f| f + 1 == frame))
-            .then(|| self.image_velocity())
-            .flatten();
+        // Whether the previous frame was tracked, and the image velocity
+        // there (for the reversal hypotheses).
+        let follows_tracked = self.phase == Phase::Tracking && self.last_frame.is_some_and(|f| f + 1 == frame);
+        let previous_velocity = follows_tracked.then(|| self.image_velocity()).flatten();
         // Step 1: prediction.
         let mut predicted = self.location_at(time);
         if !predicted.is_valid() {
@@ -651,33 +669,35 @@ impl BlueTracker {
         let pass = self.reassociate(edges, pass, &predicted);
         self.next_frame = frame + 1;
         self.last_frame = Some(frame);
-        let (mut failure, mut support) = self.judge(&pass, &map, searched);
+        let (mut failure, mut support) = self.judge(&pass, &map, searched, follows_tracked);
         let mut pass = pass;
         // A reversal (extension, module doc "Abrupt reversals"): after a
-        // tracked frame, when the prediction failed or the target moves so
-        // fast that a reversal leaves the association window, the frame is
-        // measured again around the target turned back and at rest; the
-        // estimate whose outline stands out most is kept.
+        // tracked frame, when the target moves so fast that a reversal
+        // leaves the association window, the frame is measured again around
+        // the target turned back and at rest; the estimate whose outline
+        // stands out most is kept.
         let mut reversed = false;
         let fast = |v: &[f64; 2]| v[0].hypot(v[1]) >= 0.5 * self.params.distance_tolerance;
         if self.params.reversal_hypotheses
             && !searched
-            && let Some([vx, vy]) = previous_velocity.filter(|v| failure.is_some() || fast(v))
+            && let Some([vx, vy]) = previous_velocity.filter(fast)
         {
             let last = self.last_tracked;
             let hypotheses = [
                 TargetLocation { cx: last.cx - vx, cy: last.cy - vy, ..last },
                 TargetLocation { cx: last.cx, cy: last.cy, ..last },
             ];
+            // A hypothesis replaces an estimate that passed only when its
+            // outline stands out clearly more.
             let mut best = match (&failure, support) {
-                (None, Some((on, off))) => on - off,
+                (None, Some((on, off))) => on - off + REVERSAL_MARGIN,
                 _ => f64::NEG_INFINITY,
             };
             for hypothesis in &hypotheses {
                 let (model, first_distance) = self.first_association(edges, hypothesis, self.params.acquire_distance);
                 let first = self.measure(edges, &model, hypothesis, first_distance);
                 let candidate = self.reassociate(edges, first, hypothesis);
-                if let (None, Some((on, off))) = self.judge(&candidate, &map, false)
+                if let (None, Some((on, off))) = self.judge(&candidate, &map, false, true)
                     && on - off > best
                 {
                     let candidate_location = candidate.location;

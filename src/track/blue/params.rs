@@ -163,12 +163,14 @@ pub struct BlueParams {
     /// Range: [0, 1].
     pub search_min_support: f64,
     /// Reversal hypotheses (extension, [`super`] module doc, "Abrupt
-    /// reversals"): when the frame after a tracked one fails around the
-    /// prediction, measure it again around the last tracked location turned
-    /// back by one frame's velocity and around it at rest (with
-    /// [`BlueParams::acquire_distance`]), keep the one whose outline stands
-    /// out most if it passes the checks, and restart the motion models from
-    /// the last tracked frame. Off: only the prediction. Range: either.
+    /// reversals"): after a tracked frame at which the target moved at least
+    /// half [`BlueParams::distance_tolerance`] per frame, measure the frame
+    /// also around the last tracked location turned back by one frame's
+    /// velocity and around it at rest (with [`BlueParams::acquire_distance`]),
+    /// keep the estimate whose outline stands out most among those passing
+    /// the checks, and restart the motion models from the last tracked frame
+    /// when it lies off the prediction. Off: only the prediction.
+    /// Range: either.
     pub reversal_hypotheses: bool,
 }
 
