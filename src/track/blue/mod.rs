@@ -164,10 +164,13 @@
 //! frame at which the motion models' image velocity is at least half
 //! [`BlueParams::distance_tolerance`] per frame (so a reversal, 2 frames'
 //! displacement, leaves the association window; a slower target's stays
-//! inside it), the frame is also measured (steps 1–7,
-//! first association with [`BlueParams::acquire_distance`]) around two
-//! more hypotheses: the last tracked location moved back by the motion
-//! models' velocity (turned back) and the last tracked location (stopped).
+//! inside it), the frame is also measured (steps 1–7) around two more
+//! hypotheses: the last tracked location moved back by the motion models'
+//! velocity v (turned back) and the last tracked location (stopped), the
+//! first association within |v| (clamped to `distance_tolerance` ..=
+//! [`BlueParams::acquire_distance`]): a target that turned round by
+//! 180° ± 50° lies within 0.85·|v| of the first, one that stopped or turned
+//! within the frame within |v| of the second.
 //! Of the estimates that pass every check, the one whose outline stands out
 //! most (the verification's excess) is kept; when it lies farther than
 //! `distance_tolerance` from the prediction, the motion models restart from
@@ -693,8 +696,11 @@ impl BlueTracker {
                 (None, Some((on, off))) => on - off + REVERSAL_MARGIN,
                 _ => f64::NEG_INFINITY,
             };
+            // The target is within a frame's displacement of either: turned
+            // back by 180° ± 50° or stopped anywhere along the way.
+            let reach = vx.hypot(vy).clamp(self.params.distance_tolerance, self.params.acquire_distance);
             for hypothesis in &hypotheses {
-                let (model, first_distance) = self.first_association(edges, hypothesis, self.params.acquire_distance);
+                let (model, first_distance) = self.first_association(edges, hypothesis, reach);
                 let first = self.measure(edges, &model, hypothesis, first_distance);
                 let candidate = self.reassociate(edges, first, hypothesis);
                 if let (None, Some((on, off))) = self.judge(&candidate, &map, false, true)

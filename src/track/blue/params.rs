@@ -166,7 +166,8 @@ pub struct BlueParams {
     /// reversals"): after a tracked frame at which the target moved at least
     /// half [`BlueParams::distance_tolerance`] per frame, measure the frame
     /// also around the last tracked location turned back by one frame's
-    /// velocity and around it at rest (with [`BlueParams::acquire_distance`]),
+    /// velocity and around it at rest (within that velocity, at most
+    /// [`BlueParams::acquire_distance`]),
     /// keep the estimate whose outline stands out most among those passing
     /// the checks, and restart the motion models from the last tracked frame
     /// when it lies off the prediction. Off: only the prediction.
