@@ -172,7 +172,11 @@
 //! 180° ± 50° lies within 0.85·|v| of the first, one that stopped or turned
 //! within the frame within |v| of the second.
 //! Of the estimates that pass every check, the one whose outline stands out
-//! most (the verification's excess) is kept; when it lies farther than
+//! most (the verification's excess) is kept; a hypothesis's estimate
+//! replaces one around the prediction that passed only when it lies farther
+//! than [`BlueParams::refine_distance`] from it (elsewhere: the same target
+//! found twice is kept as the prediction found it) and its excess is larger
+//! by `REVERSAL_MARGIN` (0.05). When the kept estimate lies farther than
 //! `distance_tolerance` from the prediction, the motion models restart from
 //! the last tracked frame at rest before taking it, so the next prediction
 //! does not carry the motion before the reversal.
@@ -690,8 +694,10 @@ impl BlueTracker {
                 TargetLocation { cx: last.cx - vx, cy: last.cy - vy, ..last },
                 TargetLocation { cx: last.cx, cy: last.cy, ..last },
             ];
-            // A hypothesis replaces an estimate that passed only when its
+            // A hypothesis replaces an estimate that passed only when it
+            // found another place (farther than `refine_distance`) whose
             // outline stands out clearly more.
+            let main = (failure.is_none() && support.is_some()).then_some(pass.location);
             let mut best = match (&failure, support) {
                 (None, Some((on, off))) => on - off + REVERSAL_MARGIN,
                 _ => f64::NEG_INFINITY,
@@ -699,21 +705,23 @@ impl BlueTracker {
             // The target is within a frame's displacement of either: turned
             // back by 180° ± 50° or stopped anywhere along the way.
             let reach = vx.hypot(vy).clamp(self.params.distance_tolerance, self.params.acquire_distance);
+            let apart = |a: &TargetLocation, b: &TargetLocation| (a.cx - b.cx).hypot(a.cy - b.cy);
             for hypothesis in &hypotheses {
                 let (model, first_distance) = self.first_association(edges, hypothesis, reach);
                 let first = self.measure(edges, &model, hypothesis, first_distance);
                 let candidate = self.reassociate(edges, first, hypothesis);
+                if main.is_some_and(|m| apart(&m, &candidate.location) <= self.params.refine_distance) {
+                    continue;
+                }
                 if let (None, Some((on, off))) = self.judge(&candidate, &map, false, true)
                     && on - off > best
                 {
-                    let candidate_location = candidate.location;
                     best = on - off;
+                    // Restart the motion models when the target is not where they predicted.
+                    reversed = apart(&candidate.location, &predicted) > self.params.distance_tolerance;
                     pass = candidate;
                     failure = None;
                     support = Some((on, off));
-                    // Restart the motion models when the target is not where they predicted.
-                    let (dx, dy) = (candidate_location.cx - predicted.cx, candidate_location.cy - predicted.cy);
-                    reversed = dx.hypot(dy) > self.params.distance_tolerance;
                 }
             }
         }
