@@ -14,7 +14,8 @@
 //! All three run on the GPU too (about 25 s on lavapipe, 2 cores).
 //!
 //! Shaken target (`shake`: straight runs with abrupt reversals every 5–25
-//! frames, at 0.6 and 1.2 rad/s, seeds 0 and 1): at least 95 % of the 300
+//! frames, at 0.6 and 1.2 rad/s, seeds 0 and 1, and seed 7 at 1.2 rad/s):
+//! at least 95 % of the 300
 //! frames are reported tracking within 5 px of the truth (mean visible-vertex
 //! error), and at most 1 % are reported tracking more than 5 px off; on the
 //! CPU backend, and at 1.2 rad/s, seed 0 on the GPU backend too. Without
@@ -119,11 +120,15 @@ struct ShakeCase {
     seed: u64,
 }
 
-const SHAKE_CASES: [ShakeCase; 4] = [
+/// Seed 7 at 1.2 rad/s: after the reversal at frame 238 the fit around the
+/// prediction passes the verification on clutter at 1.7 times the range;
+/// the range check between consecutive tracked frames refuses it.
+const SHAKE_CASES: [ShakeCase; 5] = [
     ShakeCase { speed: 0.6, seed: 0 },
     ShakeCase { speed: 0.6, seed: 1 },
     ShakeCase { speed: 1.2, seed: 0 },
     ShakeCase { speed: 1.2, seed: 1 },
+    ShakeCase { speed: 1.2, seed: 7 },
 ];
 
 /// Least fraction of the frames reported tracking within the false-tracking distance.
