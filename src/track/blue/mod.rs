@@ -579,9 +579,10 @@ impl BlueTracker {
         if failure.is_none() && (searched || follows_tracked) && pass.estimated {
             let ratio = pass.location.cz / self.last_tracked.cz;
             if !((1.0 / SEARCH_RANGE_TOLERANCE..=SEARCH_RANGE_TOLERANCE).contains(&ratio)) {
-                let reference = if searched { "search: the searched one" } else { "the last tracked frame's" };
+                let (prefix, reference) =
+                    if searched { ("search: ", "the searched one") } else { ("", "the last tracked frame's") };
                 failure = Some(format!(
-                    "the estimate's range is {ratio:.2} times {reference} (at most {SEARCH_RANGE_TOLERANCE} either way)"
+                    "{prefix}the estimate's range is {ratio:.2} times {reference} (at most {SEARCH_RANGE_TOLERANCE} either way)"
                 ));
             }
         }
@@ -704,7 +705,7 @@ impl BlueTracker {
             };
             // The target is within a frame's displacement of either: turned
             // back by 180° ± 50° or stopped anywhere along the way.
-            let reach = vx.hypot(vy).clamp(self.params.distance_tolerance, self.params.acquire_distance);
+            let reach = vx.hypot(vy).min(self.params.acquire_distance).max(self.params.distance_tolerance);
             let apart = |a: &TargetLocation, b: &TargetLocation| (a.cx - b.cx).hypot(a.cy - b.cy);
             for hypothesis in &hypotheses {
                 let (model, first_distance) = self.first_association(edges, hypothesis, reach);
