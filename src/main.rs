@@ -81,6 +81,9 @@ enum Command {
         /// Fraction of the target hidden by an occluding bar: of its area, 0–0.3 (target3dof); of its visible edge length, 0–0.5 (box, hinged-box).
         #[arg(long)]
         occlude: Option<String>,
+        /// Shake the target with abrupt reversals (target3dof; same as --set shake=true).
+        #[arg(long)]
+        shake: bool,
         /// Scene option KEY=VALUE (repeatable), e.g. --set background=cluttered.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
@@ -313,7 +316,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             ));
             Ok(())
         }
-        Command::Synth { scene, out_dir, frames, seed, speed, noise, occlude, set } => {
+        Command::Synth { scene, out_dir, frames, seed, speed, noise, occlude, shake, set } => {
             let mut extra = Vec::new();
             if let Some(v) = speed {
                 extra.push(("speed".to_string(), v));
@@ -323,6 +326,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             if let Some(v) = occlude {
                 extra.push(("occlude".to_string(), v));
+            }
+            if shake {
+                extra.push(("shake".to_string(), "true".to_string()));
             }
             for kv in set {
                 let (k, v) = kv

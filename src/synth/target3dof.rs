@@ -86,6 +86,33 @@
 //! (true when every model vertex projects inside the image, in front of the
 //! camera).
 //!
+//! # Shaken path (`shake`)
+//!
+//! With `shake` = true the bearing does not follow the figure-eight: the
+//! target is shaken back and forth with **abrupt reversals**. The bearing
+//! `(a, b)` moves along straight runs at the constant rate
+//! `|(ȧ, ḃ)|` = `speed` (normalised image units per second, i.e. rad/s at the
+//! image centre), starting at the image centre at frame 0. Each run lasts a
+//! whole number of frames drawn uniformly from [`SHAKE_RUN_FRAMES`] (5–25)
+//! from the seed's own stream (so the path depends on `seed`), shortened
+//! where it would leave the box |a| ≤ A, |b| ≤ B of the figure-eight; the
+//! next run turns back by 180° ± up to [`SHAKE_TURN_JITTER_DEG`] (50°), so its
+//! direction changes by at least 130° from one frame to the next and the
+//! axis of the shaking wanders. Of [`SHAKE_TURN_TRIES`] seeded turns the first
+//! that leaves room for a run of 5 frames is taken, else the one leaving the
+//! most room (at 1.2 rad/s a run crosses the box in 9–13 frames, so runs
+//! there are often shorter than drawn). The range follows `Z(τ)` as above.
+//!
+//! The angular speed of the line of sight is then at most `speed`, and equal
+//! to it when a run crosses the image centre (the formula above with
+//! `(ȧ, ḃ)` of the run; at least 0.9·`speed` anywhere in the box, where
+//! 1 + a² + b² ≤ 1.1). In pixels: the target centre's image is
+//! `(u₀ + f·a, v₀ + f·b)`, so it moves exactly f·`speed`/30 px per frame,
+//! 16.7 px per frame per rad/s: 20 px/frame at 1.2 rad/s (30 px/frame would
+//! be 1.8 rad/s); the vertices move 15–23 px per frame there (seed 0), as
+//! the range and the viewing direction change the target's image. A reversal changes the image velocity
+//! by 1.5–2 times that within one frame (the turn is 130°–230°).
+//!
 //! # Occluder
 //!
 //! `occlude` = f in 0..=[`MAX_OCCLUDE`] adds a vertical opaque bar (grey
@@ -162,6 +189,15 @@ pub const MAX_NOISE_SIGMA: f64 = 64.0;
 pub const MAX_FRAMES: usize = 20_000;
 /// Grey level of the occluder bar.
 pub const OCCLUDER_GREY: f32 = 55.0;
+/// Duration of a run of the shaken path between two reversals, frames
+/// (drawn uniformly; shortened where the box would be left).
+pub const SHAKE_RUN_FRAMES: std::ops::RangeInclusive<usize> = 5..=25;
+/// Largest deviation of a reversal from an exact about-turn, degrees.
+pub const SHAKE_TURN_JITTER_DEG: f64 = 50.0;
+/// Seeded turns tried at each reversal of the shaken path.
+pub const SHAKE_TURN_TRIES: usize = 8;
+/// ChaCha stream of the shaken path (the bookshelf uses 1, frame noise streams from 2³²).
+const SHAKE_STREAM: u64 = 2;
 
 /// Backdrop of the scene.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -217,6 +253,10 @@ pub struct Target3dofOptions {
     pub noise_sigma: f64,
     /// Backdrop (default bookshelf).
     pub background: Backdrop,
+    /// Shake the target with abrupt reversals instead of the figure-eight
+    /// (module doc, "Shaken path"; default false). `speed` is then the rate
+    /// of every run.
+    pub shake: bool,
 }
 
 impl Default for Target3dofOptions {
@@ -228,17 +268,18 @@ impl Default for Target3dofOptions {
             occlude: 0.0,
             noise_sigma: 2.0,
             background: Backdrop::Bookshelf,
+            shake: false,
         }
     }
 }
 
 impl Target3dofOptions {
     /// Keys [`Target3dofOptions::set`] accepts.
-    pub const KEYS: [&'static str; 4] = ["speed", "occlude", "noise", "background"];
+    pub const KEYS: [&'static str; 5] = ["speed", "occlude", "noise", "background", "shake"];
 
     /// Set one option from strings (for the command line): `speed` (rad/s),
     /// `occlude` (fraction 0–0.3), `noise` (σ, grey levels), `background`
-    /// (bookshelf|flat|textured|cluttered). Range checks happen in
+    /// (bookshelf|flat|textured|cluttered), `shake` (true|false). Range checks happen in
     /// [`Target3dofOptions::validate`].
     pub fn set(&mut self, key: &str, value: &str) -> Result<()> {
         let number = "a number";
@@ -247,6 +288,7 @@ impl Target3dofOptions {
             "occlude" => self.occlude = parse_option("target3dof", key, value, number)?,
             "noise" | "noise_sigma" => self.noise_sigma = parse_option("target3dof", key, value, number)?,
             "background" => self.background = value.parse()?,
+            "shake" => self.shake = parse_option("target3dof", key, value, "true or false")?,
             _ => {
                 return Err(Error::Parameter(format!(
                     "unknown target3dof option '{key}' (known: {})",
@@ -354,6 +396,118 @@ impl Target3dofPath {
     #[must_use]
     pub fn first_peak_time(&self) -> Option<f64> {
         (self.omega > 0.0).then(|| std::f64::consts::PI / self.omega + RAMP_S / 2.0)
+    }
+}
+
+/// The shaken path (module doc, "Shaken path"): the bearing at every frame,
+/// piecewise linear with a reversal at each run's end.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShakePath {
+    /// Rate of every run, rad/s (normalised image units per second).
+    pub speed: f64,
+    /// Bearing (a, b) of the target centre at frames 0 ..= `frames`.
+    bearings: Vec<[f64; 2]>,
+    /// Frames at which a run ends and the next, turned back, begins (those
+    /// before the last frame).
+    pub reversals: Vec<usize>,
+}
+
+impl ShakePath {
+    /// The shaken path of `frames` frames at `speed` rad/s drawn from `seed`.
+    /// Errors when `speed` is not in `0..=MAX_SPEED`.
+    pub fn new(speed: f64, frames: usize, seed: u64) -> Result<Self> {
+        if !(speed.is_finite() && (0.0..=MAX_SPEED).contains(&speed)) {
+            return Err(Error::Parameter(format!("speed = {speed} rad/s is not in 0..={MAX_SPEED}")));
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        rng.set_stream(SHAKE_STREAM);
+        let step = speed / FRAME_RATE_HZ;
+        let [ha, hb] = BEARING_AMPLITUDE;
+        // Whole frames a run from `p` in direction `d` stays inside the box.
+        let room = |p: [f64; 2], d: [f64; 2]| -> usize {
+            if step <= 0.0 {
+                return usize::MAX;
+            }
+            let along = |x: f64, dx: f64, h: f64| {
+                if dx > 0.0 {
+                    (h - x) / dx
+                } else if dx < 0.0 {
+                    (-h - x) / dx
+                } else {
+                    f64::INFINITY
+                }
+            };
+            let reach = along(p[0], d[0], ha).min(along(p[1], d[1], hb)).max(0.0);
+            (reach / step).floor().min(usize::MAX as f64) as usize
+        };
+        let jitter = SHAKE_TURN_JITTER_DEG.to_radians();
+        let min_run = *SHAKE_RUN_FRAMES.start();
+        let mut heading: f64 = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+        let mut bearings = vec![[0.0, 0.0]];
+        let mut reversals = Vec::new();
+        let mut first = true;
+        while bearings.len() <= frames {
+            let p = bearings[bearings.len() - 1];
+            // The turn: an about-turn ± jitter (none before the first run).
+            let mut best: Option<(usize, f64)> = None;
+            for _ in 0..SHAKE_TURN_TRIES {
+                let turn = if first { 0.0 } else { std::f64::consts::PI + rng.random_range(-jitter..=jitter) };
+                let h = heading + turn;
+                let r = room(p, [h.cos(), h.sin()]);
+                if best.is_none_or(|(b, _)| r > b) {
+                    best = Some((r, h));
+                }
+                if r >= min_run {
+                    best = Some((r, h));
+                    break;
+                }
+            }
+            let (room_frames, h) = best.unwrap_or((1, heading));
+            heading = h;
+            first = false;
+            let drawn = rng.random_range(SHAKE_RUN_FRAMES);
+            let run = drawn.min(room_frames).max(1);
+            let d = [step * heading.cos(), step * heading.sin()];
+            for k in 1..=run {
+                let q = [p[0] + d[0] * k as f64, p[1] + d[1] * k as f64];
+                bearings.push([q[0].clamp(-ha, ha), q[1].clamp(-hb, hb)]);
+            }
+            reversals.push(bearings.len() - 1);
+        }
+        bearings.truncate(frames + 1);
+        reversals.retain(|&k| k + 1 < frames);
+        Ok(Self { speed, bearings, reversals })
+    }
+
+    /// Bearing (a, b) at clock time `t` (linear between frames; held beyond
+    /// the last one) and its rate d(a, b)/dt, per second.
+    #[must_use]
+    pub fn bearing(&self, t: f64) -> ([f64; 2], [f64; 2]) {
+        let last = self.bearings.len() - 1;
+        let x = (t * FRAME_RATE_HZ).clamp(0.0, last as f64);
+        let k = (x.floor() as usize).min(last.saturating_sub(1));
+        let (p, q) = (self.bearings[k], self.bearings[(k + 1).min(last)]);
+        let s = x - k as f64;
+        let rate = [(q[0] - p[0]) * FRAME_RATE_HZ, (q[1] - p[1]) * FRAME_RATE_HZ];
+        ([p[0] + s * (q[0] - p[0]), p[1] + s * (q[1] - p[1])], rate)
+    }
+
+    /// Translation of the target centre (camera frame, metres) at clock time `t`.
+    #[must_use]
+    pub fn translation_at(&self, t: f64) -> [f64; 3] {
+        let ([a, b], _) = self.bearing(t);
+        let z = Target3dofPath::range(Target3dofPath::scene_time(t).0);
+        [a * z, b * z, z]
+    }
+
+    /// Angular speed `|dl/dt|` of the line of sight at clock time `t`, rad/s
+    /// (the formula of the module docs with the run's rate; at most `speed`).
+    #[must_use]
+    pub fn angular_speed(&self, t: f64) -> f64 {
+        let ([a, b], [da, db]) = self.bearing(t);
+        let n2 = 1.0 + a * a + b * b;
+        let radial = a * da + b * db;
+        ((n2 * (da * da + db * db) - radial * radial).max(0.0)).sqrt() / n2
     }
 }
 
@@ -520,8 +674,10 @@ type PartOutlines = Vec<(Vec<[f64; 2]>, f32)>;
 pub struct Target3dofScene {
     /// The options it was made from.
     pub options: Target3dofOptions,
-    /// The target's path.
+    /// The target's figure-eight path (its bearing unused when shaken).
     pub path: Target3dofPath,
+    /// The shaken path, with `shake`.
+    pub shake: Option<ShakePath>,
     /// `camera.json`.
     pub camera: Camera,
     /// `model.json`.
@@ -549,6 +705,11 @@ impl Target3dofScene {
         Ok(Self {
             options: options.clone(),
             path: Target3dofPath::new(options.speed)?,
+            shake: if options.shake {
+                Some(ShakePath::new(options.speed, options.frames, options.seed)?)
+            } else {
+                None
+            },
             camera: camera(),
             geometry: ModelGeometry::new(&model)?,
             model,
@@ -560,7 +721,22 @@ impl Target3dofScene {
     /// The true pose of frame `frame`.
     #[must_use]
     pub fn pose(&self, frame: usize) -> Pose {
-        self.path.pose(frame)
+        match &self.shake {
+            Some(shake) => {
+                Pose { rotation: rotation(), translation: shake.translation_at(Target3dofPath::time(frame)) }
+            }
+            None => self.path.pose(frame),
+        }
+    }
+
+    /// Angular speed of the line of sight at clock time `t`, rad/s, of the
+    /// path in use.
+    #[must_use]
+    pub fn angular_speed(&self, t: f64) -> f64 {
+        match &self.shake {
+            Some(shake) => shake.angular_speed(t),
+            None => self.path.angular_speed(t),
+        }
     }
 
     /// Image positions of every model vertex at frame `frame`.
@@ -803,7 +979,7 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
         "frame_rate_hz": FRAME_RATE_HZ,
         "speed_rad_per_s": opts.speed,
         "speed_definition": "peak |d/dt (t/|t|)| of the line of sight to the object origin (rear-face centre), reached at each crossing of the image centre after the 1 s start",
-        "first_peak_s": scene.path.first_peak_time(),
+        "first_peak_s": if opts.shake { None } else { scene.path.first_peak_time() },
         "omega_rad_per_s": scene.path.omega,
         "bearing_amplitude": BEARING_AMPLITUDE,
         "range_m": [MIN_RANGE_M, MAX_RANGE_M],
@@ -811,6 +987,8 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
         "ramp_s": RAMP_S,
         "yaw_rad": YAW_RAD,
         "pitch_rad": PITCH_RAD,
+        "shake": opts.shake,
+        "shake_reversal_frames": scene.shake.as_ref().map(|p| p.reversals.clone()),
         "occlude": opts.occlude,
         "occluder": "vertical bar, full image height, centred on the column halving the target's projected area, hiding the occlude fraction of it",
         "occluder_columns": occluder_columns,
@@ -819,7 +997,7 @@ pub fn render_target3dof(opts: &Target3dofOptions) -> Result<SyntheticSequence> 
         "background": opts.background.name(),
         "supersample": DEFAULT_SUPERSAMPLE,
         "face_greys": scene.greys,
-        "note": "a(tau) = A sin(w tau), b(tau) = B sin(2 w tau), Z(tau) = 0.85 (5/0.85)^((1 - cos(2 pi tau / 20))/2); translation (aZ, bZ, Z); rotation fixed",
+        "note": "a(tau) = A sin(w tau), b(tau) = B sin(2 w tau), Z(tau) = 0.85 (5/0.85)^((1 - cos(2 pi tau / 20))/2); translation (aZ, bZ, Z); rotation fixed; with shake, (a, b) moves in straight runs at |(da, db)/dt| = speed, turned back 180 +- 50 deg at each shake_reversal_frames entry",
     });
     Ok(SyntheticSequence {
         scene: "target3dof".to_string(),

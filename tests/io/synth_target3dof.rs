@@ -9,7 +9,11 @@
 //! frame underestimates it by < 0.5 %); the occluder hides the requested
 //! fraction of the target's area within 0.001 in each checked frame and 0.0005
 //! on average (measured on the projected visible faces, exactly along
-//! scanlines 1/16 px apart).
+//! scanlines 1/16 px apart). Shaken paths: the peak angular speed measured
+//! from the truth poses is the requested one within 10 % and never above it;
+//! a reversal is a frame where the line of sight's direction of motion turns
+//! by more than 120° (at least 10 in 300 frames, exactly at the path's
+//! listed reversals).
 
 use std::path::{Path, PathBuf};
 
@@ -432,4 +436,152 @@ fn synth_target3dof_renders_a_full_300_frame_sequence() {
     assert_eq!(seq.frames.len(), 300);
     assert_eq!(seq.truth.len(), 300);
     assert!(seq.frames.windows(2).all(|p| p[0] != p[1]));
+}
+
+/// Shaken scene of `frames` frames at `speed` rad/s from `seed`.
+fn shaken(speed: f64, seed: u64, frames: usize) -> Target3dofScene {
+    Target3dofScene::new(&Target3dofOptions { frames, seed, speed, shake: true, ..Target3dofOptions::default() })
+        .unwrap()
+}
+
+/// Unit line of sight to the target centre at frame `k`.
+fn sight(scene: &Target3dofScene, k: usize) -> V3 {
+    let t = scene.pose(k).translation;
+    let n = dot(t, t).sqrt();
+    [t[0] / n, t[1] / n, t[2] / n]
+}
+
+#[test]
+fn synth_target3dof_shake_is_an_option_and_other_scenes_refuse_it() {
+    let mut opts = Target3dofOptions::default();
+    assert!(!opts.shake);
+    opts.set("shake", "true").unwrap();
+    assert!(opts.shake);
+    for bad in ["yes", "1", ""] {
+        let err = opts.set("shake", bad).unwrap_err();
+        assert!(matches!(err, pipetrack::Error::Parameter(_)), "{bad}: {err}");
+    }
+    let seq = synth::render_scene("target3dof", Some(3), 4, &extra(&[("shake", "true"), ("speed", "1.2")])).unwrap();
+    assert_eq!(seq.meta["shake"], true);
+    assert!(seq.meta["shake_reversal_frames"].is_array());
+    assert!(seq.meta["first_peak_s"].is_null());
+    let err = synth::render_scene("target3dof", Some(3), 4, &extra(&[("shake", "true"), ("speed", "6")])).unwrap_err();
+    assert!(err.to_string().contains("speed"), "{err}");
+    for scene in ["pendulum", "box", "textured-plane"] {
+        let err = synth::render_scene(scene, Some(1), 0, &extra(&[("shake", "true")])).unwrap_err();
+        assert!(matches!(err, pipetrack::Error::Parameter(_)), "{scene}: {err}");
+        assert!(err.to_string().contains("shake"), "{scene}: {err}");
+    }
+}
+
+#[test]
+fn synth_target3dof_shake_flag_on_the_command_line() {
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("synth-target3dof-shake-cli");
+    let _ = std::fs::remove_dir_all(&root);
+    let run = |args: &[&str]| std::process::Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().unwrap();
+    let flag = root.join("flag");
+    let set = root.join("set");
+    let common = ["--frames", "3", "--speed", "1.2", "--seed", "2"];
+    let out = run(&[&["synth", "target3dof", flag.to_str().unwrap(), "--shake"], &common[..]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = run(&[&["synth", "target3dof", set.to_str().unwrap(), "--set", "shake=true"], &common[..]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let truth = |dir: &Path| std::fs::read_to_string(dir.join("truth.jsonl")).unwrap();
+    assert_eq!(truth(&flag), truth(&set), "--shake is --set shake=true");
+    let meta: serde_json::Value = read_json(&flag.join("meta.json"));
+    assert_eq!(meta["shake"], true);
+    // Another scene: one error line naming the option, exit status 2, nothing written.
+    let pendulum = root.join("pendulum");
+    let out = run(&["synth", "pendulum", pendulum.to_str().unwrap(), "--frames", "2", "--shake"]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("shake"), "{stderr}");
+    assert!(!pendulum.exists(), "nothing written");
+}
+
+#[test]
+fn synth_target3dof_shake_reverses_abruptly_at_the_requested_peak_speed() {
+    for (speed, seed) in [(0.6, 0), (1.2, 0), (1.2, 1), (0.3, 7)] {
+        let scene = shaken(speed, seed, 300);
+        let path = scene.shake.as_ref().unwrap();
+        // Frame-to-frame turn of the line of sight, rad/s, and its direction of motion.
+        let motion: Vec<V3> = (0..299)
+            .map(|k| {
+                let (a, b) = (sight(&scene, k), sight(&scene, k + 1));
+                [b[0] - a[0], b[1] - a[1], b[2] - a[2]]
+            })
+            .collect();
+        let peak = motion.iter().map(|d| dot(*d, *d).sqrt() * target3dof::FRAME_RATE_HZ).fold(0.0, f64::max);
+        // Reversals: the direction of motion turns by more than 120° from one frame to the next.
+        let turned: Vec<usize> = (0..298)
+            .filter(|&k| {
+                let (u, v) = (motion[k], motion[k + 1]);
+                dot(u, v) < (120f64).to_radians().cos() * dot(u, u).sqrt() * dot(v, v).sqrt()
+            })
+            .map(|k| k + 1)
+            .collect();
+        println!("speed {speed} seed {seed}: peak {peak:.4} rad/s, {} reversals at {turned:?}", turned.len());
+        assert!((peak / speed - 1.0).abs() < 0.1, "requested {speed}, measured peak {peak}");
+        assert!(peak <= speed * (1.0 + 1e-9), "never faster than requested: {peak}");
+        assert!(turned.len() >= 10, "speed {speed} seed {seed}: {} reversals", turned.len());
+        assert_eq!(turned, path.reversals, "the reversals are where the path says");
+        // Runs last at most 25 frames, and the reversals are irregular.
+        let runs: Vec<usize> = std::iter::once(0)
+            .chain(turned.iter().copied())
+            .collect::<Vec<_>>()
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .collect();
+        assert!(runs.iter().all(|&r| (1..=25).contains(&r)), "{runs:?}");
+        assert!(runs.iter().min() != runs.iter().max(), "{runs:?}");
+        // The analytic rate agrees and never exceeds the request.
+        for k in 0..3000 {
+            assert!(scene.angular_speed(k as f64 / 300.0) <= speed * (1.0 + 1e-12));
+        }
+        assert!(scene.angular_speed(0.5 / 30.0) > 0.0, "moving from the first frame");
+        // Starts at the image centre at the nearest range.
+        assert_eq!(scene.pose(0).translation, [0.0, 0.0, MIN_RANGE_M]);
+    }
+}
+
+#[test]
+fn synth_target3dof_shaken_target_stays_in_view_with_constant_face_set() {
+    let reference = Target3dofScene::new(&Target3dofOptions::default()).unwrap();
+    let front0 = front_faces(&reference.model, &reference.corners(0));
+    for (speed, seed) in [(0.6, 0), (1.2, 0), (1.2, 1), (3.0, 2)] {
+        let scene = shaken(speed, seed, 300);
+        let mut margin = f64::INFINITY;
+        for k in 0..300 {
+            let z = scene.pose(k).translation[2];
+            assert!((MIN_RANGE_M..=MAX_RANGE_M).contains(&z), "frame {k}: range {z}");
+            assert!(scene.visible(k), "speed {speed} seed {seed} frame {k}");
+            let corners = scene.corners(k);
+            for c in &corners {
+                margin = margin.min(c[0]).min(c[1]).min(WIDTH as f64 - 1.0 - c[0]).min(HEIGHT as f64 - 1.0 - c[1]);
+            }
+            assert_eq!(front_faces(&scene.model, &corners), front0, "speed {speed} seed {seed} frame {k}");
+        }
+        println!("shaken at {speed} rad/s, seed {seed}: corners at least {margin:.1} px inside");
+        assert!(margin > 40.0);
+    }
+}
+
+#[test]
+fn synth_target3dof_shake_is_deterministic_from_the_seed() {
+    let a = render_target3dof(&Target3dofOptions { shake: true, ..options(1.2, 0.0, 2.0, 40) }).unwrap();
+    let b = render_target3dof(&Target3dofOptions { shake: true, ..options(1.2, 0.0, 2.0, 40) }).unwrap();
+    assert_eq!(a.truth, b.truth);
+    assert_eq!(a.meta, b.meta);
+    for k in 0..40 {
+        assert_eq!(a.frames[k].data(), b.frames[k].data(), "frame {k}");
+    }
+    let other = render_target3dof(&Target3dofOptions { shake: true, seed: 6, ..options(1.2, 0.0, 2.0, 40) }).unwrap();
+    assert_ne!(a.truth, other.truth, "the seed draws the path");
+    // A longer sequence begins with the same path.
+    let long = shaken(1.2, 5, 80);
+    let short = shaken(1.2, 5, 40);
+    for k in 0..40 {
+        assert_eq!(long.pose(k), short.pose(k), "frame {k}");
+    }
 }

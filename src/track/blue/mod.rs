@@ -113,9 +113,13 @@
 //! are measured (2: four equations for three unknowns), when eq. 9 is
 //! singular, when the estimate is not in front of the camera or puts a
 //! model vertex where it cannot be projected (at or behind the camera, or
-//! so close to Z = 0 that its pixel overflows), or when the
+//! so close to Z = 0 that its pixel overflows), when the
 //! global consistency fails badly: RMS of e (eq. 11) above
-//! [`BlueParams::max_inconsistency`] px. A lost frame feeds nothing to the
+//! [`BlueParams::max_inconsistency`] px, or when the frame before was
+//! tracked and the estimated range differs from its range by more than a
+//! factor 1.3 either way (no target changes its range by 30 % in a frame;
+//! a fit that does has matched something else, e.g. clutter next to a
+//! target that turned round). A lost frame feeds nothing to the
 //! motion models (their information decays, the polynomials extrapolate),
 //! reports the predicted vertices and pose with status `lost`, and the next
 //! frames re-acquire with the wide distance around the prediction. After
@@ -148,6 +152,34 @@
 //! hidden, but locked onto clutter on 8 % of the frames at 3 rad/s
 //! (`SEARCH_RANGE_STEPS`). A searching frame costs several times a tracking
 //! frame.
+//!
+//! **Abrupt reversals** (extension, [`BlueParams::reversal_hypotheses`]).
+//! A target shaken back and forth turns round within a frame: the
+//! 2nd-order polynomial of eq. 13 cannot predict that whatever λ (eq. 14 is
+//! a fit to the past; a smaller λ only forgets the old motion sooner), so
+//! the frame after a reversal lies about twice a frame's displacement from
+//! the prediction (40 px at 20 px/frame), beyond the association distance,
+//! and the prediction variance of eq. 15 does not grow there (it reflects
+//! the measurements' weights, not the model's adequacy). After a tracked
+//! frame at which the motion models' image velocity is at least half
+//! [`BlueParams::distance_tolerance`] per frame (so a reversal, 2 frames'
+//! displacement, leaves the association window; a slower target's stays
+//! inside it), the frame is also measured (steps 1–7) around two more
+//! hypotheses: the last tracked location moved back by the motion models'
+//! velocity v (turned back) and the last tracked location (stopped), the
+//! first association within |v| (clamped to `distance_tolerance` ..=
+//! [`BlueParams::acquire_distance`]): a target that turned round by
+//! 180° ± 50° lies within 0.85·|v| of the first, one that stopped or turned
+//! within the frame within |v| of the second.
+//! Of the estimates that pass every check, the one whose outline stands out
+//! most (the verification's excess) is kept; a hypothesis's estimate
+//! replaces one around the prediction that passed only when it lies farther
+//! than [`BlueParams::refine_distance`] from it (elsewhere: the same target
+//! found twice is kept as the prediction found it) and its excess is larger
+//! by `REVERSAL_MARGIN` (0.05). When the kept estimate lies farther than
+//! `distance_tolerance` from the prediction, the motion models restart from
+//! the last tracked frame at rest before taking it, so the next prediction
+//! does not carry the motion before the reversal.
 //!
 //! Reported per frame: the projection of every model vertex (model-vertex
 //! order, hidden ones too) at the frame's BLUE (the prediction when lost),
@@ -201,8 +233,14 @@ const SEARCH_PEAKS: usize = 8;
 const SEARCH_RANGE_RATIO: f64 = std::f64::consts::SQRT_2;
 const SEARCH_RANGE_STEPS: i32 = 0;
 /// Largest ratio between a searched frame's estimated range and the range
-/// searched, either way.
+/// searched, either way; also between a frame's estimated range and that of
+/// the tracked frame just before it.
 const SEARCH_RANGE_TOLERANCE: f64 = 1.3;
+/// Excess of contour support by which a reversal hypothesis must beat an
+/// estimate around the prediction that passed its checks (module doc,
+/// "Abrupt reversals"): the two often find the same target, and the
+/// prediction's keeps the motion models' continuity.
+const REVERSAL_MARGIN: f64 = 0.05;
 /// Least distance between two of those peaks, grid steps.
 const SEARCH_SEPARATION: i64 = 3;
 
@@ -516,10 +554,76 @@ impl BlueTracker {
             .unwrap_or_else(|| Window::full(width, height))
     }
 
+    /// The checks after steps 1–7 (module doc, "Start, loss and output" and
+    /// "Verification"): the reason `pass` loses the frame, if any, and the
+    /// verification's supported fractions (on, beside) of its outline.
+    /// `searched`: the frame was measured where the whole-image search put
+    /// the model; `follows_tracked`: the frame before was tracked.
+    fn judge(
+        &self,
+        pass: &Pass,
+        map: &EdgeMap,
+        searched: bool,
+        follows_tracked: bool,
+    ) -> (Option<String>, Option<(f64, f64)>) {
+        // Steps 5–6 refuse an estimate that puts a vertex where it cannot be
+        // projected; checked again here because every reported corner must
+        // be finite.
+        let mut failure = pass.failure.clone();
+        if failure.is_none() {
+            failure = self.unprojectable_vertex(&pass.location);
+        }
+        // A search fixes the range: an estimate far from it fitted something
+        // else than the target (clutter of another scale).
+        // Nor does a target tracked a frame ago change its range by 30 %.
+        if failure.is_none() && (searched || follows_tracked) && pass.estimated {
+            let ratio = pass.location.cz / self.last_tracked.cz;
+            if !((1.0 / SEARCH_RANGE_TOLERANCE..=SEARCH_RANGE_TOLERANCE).contains(&ratio)) {
+                let (prefix, reference) =
+                    if searched { ("search: ", "the searched one") } else { ("", "the last tracked frame's") };
+                failure = Some(format!(
+                    "{prefix}the estimate's range is {ratio:.2} times {reference} (at most {SEARCH_RANGE_TOLERANCE} either way)"
+                ));
+            }
+        }
+        // Verification: the estimate's outline must stand out on the image's edges.
+        let support =
+            if pass.estimated && failure.is_none() { self.contour_support(map, &pass.location) } else { None };
+        if failure.is_none() && self.params.verify {
+            let excess = support.map_or(0.0, |(on, off)| on - off);
+            // A search picks the best of many places: the bar is higher.
+            let min_support = if searched { self.params.search_min_support } else { self.params.min_support };
+            if !(excess >= min_support) {
+                failure = Some(match support {
+                    Some((on, off)) => format!(
+                        "contour support {:.0} % on the outline against {:.0} % beside it: excess {:.0} % < min_support {:.0} %",
+                        100.0 * on,
+                        100.0 * off,
+                        100.0 * excess,
+                        100.0 * min_support
+                    ),
+                    None => "no visible contour to verify".to_string(),
+                });
+            }
+        }
+        (failure, support)
+    }
+
+    /// The motion models' image velocity (dc_x/dt, dc_y/dt) at their
+    /// latest sample, px per frame.
+    fn image_velocity(&self) -> Option<[f64; 2]> {
+        let velocity = |k: usize| self.filters[k].coefficients().map(|a| a[1]).filter(|v| v.is_finite());
+        Some([velocity(0)?, velocity(1)?])
+    }
+
     /// Process frame `frame` given its edge pixels; every call returns an
     /// outcome (also when lost). Frames must come in increasing order.
     pub fn update(&mut self, frame: usize, edges: &[Feature]) -> FrameOutcome {
         let time = frame as f64;
+        // Whether the previous frame was tracked, and the image velocity
+        // there (for the reversal hypotheses).
+        let follows_tracked = self.phase == Phase::Tracking && self.last_frame.is_some_and(|f| f + 1 == frame);
+        let previous_velocity = follows_tracked.then(|| self.image_velocity()).flatten();
         // Step 1: prediction.
         let mut predicted = self.location_at(time);
         if !predicted.is_valid() {
@@ -573,45 +677,63 @@ impl BlueTracker {
         let pass = self.reassociate(edges, pass, &predicted);
         self.next_frame = frame + 1;
         self.last_frame = Some(frame);
-        // Step 8, and the phase. Steps 5–6 refuse an estimate that puts a
-        // vertex where it cannot be projected; checked again here because
-        // every reported corner must be finite.
-        let mut failure = pass.failure.clone();
-        if failure.is_none() {
-            failure = self.unprojectable_vertex(&pass.location);
-        }
-        // A search fixes the range: an estimate far from it fitted something
-        // else than the target (clutter of another scale).
-        if failure.is_none() && searched && pass.estimated {
-            let ratio = pass.location.cz / self.last_tracked.cz;
-            if !((1.0 / SEARCH_RANGE_TOLERANCE..=SEARCH_RANGE_TOLERANCE).contains(&ratio)) {
-                failure = Some(format!(
-                    "search: the estimate's range is {ratio:.2} times the searched one (at most {SEARCH_RANGE_TOLERANCE} either way)"
-                ));
-            }
-        }
-        // Verification: the estimate's outline must stand out on the image's edges.
-        let support =
-            if pass.estimated && failure.is_none() { self.contour_support(&map, &pass.location) } else { None };
-        if failure.is_none() && self.params.verify {
-            let excess = support.map_or(0.0, |(on, off)| on - off);
-            // A search picks the best of many places: the bar is higher.
-            let min_support = if searched { self.params.search_min_support } else { self.params.min_support };
-            if !(excess >= min_support) {
-                failure = Some(match support {
-                    Some((on, off)) => format!(
-                        "contour support {:.0} % on the outline against {:.0} % beside it: excess {:.0} % < min_support {:.0} %",
-                        100.0 * on,
-                        100.0 * off,
-                        100.0 * excess,
-                        100.0 * min_support
-                    ),
-                    None => "no visible contour to verify".to_string(),
-                });
+        let (mut failure, mut support) = self.judge(&pass, &map, searched, follows_tracked);
+        let mut pass = pass;
+        // A reversal (extension, module doc "Abrupt reversals"): after a
+        // tracked frame, when the target moves so fast that a reversal
+        // leaves the association window, the frame is measured again around
+        // the target turned back and at rest; the estimate whose outline
+        // stands out most is kept.
+        let mut reversed = false;
+        let fast = |v: &[f64; 2]| v[0].hypot(v[1]) >= 0.5 * self.params.distance_tolerance;
+        if self.params.reversal_hypotheses
+            && !searched
+            && let Some([vx, vy]) = previous_velocity.filter(fast)
+        {
+            let last = self.last_tracked;
+            let hypotheses = [
+                TargetLocation { cx: last.cx - vx, cy: last.cy - vy, ..last },
+                TargetLocation { cx: last.cx, cy: last.cy, ..last },
+            ];
+            // A hypothesis replaces an estimate that passed only when it
+            // found another place (farther than `refine_distance`) whose
+            // outline stands out clearly more.
+            let main = (failure.is_none() && support.is_some()).then_some(pass.location);
+            let mut best = match (&failure, support) {
+                (None, Some((on, off))) => on - off + REVERSAL_MARGIN,
+                _ => f64::NEG_INFINITY,
+            };
+            // The target is within a frame's displacement of either: turned
+            // back by 180° ± 50° or stopped anywhere along the way.
+            let reach = vx.hypot(vy).min(self.params.acquire_distance).max(self.params.distance_tolerance);
+            let apart = |a: &TargetLocation, b: &TargetLocation| (a.cx - b.cx).hypot(a.cy - b.cy);
+            for hypothesis in &hypotheses {
+                let (model, first_distance) = self.first_association(edges, hypothesis, reach);
+                let first = self.measure(edges, &model, hypothesis, first_distance);
+                let candidate = self.reassociate(edges, first, hypothesis);
+                if main.is_some_and(|m| apart(&m, &candidate.location) <= self.params.refine_distance) {
+                    continue;
+                }
+                if let (None, Some((on, off))) = self.judge(&candidate, &map, false, true)
+                    && on - off > best
+                {
+                    best = on - off;
+                    // Restart the motion models when the target is not where they predicted.
+                    reversed = apart(&candidate.location, &predicted) > self.params.distance_tolerance;
+                    pass = candidate;
+                    failure = None;
+                    support = Some((on, off));
+                }
             }
         }
         let tracked = failure.is_none();
         let (location, covariance) = if tracked {
+            if reversed {
+                // The polynomials extrapolate the motion before the reversal:
+                // start them again from the last tracked frame, at rest.
+                let last = self.last_tracked;
+                self.restart_motion_models(&last, time - 1.0);
+            }
             self.feed_motion_models(time, &pass);
             self.phase = Phase::Tracking;
             self.last_tracked = pass.location;

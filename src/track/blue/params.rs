@@ -162,6 +162,17 @@ pub struct BlueParams {
     /// places, so chance support is higher there than around a prediction.
     /// Range: [0, 1].
     pub search_min_support: f64,
+    /// Reversal hypotheses (extension, [`super`] module doc, "Abrupt
+    /// reversals"): after a tracked frame at which the target moved at least
+    /// half [`BlueParams::distance_tolerance`] per frame, measure the frame
+    /// also around the last tracked location turned back by one frame's
+    /// velocity and around it at rest (within that velocity, at most
+    /// [`BlueParams::acquire_distance`]),
+    /// keep the estimate whose outline stands out most among those passing
+    /// the checks, and restart the motion models from the last tracked frame
+    /// when it lies off the prediction. Off: only the prediction.
+    /// Range: either.
+    pub reversal_hypotheses: bool,
 }
 
 /// Upper bound of the distances, margins and pixel-sized tolerances and
@@ -243,6 +254,7 @@ impl Default for BlueParams {
             support_distance: 3.0,
             search_after: 3,
             search_min_support: 0.35,
+            reversal_hypotheses: true,
         }
     }
 }
