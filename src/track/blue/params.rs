@@ -153,8 +153,9 @@ pub struct BlueParams {
     /// With `verify`, lost frames in a row after which the tracker searches
     /// the whole image: the window of interest opens to the full frame (its
     /// edge cap grown in proportion) and the coarse alignment's vote over
-    /// every image shift places the model at the last tracked range before
-    /// the frame is measured (module doc, "Verification").
+    /// every image shift, at the last tracked range and ranges around it,
+    /// places the model before the frame is measured (module doc,
+    /// "Verification").
     /// Range: 1 ..= [`MAX_SEARCH_AFTER`].
     pub search_after: usize,
     /// [`BlueParams::min_support`] of a frame measured where the
@@ -162,6 +163,11 @@ pub struct BlueParams {
     /// places, so chance support is higher there than around a prediction.
     /// Range: [0, 1].
     pub search_min_support: f64,
+    /// Least fraction of the visible model lines that a frame measured
+    /// where the whole-image search put the model must fit (step 3): on
+    /// clutter that stands out like the target, a wrong place fits only
+    /// some of the target's lines. Range: [0, 1].
+    pub search_min_fitted: f64,
     /// Reversal hypotheses (extension, [`super`] module doc, "Abrupt
     /// reversals"): after a tracked frame at which the target moved at least
     /// half [`BlueParams::distance_tolerance`] per frame, measure the frame
@@ -254,6 +260,7 @@ impl Default for BlueParams {
             support_distance: 3.0,
             search_after: 3,
             search_min_support: 0.35,
+            search_min_fitted: 0.3,
             reversal_hypotheses: true,
         }
     }
@@ -288,6 +295,7 @@ impl BlueParams {
             ("support_distance", self.support_distance, POSITIVE_PX, " px"),
             ("min_support", self.min_support, Interval::closed(0.0, 1.0), ""),
             ("search_min_support", self.search_min_support, Interval::closed(0.0, 1.0), ""),
+            ("search_min_fitted", self.search_min_fitted, Interval::closed(0.0, 1.0), ""),
         ];
         for (name, v, range, unit) in reals {
             range.check(WHO, name, v, unit)?;

@@ -252,15 +252,18 @@ impl BlueTracker {
     /// shifts along one direction. `None` when no pixel votes.
     #[must_use]
     pub(super) fn align_shift(&self, edges: &[Feature], model: &TargetLocation, radius: f64) -> Option<[f64; 2]> {
-        self.shift_peaks(edges, model, radius, 1.0, 1, 0).first().copied()
+        self.shift_peaks(edges, model, radius, 1.0, 1, 0, None).first().copied()
     }
 
     /// The `count` best shifts of [`BlueTracker::align_shift`]'s vote on a
     /// grid of shifts `step` px apart, best first, each the peak of its
     /// 3×3-summed votes over the grid cells within `separation` cells (the
     /// whole-image search of a lost target uses a coarse grid and several
-    /// peaks).
+    /// peaks). With `image` (width, height), only shifts that keep the
+    /// model's centroid (`model.cx`, `model.cy`) inside the image are voted
+    /// for.
     #[must_use]
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn shift_peaks(
         &self,
         edges: &[Feature],
@@ -269,6 +272,7 @@ impl BlueTracker {
         step: f64,
         count: usize,
         separation: i64,
+        image: Option<(f64, f64)>,
     ) -> Vec<[f64; 2]> {
         let p = &self.params;
         let lines: Vec<PredictedLine> = self.predicted_lines(model).into_iter().flatten().collect();
@@ -277,6 +281,18 @@ impl BlueTracker {
         }
         let r = (radius / step).ceil() as i64;
         let n = (2 * r + 1) as usize;
+        // Cells voted for, per axis: the whole grid, or the shifts that keep
+        // the centroid in the image.
+        let cells = |centre: f64, size: Option<f64>| match size {
+            Some(size) => {
+                let lo = ((-centre / step).ceil() as i64).clamp(-r, r);
+                let hi = (((size - centre) / step).floor() as i64).clamp(-r, r);
+                (lo, hi)
+            }
+            None => (-r, r),
+        };
+        let (x_lo, x_hi) = cells(model.cx, image.map(|i| i.0));
+        let (y_lo, y_hi) = cells(model.cy, image.map(|i| i.1));
         let mut votes = vec![0u32; n * n];
         // Shift in px to grid cells: x / step, as a product where that is
         // exact (a power-of-two step, such as 1).
@@ -319,17 +335,18 @@ impl BlueTracker {
                 // Shifted line: a·(x − s_x) + b·(y − s_y) + c = 0 ⇔ a·s_x + b·s_y = d.
                 if a.abs() >= b.abs() {
                     let b_step = b * step;
-                    for (iy, row) in (-r..=r).zip(votes.chunks_exact_mut(n)) {
+                    let rows = votes.chunks_exact_mut(n).skip((y_lo + r) as usize);
+                    for (iy, row) in (y_lo..=y_hi).zip(rows) {
                         let ix = to_cells((d - b_step * iy as f64) / a);
-                        if ix.abs() <= r && foot_inside(ix, iy) {
+                        if (x_lo..=x_hi).contains(&ix) && foot_inside(ix, iy) {
                             row[(ix + r) as usize] += 1;
                         }
                     }
                 } else {
                     let a_step = a * step;
-                    for ix in -r..=r {
+                    for ix in x_lo..=x_hi {
                         let iy = to_cells((d - a_step * ix as f64) / b);
-                        if iy.abs() <= r && foot_inside(ix, iy) {
+                        if (y_lo..=y_hi).contains(&iy) && foot_inside(ix, iy) {
                             votes[(iy + r) as usize * n + (ix + r) as usize] += 1;
                         }
                     }
@@ -337,8 +354,8 @@ impl BlueTracker {
             }
         }
         let mut summed = vec![0u32; n * n];
-        for iy in -r..=r {
-            for ix in -r..=r {
+        for iy in y_lo..=y_hi {
+            for ix in x_lo..=x_hi {
                 let mut sum = 0;
                 for jy in (iy - 1).max(-r)..=(iy + 1).min(r) {
                     for jx in (ix - 1).max(-r)..=(ix + 1).min(r) {
