@@ -185,13 +185,49 @@ pub fn fit_model_lines(
                 LineFitMethod::Orthogonal => fit_line_orthogonal(sums),
                 LineFitMethod::Across => {
                     let points: Vec<[f64; 2]> = pixels.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]).collect();
-                    fit_band_across(&points, model.direction, BAND_SPLIT_STD_PX)
+                    let mut fit = fit_band_across(&points, model.direction, BAND_SPLIT_STD_PX)?;
+                    for _ in 0..OUTLIER_ROUNDS {
+                        fit = refit_without_outliers(&points, fit, model.direction, min_points)?;
+                    }
+                    Some(fit)
                 }
             };
             fit.filter(|f| orientation_difference(f.line.orientation(), model.orientation) < delta)
         })
         .collect()
 }
+
+/// The band fit again without the points far from `fit` (extension): a
+/// point more than [`OUTLIER_SPREAD`] robust standard deviations (1.4826 ×
+/// the median absolute distance, at least [`OUTLIER_FLOOR_PX`]) from the
+/// fitted line belongs to something else in the strip, such as a second
+/// moving object's edge of similar orientation. `fit` itself when nothing is
+/// that far or too few points would remain.
+fn refit_without_outliers(
+    points: &[[f64; 2]],
+    fit: LineFit,
+    direction: [f64; 2],
+    min_points: usize,
+) -> Option<LineFit> {
+    let distances: Vec<f64> = points.iter().map(|&p| fit.line.signed_distance(p).abs()).collect();
+    let mut sorted = distances.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let limit = (OUTLIER_SPREAD * 1.4826 * median).max(OUTLIER_FLOOR_PX);
+    let kept: Vec<[f64; 2]> = points.iter().zip(&distances).filter(|&(_, &d)| d <= limit).map(|(&p, _)| p).collect();
+    if kept.len() == points.len() || kept.len() < min_points.max(2) {
+        return Some(fit);
+    }
+    fit_band_across(&kept, direction, BAND_SPLIT_STD_PX).or(Some(fit))
+}
+
+/// Robust standard deviations beyond which a point is refused by
+/// [`refit_without_outliers`].
+const OUTLIER_SPREAD: f64 = 3.0;
+/// Rounds of [`refit_without_outliers`], each about the last fit.
+const OUTLIER_ROUNDS: usize = 3;
+/// Least distance at which [`refit_without_outliers`] refuses a point, px.
+const OUTLIER_FLOOR_PX: f64 = 2.0;
 
 /// Step 4: each corner is the intersection of its two model lines, fitted
 /// where fitted, `fallback_lines` (the predicted lines, or the lines held
@@ -232,4 +268,50 @@ pub fn corner_deviation(corners: &[[f64; 2]], measured: &[bool], predicted: &[[f
         .filter(|((_, m), _)| **m)
         .map(|((c, _), p)| (c[0] - p[0]).hypot(c[1] - p[1]))
         .fold(None, |acc: Option<f64>, d| Some(acc.map_or(d, |a| a.max(d))))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 3-px band along the line y = 0.2·x + 10 for x in 0..60, and a short
+    /// parallel edge 9 px below it (another object's pixels in the strip).
+    fn band_with_a_parallel_stray() -> Vec<[f64; 2]> {
+        let mut points = Vec::new();
+        for x in 0..60 {
+            for dy in [-1.0, 0.0, 1.0] {
+                points.push([f64::from(x), 0.2 * f64::from(x) + 10.0 + dy]);
+            }
+        }
+        for x in 40..55 {
+            points.push([f64::from(x), 0.2 * f64::from(x) + 19.0]);
+        }
+        points
+    }
+
+    #[test]
+    fn refit_without_outliers_drops_a_parallel_stray_edge() {
+        let points = band_with_a_parallel_stray();
+        let direction = [1.0 / 1.04_f64.sqrt(), 0.2 / 1.04_f64.sqrt()];
+        let fit = fit_band_across(&points, direction, BAND_SPLIT_STD_PX).expect("fit");
+        let off = |f: &LineFit| [0.0, 60.0].map(|x: f64| f.line.signed_distance([x, 0.2 * x + 10.0]).abs());
+        // The stray edge pulls the plain fit by more than a pixel at the far end.
+        assert!(off(&fit)[1] > 1.0, "plain fit {:?}", off(&fit));
+        let mut refit = fit;
+        for _ in 0..OUTLIER_ROUNDS {
+            refit = refit_without_outliers(&points, refit, direction, 5).expect("refit");
+        }
+        assert!(off(&refit).iter().all(|&d| d < 0.05), "refit {:?}", off(&refit));
+        assert_eq!(refit.count, 180);
+    }
+
+    #[test]
+    fn refit_without_outliers_keeps_a_clean_band_as_it_is() {
+        let points: Vec<[f64; 2]> = band_with_a_parallel_stray().into_iter().take(180).collect();
+        let direction = [1.0 / 1.04_f64.sqrt(), 0.2 / 1.04_f64.sqrt()];
+        let fit = fit_band_across(&points, direction, BAND_SPLIT_STD_PX).expect("fit");
+        let refit = refit_without_outliers(&points, fit, direction, 5).expect("refit");
+        assert_eq!(refit.line, fit.line);
+        assert_eq!(refit.count, fit.count);
+    }
 }
