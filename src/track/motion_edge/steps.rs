@@ -189,7 +189,7 @@ pub fn fit_model_lines(
                     for _ in 0..OUTLIER_ROUNDS {
                         fit = refit_without_outliers(&points, fit, model.direction, min_points)?;
                     }
-                    Some(fit)
+                    (along_extent(&points, &fit, model.direction) >= MIN_COVERAGE * model.length).then_some(fit)
                 }
             };
             fit.filter(|f| orientation_difference(f.line.orientation(), model.orientation) < delta)
@@ -224,6 +224,26 @@ fn refit_without_outliers(
 /// Robust standard deviations beyond which a point is refused by
 /// [`refit_without_outliers`].
 const OUTLIER_SPREAD: f64 = 3.0;
+/// Extent along `direction` of the points within the outlier limit of
+/// `fit` ([`refit_without_outliers`]), px.
+fn along_extent(points: &[[f64; 2]], fit: &LineFit, direction: [f64; 2]) -> f64 {
+    let distances: Vec<f64> = points.iter().map(|&p| fit.line.signed_distance(p).abs()).collect();
+    let mut sorted = distances.clone();
+    sorted.sort_by(f64::total_cmp);
+    let limit = (OUTLIER_SPREAD * 1.4826 * sorted[sorted.len() / 2]).max(OUTLIER_FLOOR_PX);
+    let along = points
+        .iter()
+        .zip(&distances)
+        .filter(|&(_, &d)| d <= limit)
+        .map(|(p, _)| p[0] * direction[0] + p[1] * direction[1]);
+    let (lo, hi) = along.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), a| (lo.min(a), hi.max(a)));
+    (hi - lo).max(0.0)
+}
+
+/// Least extent along a model line of the pixels its fit keeps, as a
+/// fraction of the line's length: a shorter run is another object's edge.
+const MIN_COVERAGE: f64 = 0.4;
+
 /// Rounds of [`refit_without_outliers`], each about the last fit.
 const OUTLIER_ROUNDS: usize = 3;
 /// Least distance at which [`refit_without_outliers`] refuses a point, px.
@@ -303,6 +323,22 @@ mod tests {
         }
         assert!(off(&refit).iter().all(|&d| d < 0.05), "refit {:?}", off(&refit));
         assert_eq!(refit.count, 180);
+    }
+
+    #[test]
+    fn a_short_run_of_pixels_does_not_cover_the_model_line() {
+        let model = ModelLine::between([0.0, 10.0], [60.0, 22.0]).expect("line");
+        let band: Vec<[f64; 2]> = band_with_a_parallel_stray().into_iter().take(180).collect();
+        let stray: Vec<[f64; 2]> = band_with_a_parallel_stray().into_iter().skip(180).collect();
+        let extent = |points: &[[f64; 2]]| {
+            let fit = fit_band_across(points, model.direction, BAND_SPLIT_STD_PX).expect("fit");
+            along_extent(points, &fit, model.direction)
+        };
+        // The band spans the 61-px line (60 px along it, ±0.4 px of its
+        // width); the 15-px stray edge alone does not reach MIN_COVERAGE.
+        assert!((extent(&band) - 59.0 * 1.04_f64.sqrt()).abs() < 0.5, "{}", extent(&band));
+        assert!(extent(&stray) < MIN_COVERAGE * model.length, "{}", extent(&stray));
+        assert!(extent(&band) >= MIN_COVERAGE * model.length);
     }
 
     #[test]
