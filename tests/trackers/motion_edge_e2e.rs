@@ -175,3 +175,18 @@ fn a_second_object_crossing_behind_the_target_is_never_tracked_instead() {
         assert!(s.tracked >= least, "{speed} px/frame: {} of 200 frames tracking", s.tracked);
     }
 }
+
+#[test]
+fn beyond_20_px_per_frame_frames_are_lost_but_never_falsely_tracked() {
+    // Between the turning points the rectangle outruns the strips; each
+    // re-acquisition must name its corners as before (a fit that moved every
+    // line onto the next side of the rectangle is refused by side length).
+    for speed in [24.0, 28.0] {
+        let (results, s) = track(&pendulum(speed), &mut CpuBackend::new());
+        let st: String = results.iter().map(|r| if r.status == Status::Tracking { 'T' } else { 'L' }).collect();
+        println!("{speed:>4} px/frame: {st}");
+        println!("{speed:>4} px/frame: tracked {}/{}, false {:?}", s.tracked, s.frames, s.false_tracking);
+        assert!(s.tracked > 0, "{speed} px/frame: never tracking");
+        assert!(s.false_tracking.is_empty(), "{speed} px/frame: false tracking at {:?}", s.false_tracking);
+    }
+}
