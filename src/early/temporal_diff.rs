@@ -76,7 +76,7 @@ struct TemporalDiffUniform {
 // not dispatched to AVX-512 like the filters: they move 12 bytes per pixel
 // for one comparison, so memory traffic bounds them, and on the AVX-512 CPU
 // measured (frames of 640×480 and above, one thread) the 512-bit build ran
-// 15–20 % slower than the baseline one.
+// 15–25 % slower than the baseline one.
 
 /// One row (or any run of pixels); same arithmetic as the shader.
 fn diff_row(prev: &[f32], cur: &[f32], out: &mut [f32], threshold: f32) {
