@@ -10,7 +10,9 @@ use crate::early::gaussian::gaussian_cpu;
 use crate::early::ingest::ingest_cpu;
 use crate::early::log::log_cpu;
 use crate::early::log::log_kernels;
-use crate::early::sobel::{SobelOutput, SobelPixel, gradient_at_pixel, sobel_cpu, sobel_of_gradient};
+use crate::early::sobel::{
+    SobelOutput, SobelPixel, gradient_at_pixel, sobel_cpu, sobel_gradient_magnitude_cpu, sobel_of_gradient,
+};
 use crate::early::temporal_diff;
 use crate::early::window_energy;
 use crate::early::zero_crossing::{Edgels, zero_crossing_strength_direction_cpu};
@@ -26,10 +28,10 @@ pub struct CpuBackend {
     tmp2: FloatImage,
     /// What `images.previous` holds, if it holds a usable previous frame.
     previous: Option<PreviousFrame>,
-    /// For each Sobel set of this frame's plan that only compactions read as
-    /// θ or magnitude, the plane its last [`Step::Sobel`] differentiated:
-    /// those sets are evaluated at the listed pixels only (see [`listed_only`]).
-    sparse_sobel: [Option<Plane>; 2],
+    /// For each Sobel set of this frame's plan whose parts are (all, or the
+    /// angles alone) evaluated at the listed pixels only, the plane its last
+    /// [`Step::Sobel`] differentiated and which parts (see [`sobel_need`]).
+    sparse_sobel: [Option<(Plane, ListedParts)>; 2],
     /// Scratch of [`fill_sobel_parts`].
     gradients: Vec<(f32, f32)>,
     /// Lists and pyramids handed back by [`EarlyVision::recycle`], refilled
@@ -104,15 +106,20 @@ impl Images {
         }
     }
 
-    /// Sobel of plane `input` into set `output` (disjoint fields of `self`).
-    fn sobel_into(&mut self, input: Plane, output: SobelPlanes) {
+    /// Sobel of plane `input` into set `output` (disjoint fields of `self`):
+    /// all five planes, or without the angles unless `angles`.
+    fn sobel_into(&mut self, input: Plane, output: SobelPlanes, angles: bool) {
         let Self { luma, smoothed, previous, motion_mask, sum, log, sobel_of_sum, sobel_of_frame, .. } = self;
         let src = plane(luma, smoothed, previous, motion_mask, sum, log, input);
         let dst = match output {
             SobelPlanes::OfSum => sobel_of_sum,
             SobelPlanes::OfFrame => sobel_of_frame,
         };
-        sobel_cpu(src, dst);
+        if angles {
+            sobel_cpu(src, dst);
+        } else {
+            sobel_gradient_magnitude_cpu(src, dst);
+        }
     }
 }
 
@@ -214,10 +221,16 @@ impl CpuBackend {
                     &mut img.sum,
                 )?,
                 Step::Sobel { input, output } => {
-                    let sparse = listed_only(&plan, output);
-                    self.sparse_sobel[sobel_slot(output)] = sparse.then_some(input);
-                    if !sparse {
-                        img.sobel_into(input, output);
+                    let need = sobel_need(&plan, output);
+                    self.sparse_sobel[sobel_slot(output)] = match need {
+                        SobelNeed::Listed => Some((input, ListedParts::All)),
+                        SobelNeed::GradientMagnitude => Some((input, ListedParts::Angles)),
+                        SobelNeed::Planes => None,
+                    };
+                    match need {
+                        SobelNeed::Listed => {}
+                        SobelNeed::GradientMagnitude => img.sobel_into(input, output, false),
+                        SobelNeed::Planes => img.sobel_into(input, output, true),
                     }
                 }
                 Step::Log(p) => match log_part {
@@ -262,7 +275,11 @@ impl CpuBackend {
                 Step::Compact { list, select, theta, magnitude, params } => {
                     let mut features = recycled_list(self.spare.list_mut(list));
                     let sparse = |source| match source {
-                        Source::Sobel(set, part) => self.sparse_sobel[sobel_slot(set)].map(|plane| (plane, part)),
+                        Source::Sobel(set, part) => match self.sparse_sobel[sobel_slot(set)] {
+                            Some((plane, ListedParts::All)) => Some((plane, part)),
+                            Some((plane, ListedParts::Angles)) if is_angle(part) => Some((plane, part)),
+                            _ => None,
+                        },
                         _ => None,
                     };
                     let (sparse_theta, sparse_magnitude) = (sparse(theta), sparse(magnitude));
@@ -422,18 +439,59 @@ fn copy_part(src: &FloatImage, part: Window, out: &mut FloatImage) {
     }
 }
 
-/// Whether the plan reads Sobel set `set` only as the θ or magnitude of
+/// Which parts of a Sobel set a sparse set evaluates at the listed pixels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum ListedParts {
+    /// Every part: the set has no planes.
+    All,
+    /// The direction and θ: the set has gx, gy and magnitude planes.
+    Angles,
+}
+
+/// How much of a Sobel set the CPU computes as whole planes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum SobelNeed {
+    /// No planes: every part read is evaluated at the listed pixels.
+    Listed,
+    /// gx, gy and magnitude planes; the angles at the listed pixels.
+    GradientMagnitude,
+    /// All five planes.
+    Planes,
+}
+
+/// Whether `part` is one of a Sobel set's angles.
+fn is_angle(part: SobelPart) -> bool {
+    matches!(part, SobelPart::Direction | SobelPart::Theta)
+}
+
+/// How the plan reads Sobel set `set`. Read only as the θ or magnitude of
 /// listed pixels (never as a compaction's `select`, nor as the pyramids'
-/// gradient): then the CPU computes it at the listed pixels alone, with
-/// [`crate::early::sobel::sobel_at`], bit for bit what the full planes would
-/// hold there. The motion list's Sobel of the frame sum is such a set: it is
-/// needed only where the motion mask is set.
-fn listed_only(plan: &FramePlan, set: SobelPlanes) -> bool {
-    plan.steps().iter().all(|step| match *step {
-        Step::Compact { select: Source::Sobel(s, _), .. } => s != set,
-        Step::Pyramids { gradient, .. } => gradient != set,
-        _ => true,
-    })
+/// gradient), the CPU computes it at the listed pixels alone
+/// ([`SobelNeed::Listed`]), with [`crate::early::sobel::sobel_at`], bit for
+/// bit what the full planes would hold there: the motion list's Sobel of the
+/// frame sum is such a set, needed only where the motion mask is set. With
+/// no compaction selecting on its angles, the angles are likewise evaluated
+/// at the listed pixels only ([`SobelNeed::GradientMagnitude`]): the edge
+/// list selects on the magnitude and reads the direction of the pixels it
+/// keeps, the pyramids read gx and gy.
+fn sobel_need(plan: &FramePlan, set: SobelPlanes) -> SobelNeed {
+    let steps = plan.steps();
+    let selects = |angle: Option<bool>| {
+        steps.iter().any(|step| match *step {
+            Step::Compact { select: Source::Sobel(s, part), .. } => {
+                s == set && angle.is_none_or(|a| is_angle(part) == a)
+            }
+            _ => false,
+        })
+    };
+    let pyramids = steps.iter().any(|step| matches!(*step, Step::Pyramids { gradient, .. } if gradient == set));
+    if selects(Some(true)) {
+        SobelNeed::Planes
+    } else if selects(None) || pyramids {
+        SobelNeed::GradientMagnitude
+    } else {
+        SobelNeed::Listed
+    }
 }
 
 /// Set each feature's θ and magnitude, where a part is given, to that part
@@ -516,6 +574,42 @@ mod tests {
         let bits =
             |l: &[Feature]| l.iter().map(|f| (f.x, f.y, f.theta.to_bits(), f.magnitude.to_bits())).collect::<Vec<_>>();
         assert_eq!(bits(&got), bits(&expected));
+    }
+
+    /// The edge list, selected on the magnitude plane with its direction
+    /// computed at the listed pixels only, equals the list compacted from
+    /// the five dense Sobel planes, bit for bit, of the raw and the smoothed
+    /// frame, on an odd size.
+    #[test]
+    fn edge_list_with_listed_directions_equals_the_dense_planes() {
+        use crate::early::compaction::compaction;
+        use crate::early::gaussian::gaussian;
+        use crate::early::sobel::sobel;
+        let (w, h) = (41, 27);
+        let frame = natural(w, h, 9);
+        for smoothed in [false, true] {
+            let mut request = FrameRequest::full_chain(w, h);
+            let mut edges = request.edges.unwrap();
+            edges.smoothed = smoothed;
+            request.edges = Some(edges);
+            let got = CpuBackend::new().process(&frame, &request).unwrap().edges.unwrap();
+
+            let luma = frame.to_f32();
+            let src = if smoothed { gaussian(&luma, &request.smoothing).unwrap() } else { luma };
+            let planes = sobel(&src);
+            let compacted = compaction(
+                &planes.magnitude,
+                &planes.direction,
+                &planes.magnitude,
+                &edges.list.compaction(edges.threshold),
+            );
+            let expected = compacted.unwrap();
+            assert!(!expected.is_empty());
+            let bits = |l: &[Feature]| {
+                l.iter().map(|f| (f.x, f.y, f.theta.to_bits(), f.magnitude.to_bits())).collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&got), bits(&expected), "smoothed {smoothed}");
+        }
     }
 
     /// Recycled lists and pyramid levels are refilled, not appended to: a

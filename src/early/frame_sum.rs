@@ -33,7 +33,7 @@ struct FrameSumUniform {
     _pad: [u32; 2],
 }
 
-pub(crate) fn sum_row(a: &[f32], b: &[f32], out: &mut [f32]) {
+fn sum_row(a: &[f32], b: &[f32], out: &mut [f32]) {
     for ((o, &x), &y) in out.iter_mut().zip(a).zip(b) {
         *o = x + y;
     }

@@ -111,16 +111,42 @@ fn blur_row_body(src: &[f32], dst: &mut [f32], half: &[f32]) {
         (0..n).for_each(|x| edge(x, dst));
         return;
     }
-    (0..r).for_each(|x| edge(x, dst));
-    let inner = &mut dst[r..n - r];
     match half.len() {
-        2 => blur_interior::<2>(src, inner, half),
-        3 => blur_interior::<3>(src, inner, half),
-        4 => blur_interior::<4>(src, inner, half),
-        5 => blur_interior::<5>(src, inner, half),
-        _ => blur_interior_any(src, inner, half),
+        2 => blur_row_fixed::<2>(src, dst, half),
+        3 => blur_row_fixed::<3>(src, dst, half),
+        4 => blur_row_fixed::<4>(src, dst, half),
+        5 => blur_row_fixed::<5>(src, dst, half),
+        _ => {
+            (0..r).for_each(|x| edge(x, dst));
+            blur_interior_any(src, &mut dst[r..n - r], half);
+            (n - r..n).for_each(|x| edge(x, dst));
+        }
     }
-    (n - r..n).for_each(|x| edge(x, dst));
+}
+
+/// Most values of a border piece of [`blur_row_fixed`]: `3r` for `r ≤ 4`.
+const BORDER_PIECE: usize = 12;
+
+/// A row of more than `2r` pixels blurred with a half kernel of `N ≤ 5`
+/// taps: the interior in place, and each border's `r` pixels as the interior
+/// of a short piece of `3r` values clamped to the edge, so that borders too
+/// sum their taps in registers, in the same order (the same bits as
+/// clamping every index).
+#[inline(always)]
+fn blur_row_fixed<const N: usize>(src: &[f32], dst: &mut [f32], half: &[f32]) {
+    let (n, r) = (src.len(), N - 1);
+    let last = n as isize - 1;
+    let mut piece = [0.0f32; BORDER_PIECE];
+    let mut border = |first: isize, out: &mut [f32]| {
+        for (j, v) in piece[..3 * r].iter_mut().enumerate() {
+            *v = src[(first + j as isize).clamp(0, last) as usize];
+        }
+        blur_interior::<N>(&piece[..3 * r], out, half);
+    };
+    // Output pixel x reads piece index x − first, i.e. r + (x − first − r).
+    border(-(r as isize), &mut dst[..r]);
+    blur_interior::<N>(src, &mut dst[r..n - r], half);
+    border((n - 2 * r) as isize, &mut dst[n - r..]);
 }
 
 /// The interior `dst = src[r..n − r]` blurred, for a half kernel of `N`
@@ -401,6 +427,34 @@ mod tests {
                 }
                 let bits = |i: &FloatImage| i.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&fused), bits(&two_pass), "{w}x{h}, sigma {sigma}");
+            }
+        }
+    }
+
+    /// The row pass equals a plain loop that clamps every tap's index,
+    /// bit for bit, for every radius with taps in registers and beyond, on
+    /// widths around `2r` (all border, border meeting interior) and odd ones.
+    #[test]
+    fn row_pass_equals_clamping_every_tap_bitwise() {
+        for sigma in [0.3, 0.5, 1.0, 1.2, 1.5, 2.0] {
+            let half = half_kernel(sigma).unwrap();
+            let r = half.len() - 1;
+            for n in [1, 2, 3, 2 * r, 2 * r + 1, 2 * r + 2, 3 * r + 1, 37, 101] {
+                let src: Vec<f32> = (0..n).map(|x| ((x * 37) % 29) as f32 * 1.3 - 7.0).collect();
+                let mut got = vec![f32::NAN; n];
+                blur_row(&src, &mut got, &half);
+                let expected: Vec<u32> = (0..n)
+                    .map(|x| {
+                        let at = |i: isize| src[i.clamp(0, n as isize - 1) as usize];
+                        let mut sum = half[0] * src[x];
+                        for (k, &w) in half.iter().enumerate().skip(1) {
+                            sum += w * (at(x as isize - k as isize) + at(x as isize + k as isize));
+                        }
+                        sum.to_bits()
+                    })
+                    .collect();
+                let bits: Vec<u32> = got.iter().map(|v| v.to_bits()).collect();
+                assert_eq!(bits, expected, "sigma {sigma}, width {n}");
             }
         }
     }

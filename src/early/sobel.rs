@@ -257,14 +257,16 @@ struct Rows<'a> {
 
 simd_dispatch!(fn sobel_row(src: &[f32], width: usize, height: usize, y: usize, out: Rows<'_>) => sobel_row_body);
 
-/// One output row `y`: derivatives (interior without clamping, vectorisable;
-/// the two border columns clamped), then magnitude and angles.
+simd_dispatch!(
+    fn gradient_magnitude_row(src: &[f32], width: usize, height: usize, y: usize, gx: &mut [f32], gy: &mut [f32], magnitude: &mut [f32]) => gradient_magnitude_row_body
+);
+
+/// The derivatives of output row `y`: interior without clamping
+/// (vectorisable), then the two border columns clamped.
 #[inline(always)]
-fn sobel_row_body(src: &[f32], width: usize, height: usize, y: usize, out: Rows<'_>) {
+fn derivative_row(src: &[f32], width: usize, height: usize, y: usize, gx: &mut [f32], gy: &mut [f32]) {
     let row = |yy: usize| &src[yy * width..(yy + 1) * width];
     let (up, mid, down) = (row(y.saturating_sub(1)), row(y), row((y + 1).min(height - 1)));
-    let Rows { gx, gy, magnitude, direction, theta } = out;
-
     if width >= 3 {
         let n = width - 2;
         let (ul, uc, ur) = (&up[..n], &up[1..n + 1], &up[2..]);
@@ -284,12 +286,60 @@ fn sobel_row_body(src: &[f32], width: usize, height: usize, y: usize, out: Rows<
         gx[xc] = x;
         gy[xc] = y;
     }
+}
 
+/// One output row `y`: derivatives, then magnitude and angles.
+#[inline(always)]
+fn sobel_row_body(src: &[f32], width: usize, height: usize, y: usize, out: Rows<'_>) {
+    let Rows { gx, gy, magnitude, direction, theta } = out;
+    derivative_row(src, width, height, y, gx, gy);
     for i in 0..width {
         let (x, y) = (gx[i], gy[i]);
         magnitude[i] = (x * x + y * y).sqrt();
         (direction[i], theta[i]) = gradient_angles(x, y);
     }
+}
+
+/// One output row `y`: derivatives and magnitude, no angles.
+#[inline(always)]
+fn gradient_magnitude_row_body(
+    src: &[f32],
+    width: usize,
+    height: usize,
+    y: usize,
+    gx: &mut [f32],
+    gy: &mut [f32],
+    magnitude: &mut [f32],
+) {
+    derivative_row(src, width, height, y, gx, gy);
+    for ((m, &x), &y) in magnitude.iter_mut().zip(gx.iter()).zip(gy.iter()) {
+        *m = (x * x + y * y).sqrt();
+    }
+}
+
+/// CPU twin without the angles: `gx`, `gy` and `magnitude` of `src` into
+/// `out`, each bit for bit as [`sobel_cpu`] writes it; `direction` and
+/// `theta` are left empty (0×0), for callers that read the angles at a few
+/// pixels only ([`sobel_at`]) and so skip the arctangent of every pixel.
+pub fn sobel_gradient_magnitude_cpu(src: &FloatImage, out: &mut SobelOutput) {
+    let (w, h) = src.size();
+    out.gx.resize(w, h);
+    out.gy.resize(w, h);
+    out.magnitude.resize(w, h);
+    out.direction.resize(0, 0);
+    out.theta.resize(0, 0);
+    if w == 0 || h == 0 {
+        return;
+    }
+    let s = src.data();
+    let planes = (
+        out.gx.data_mut().par_chunks_mut(w),
+        out.gy.data_mut().par_chunks_mut(w),
+        out.magnitude.data_mut().par_chunks_mut(w),
+    );
+    for_each_row(w * h, planes.into_par_iter().enumerate(), |(y, (gx, gy, magnitude))| {
+        gradient_magnitude_row(s, w, h, y, gx, gy, magnitude);
+    });
 }
 
 /// CPU twin: the five Sobel planes of `src` into `out` (resized to match).
@@ -402,6 +452,24 @@ mod tests {
 
     fn close(a: f32, b: f32) -> bool {
         (a - b).abs() <= 1e-6
+    }
+
+    /// Without the angles, gx, gy and the magnitude equal the full twin's
+    /// bit for bit on awkward sizes (1 px, one row, one column, odd widths,
+    /// the threaded size), and the angle planes are empty.
+    #[test]
+    fn gradient_and_magnitude_alone_equal_the_full_twin_bitwise() {
+        for (w, h) in [(1, 1), (1, 9), (9, 1), (2, 2), (37, 11), (300, 250)] {
+            let src = FloatImage::from_fn(w, h, |x, y| ((x * 37 + y * 91) % 53) as f32 * 1.7 - 40.0);
+            let full = sobel(&src);
+            let mut out = SobelOutput::new(3, 3);
+            sobel_gradient_magnitude_cpu(&src, &mut out);
+            let bits = |i: &FloatImage| i.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&out.gx), bits(&full.gx), "gx {w}x{h}");
+            assert_eq!(bits(&out.gy), bits(&full.gy), "gy {w}x{h}");
+            assert_eq!(bits(&out.magnitude), bits(&full.magnitude), "magnitude {w}x{h}");
+            assert_eq!((out.gx.size(), out.direction.size(), out.theta.size()), ((w, h), (0, 0), (0, 0)));
+        }
     }
 
     #[test]
