@@ -185,11 +185,8 @@ pub fn fit_model_lines(
                 LineFitMethod::Orthogonal => fit_line_orthogonal(sums),
                 LineFitMethod::Across => {
                     let points: Vec<[f64; 2]> = pixels.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]).collect();
-                    let mut fit = fit_band_across(&points, model.direction, BAND_SPLIT_STD_PX)?;
-                    for _ in 0..OUTLIER_ROUNDS {
-                        fit = refit_without_outliers(&points, fit, model.direction, min_points)?;
-                    }
-                    (along_extent(&points, &fit, model.direction) >= MIN_COVERAGE * model.length).then_some(fit)
+                    let (fit, extent) = robust_band_fit(&points, model.direction, min_points)?;
+                    (extent >= MIN_COVERAGE * model.length).then_some(fit)
                 }
             };
             fit.filter(|f| orientation_difference(f.line.orientation(), model.orientation) < delta)
@@ -197,56 +194,59 @@ pub fn fit_model_lines(
         .collect()
 }
 
-/// The band fit again without the points far from `fit` (extension): a
-/// point more than [`OUTLIER_SPREAD`] robust standard deviations (1.4826 ×
-/// the median absolute distance, at least [`OUTLIER_FLOOR_PX`]) from the
-/// fitted line belongs to something else in the strip, such as a second
-/// moving object's edge of similar orientation. `fit` itself when nothing is
-/// that far or too few points would remain.
-fn refit_without_outliers(
-    points: &[[f64; 2]],
-    fit: LineFit,
-    direction: [f64; 2],
-    min_points: usize,
-) -> Option<LineFit> {
-    let distances: Vec<f64> = points.iter().map(|&p| fit.line.signed_distance(p).abs()).collect();
-    let mut sorted = distances.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let limit = (OUTLIER_SPREAD * 1.4826 * median).max(OUTLIER_FLOOR_PX);
-    let kept: Vec<[f64; 2]> = points.iter().zip(&distances).filter(|&(_, &d)| d <= limit).map(|(&p, _)| p).collect();
-    if kept.len() == points.len() || kept.len() < min_points.max(2) {
-        return Some(fit);
+/// The band fit ([`fit_band_across`]) of `points`, made again up to
+/// [`OUTLIER_ROUNDS`] times without the points far from the last fit
+/// (extension): a point more than [`OUTLIER_SPREAD`] robust standard
+/// deviations (1.4826 × the median distance of all points, at least
+/// [`OUTLIER_FLOOR_PX`]) from it belongs to something else in the strip,
+/// such as a second moving object's edge of similar orientation. A round
+/// that would keep every point, or fewer than `min_points`, ends the
+/// rounds. Returns the fit and the extent along `direction` of the points it
+/// keeps, px.
+fn robust_band_fit(points: &[[f64; 2]], direction: [f64; 2], min_points: usize) -> Option<(LineFit, f64)> {
+    let mut fit = fit_band_across(points, direction, BAND_SPLIT_STD_PX)?;
+    let mut scratch = Vec::with_capacity(points.len());
+    let mut limit = outlier_limit(points, &fit, &mut scratch);
+    for _ in 0..OUTLIER_ROUNDS {
+        let within = |p: &[f64; 2]| fit.line.signed_distance(*p).abs() <= limit;
+        let kept_count = points.iter().filter(|p| within(p)).count();
+        if kept_count == points.len() || kept_count < min_points.max(2) {
+            break;
+        }
+        let kept: Vec<[f64; 2]> = points.iter().filter(|p| within(p)).copied().collect();
+        let Some(refit) = fit_band_across(&kept, direction, BAND_SPLIT_STD_PX) else { break };
+        fit = refit;
+        limit = outlier_limit(points, &fit, &mut scratch);
     }
-    fit_band_across(&kept, direction, BAND_SPLIT_STD_PX).or(Some(fit))
+    let (lo, hi) = points
+        .iter()
+        .filter(|p| fit.line.signed_distance(**p).abs() <= limit)
+        .map(|p| p[0] * direction[0] + p[1] * direction[1])
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), a| (lo.min(a), hi.max(a)));
+    Some((fit, (hi - lo).max(0.0)))
 }
 
-/// Robust standard deviations beyond which a point is refused by
-/// [`refit_without_outliers`].
-const OUTLIER_SPREAD: f64 = 3.0;
-/// Extent along `direction` of the points within the outlier limit of
-/// `fit` ([`refit_without_outliers`]), px.
-fn along_extent(points: &[[f64; 2]], fit: &LineFit, direction: [f64; 2]) -> f64 {
-    let distances: Vec<f64> = points.iter().map(|&p| fit.line.signed_distance(p).abs()).collect();
-    let mut sorted = distances.clone();
-    sorted.sort_by(f64::total_cmp);
-    let limit = (OUTLIER_SPREAD * 1.4826 * sorted[sorted.len() / 2]).max(OUTLIER_FLOOR_PX);
-    let along = points
-        .iter()
-        .zip(&distances)
-        .filter(|&(_, &d)| d <= limit)
-        .map(|(p, _)| p[0] * direction[0] + p[1] * direction[1]);
-    let (lo, hi) = along.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), a| (lo.min(a), hi.max(a)));
-    (hi - lo).max(0.0)
+/// The distance beyond which [`robust_band_fit`] refuses a point of
+/// `points` around `fit`; `scratch` is working space.
+fn outlier_limit(points: &[[f64; 2]], fit: &LineFit, scratch: &mut Vec<f64>) -> f64 {
+    scratch.clear();
+    scratch.extend(points.iter().map(|&p| fit.line.signed_distance(p).abs()));
+    let middle = scratch.len() / 2;
+    let (_, median, _) = scratch.select_nth_unstable_by(middle, f64::total_cmp);
+    (OUTLIER_SPREAD * 1.4826 * *median).max(OUTLIER_FLOOR_PX)
 }
+
+/// Robust standard deviations beyond which [`robust_band_fit`] refuses a
+/// point.
+const OUTLIER_SPREAD: f64 = 3.0;
 
 /// Least extent along a model line of the pixels its fit keeps, as a
 /// fraction of the line's length: a shorter run is another object's edge.
 const MIN_COVERAGE: f64 = 0.4;
 
-/// Rounds of [`refit_without_outliers`], each about the last fit.
+/// Rounds of [`robust_band_fit`], each about the last fit.
 const OUTLIER_ROUNDS: usize = 3;
-/// Least distance at which [`refit_without_outliers`] refuses a point, px.
+/// Least distance at which [`robust_band_fit`] refuses a point, px.
 const OUTLIER_FLOOR_PX: f64 = 2.0;
 
 /// Step 4: each corner is the intersection of its two model lines, fitted
@@ -310,17 +310,14 @@ mod tests {
     }
 
     #[test]
-    fn refit_without_outliers_drops_a_parallel_stray_edge() {
+    fn robust_band_fit_drops_a_parallel_stray_edge() {
         let points = band_with_a_parallel_stray();
         let direction = [1.0 / 1.04_f64.sqrt(), 0.2 / 1.04_f64.sqrt()];
         let fit = fit_band_across(&points, direction, BAND_SPLIT_STD_PX).expect("fit");
         let off = |f: &LineFit| [0.0, 60.0].map(|x: f64| f.line.signed_distance([x, 0.2 * x + 10.0]).abs());
         // The stray edge pulls the plain fit by more than a pixel at the far end.
         assert!(off(&fit)[1] > 1.0, "plain fit {:?}", off(&fit));
-        let mut refit = fit;
-        for _ in 0..OUTLIER_ROUNDS {
-            refit = refit_without_outliers(&points, refit, direction, 5).expect("refit");
-        }
+        let (refit, _) = robust_band_fit(&points, direction, 5).expect("refit");
         assert!(off(&refit).iter().all(|&d| d < 0.05), "refit {:?}", off(&refit));
         assert_eq!(refit.count, 180);
     }
@@ -330,10 +327,7 @@ mod tests {
         let model = ModelLine::between([0.0, 10.0], [60.0, 22.0]).expect("line");
         let band: Vec<[f64; 2]> = band_with_a_parallel_stray().into_iter().take(180).collect();
         let stray: Vec<[f64; 2]> = band_with_a_parallel_stray().into_iter().skip(180).collect();
-        let extent = |points: &[[f64; 2]]| {
-            let fit = fit_band_across(points, model.direction, BAND_SPLIT_STD_PX).expect("fit");
-            along_extent(points, &fit, model.direction)
-        };
+        let extent = |points: &[[f64; 2]]| robust_band_fit(points, model.direction, 5).expect("fit").1;
         // The band spans the 61-px line (60 px along it, ±0.4 px of its
         // width); the 15-px stray edge alone does not reach MIN_COVERAGE.
         assert!((extent(&band) - 59.0 * 1.04_f64.sqrt()).abs() < 0.5, "{}", extent(&band));
@@ -342,11 +336,11 @@ mod tests {
     }
 
     #[test]
-    fn refit_without_outliers_keeps_a_clean_band_as_it_is() {
+    fn robust_band_fit_keeps_a_clean_band_as_it_is() {
         let points: Vec<[f64; 2]> = band_with_a_parallel_stray().into_iter().take(180).collect();
         let direction = [1.0 / 1.04_f64.sqrt(), 0.2 / 1.04_f64.sqrt()];
         let fit = fit_band_across(&points, direction, BAND_SPLIT_STD_PX).expect("fit");
-        let refit = refit_without_outliers(&points, fit, direction, 5).expect("refit");
+        let (refit, _) = robust_band_fit(&points, direction, 5).expect("refit");
         assert_eq!(refit.line, fit.line);
         assert_eq!(refit.count, fit.count);
     }
