@@ -28,10 +28,11 @@ pub struct CpuBackend {
     tmp2: FloatImage,
     /// What `images.previous` holds, if it holds a usable previous frame.
     previous: Option<PreviousFrame>,
-    /// For each Sobel set of this frame's plan whose parts are (all, or the
-    /// angles alone) evaluated at the listed pixels only, the plane its last
-    /// [`Step::Sobel`] differentiated and which parts (see [`sobel_need`]).
-    sparse_sobel: [Option<(Plane, ListedParts)>; 2],
+    /// For each Sobel set of this frame's plan, the plane its last
+    /// [`Step::Sobel`] differentiated and how much of it is whole planes
+    /// (see [`sobel_need`]); the parts not in planes are evaluated at the
+    /// listed pixels only.
+    sparse_sobel: [Option<(Plane, SobelNeed)>; 2],
     /// Scratch of [`fill_sobel_parts`].
     gradients: Vec<(f32, f32)>,
     /// Lists and pyramids handed back by [`EarlyVision::recycle`], refilled
@@ -222,11 +223,7 @@ impl CpuBackend {
                 )?,
                 Step::Sobel { input, output } => {
                     let need = sobel_need(&plan, output);
-                    self.sparse_sobel[sobel_slot(output)] = match need {
-                        SobelNeed::Listed => Some((input, ListedParts::All)),
-                        SobelNeed::GradientMagnitude => Some((input, ListedParts::Angles)),
-                        SobelNeed::Planes => None,
-                    };
+                    self.sparse_sobel[sobel_slot(output)] = Some((input, need));
                     match need {
                         SobelNeed::Listed => {}
                         SobelNeed::GradientMagnitude => img.sobel_into(input, output, false),
@@ -276,8 +273,8 @@ impl CpuBackend {
                     let mut features = recycled_list(self.spare.list_mut(list));
                     let sparse = |source| match source {
                         Source::Sobel(set, part) => match self.sparse_sobel[sobel_slot(set)] {
-                            Some((plane, ListedParts::All)) => Some((plane, part)),
-                            Some((plane, ListedParts::Angles)) if is_angle(part) => Some((plane, part)),
+                            Some((plane, SobelNeed::Listed)) => Some((plane, part)),
+                            Some((plane, SobelNeed::GradientMagnitude)) if is_angle(part) => Some((plane, part)),
                             _ => None,
                         },
                         _ => None,
@@ -437,15 +434,6 @@ fn copy_part(src: &FloatImage, part: Window, out: &mut FloatImage) {
     for (y, row) in (part.y0 as usize..part.y1 as usize).zip(out.data_mut().chunks_mut(w)) {
         row.copy_from_slice(&src.row(y)[x0..x1]);
     }
-}
-
-/// Which parts of a Sobel set a sparse set evaluates at the listed pixels.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum ListedParts {
-    /// Every part: the set has no planes.
-    All,
-    /// The direction and θ: the set has gx, gy and magnitude planes.
-    Angles,
 }
 
 /// How much of a Sobel set the CPU computes as whole planes.

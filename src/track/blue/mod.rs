@@ -637,6 +637,20 @@ impl BlueTracker {
         (failure, support)
     }
 
+    /// Steps 1 (alignment) to 6 around `predicted`, associating within
+    /// `distance`; a failed pass when `predicted` is not in front of the
+    /// camera.
+    fn measure_around(&self, edges: &[Feature], predicted: &TargetLocation, distance: f64) -> Pass {
+        let pass = if predicted.is_valid() {
+            let (model, first_distance) = self.first_association(edges, predicted, distance);
+            self.measure(edges, &model, predicted, first_distance)
+        } else {
+            let (ne, nv) = (self.geometry.edges().len(), self.offsets.len());
+            Pass::failed(predicted, ne, nv, "the prediction is not in front of the camera".into())
+        };
+        self.reassociate(edges, pass, predicted)
+    }
+
     /// The motion models' image velocity (dc_x/dt, dc_y/dt) at their
     /// latest sample, px per frame.
     fn image_velocity(&self) -> Option<[f64; 2]> {
@@ -662,9 +676,11 @@ impl BlueTracker {
         }
         let map = self.edge_map(edges);
         let searched = self.searching();
+        let mut searched_pass = None;
         if searched {
             // Lost for `search_after` frames: look for the target over the
-            // whole image, at the last tracked range (module doc, "Verification").
+            // whole image, around the last tracked range (module doc,
+            // "Verification").
             let radius = f64::from(self.camera.width.max(self.camera.height));
             let image = (f64::from(self.camera.width), f64::from(self.camera.height));
             let last = self.last_tracked;
@@ -712,32 +728,32 @@ impl BlueTracker {
             candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
             // The places whose outlines stand out most are measured; the
             // one whose measured outline passes and stands out most wins
-            // (or, when none passes, the place that stood out most).
-            let measured = candidates.iter().take(SEARCH_MEASURED).filter_map(|(_, place)| {
-                let (model, first_distance) = self.first_association(edges, place, self.params.acquire_distance);
-                let first = self.measure(edges, &model, place, first_distance);
-                let pass = self.reassociate(edges, first, place);
-                match self.judge(&pass, &map, Some(place.cz), false) {
-                    (None, Some((on, off))) => Some((on - off, *place)),
-                    _ => None,
+            // (or, when none passes, the place that stood out most), and its
+            // measurement is the frame's.
+            let mut chosen: Option<(f64, TargetLocation, Pass)> = None;
+            for (k, (_, place)) in candidates.iter().take(SEARCH_MEASURED).enumerate() {
+                let pass = self.measure_around(edges, place, self.params.acquire_distance);
+                let excess = match self.judge(&pass, &map, Some(place.cz), false) {
+                    (None, Some((on, off))) => on - off,
+                    _ if k == 0 => f64::NEG_INFINITY,
+                    _ => continue,
+                };
+                if chosen.as_ref().is_none_or(|(best, _, _)| excess >= *best) {
+                    chosen = Some((excess, *place, pass));
                 }
-            });
-            let chosen = measured.max_by(|a, b| a.0.total_cmp(&b.0)).or(candidates.first().copied());
-            if let Some((_, location)) = chosen {
+            }
+            if let Some((_, location, pass)) = chosen {
                 predicted = location;
+                searched_pass = Some(pass);
                 self.restart_motion_models(&predicted, time);
             }
         }
-        let distance = self.association_distance();
-        // Steps 1 (alignment) to 6, then step 7.
-        let pass = if predicted.is_valid() {
-            let (model, first_distance) = self.first_association(edges, &predicted, distance);
-            self.measure(edges, &model, &predicted, first_distance)
-        } else {
-            let (ne, nv) = (self.geometry.edges().len(), self.offsets.len());
-            Pass::failed(&predicted, ne, nv, "the prediction is not in front of the camera".into())
+        // Steps 1 (alignment) to 6, then step 7 (already done where the
+        // search measured its places).
+        let pass = match searched_pass {
+            Some(pass) => pass,
+            None => self.measure_around(edges, &predicted, self.association_distance()),
         };
-        let pass = self.reassociate(edges, pass, &predicted);
         self.next_frame = frame + 1;
         self.last_frame = Some(frame);
         let (mut failure, mut support) = self.judge(&pass, &map, searched.then_some(predicted.cz), follows_tracked);
@@ -771,9 +787,7 @@ impl BlueTracker {
             let reach = vx.hypot(vy).min(self.params.acquire_distance).max(self.params.distance_tolerance);
             let apart = |a: &TargetLocation, b: &TargetLocation| (a.cx - b.cx).hypot(a.cy - b.cy);
             for hypothesis in &hypotheses {
-                let (model, first_distance) = self.first_association(edges, hypothesis, reach);
-                let first = self.measure(edges, &model, hypothesis, first_distance);
-                let candidate = self.reassociate(edges, first, hypothesis);
+                let candidate = self.measure_around(edges, hypothesis, reach);
                 if main.is_some_and(|m| apart(&m, &candidate.location) <= self.params.refine_distance) {
                     continue;
                 }
