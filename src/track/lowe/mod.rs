@@ -405,7 +405,7 @@ impl LoweTracker {
                 hypotheses.push((view.supported_samples(&segs), hypothesis));
             }
         }
-        hypotheses.sort_by(|a, b| b.0.cmp(&a.0));
+        hypotheses.sort_by_key(|h| std::cmp::Reverse(h.0));
         let mut best: Option<(usize, Found)> = None;
         for (_, hypothesis) in hypotheses.iter().take(JOINT_REFITS) {
             view.visible_segments(hypothesis, &mut segs);
