@@ -28,7 +28,11 @@
 //! 6. **Best-first search and locking on** ([`search`]), each solution a
 //!    stabilised Gauss–Newton fit ([`estimation`], eq. 1).
 //! 7. **Verification**: the frame is `tracking` only when a set was
-//!    accepted (its residual passes), its matched image segments cover at
+//!    accepted (its residual passes), locking on added at least one match
+//!    to the node's (a node of ⌊n/2⌋ + 1 matches leaves one or two redundant
+//!    measurements for n parameters, and a wrong node fits them: on `box`
+//!    at 25–30 px/frame, 8 frames 12–32 px off had only the node's 4
+//!    matches, no frame on target did), its matched image segments cover at
 //!    least `min_coverage` of the visible model edges' length, and at least
 //!    `min_support` of that length has a zero crossing along it (within
 //!    1 px across, at an edge orientation within 20°:
@@ -40,17 +44,18 @@
 //!    the image at a depth within a factor 1.5 of the last verified one
 //!    (else it stands at the last verified state), and the next frame
 //!    starts its search at the widest range.
-//!    After a loss the outline support must reach `search_min_support`
-//!    instead, whichever search found the solution: re-acquisition is a
-//!    claim about a new place, with dozens of places tried.
+//!    After a loss the coverage must reach `search_min_coverage` and the
+//!    support `search_min_support` instead, whichever search found the
+//!    solution: re-acquisition is a claim about a new place, with dozens of
+//!    places tried.
 //! 8. **Whole-image search** (our addition; the paper only widens the
 //!    ranges): after `search_after` lost frames the window of interest is
 //!    the whole frame and, when the search at the prediction fails, the
 //!    last verified state is moved across the image on a grid as wide as
 //!    the widest search reaches (3 σ of the doubled translation prior) and
 //!    searched at each position; of the verified solutions the one whose
-//!    outline has the most zero crossings along it is taken when that
-//!    support is at least `search_min_support`. After a loss the velocity
+//!    outline has the most zero crossings along it is taken when it passes
+//!    those thresholds. After a loss the velocity
 //!    starts again from zero.
 //! 9. **Other joint values** (our addition): a joint's part can fold onto
 //!    another part (a shut lid's edges lie on the box's rim), and the fit
@@ -341,8 +346,9 @@ impl LoweTracker {
     /// The whole-image search of a lost model (module doc, step 8): the
     /// last solution moved across the image on a grid as wide as the
     /// widest search reaches, each position searched at the widest range;
-    /// the verified solution whose outline has the most zero crossings
-    /// along it, when that is at least `search_min_support`.
+    /// of the solutions verified (at `search_min_coverage` and
+    /// `search_min_support`), the one whose outline has the most zero
+    /// crossings along it.
     fn search_image(&self, view: &FrameView<'_>, diag: &mut LoweDiagnostics) -> Option<Found> {
         let (width, height) = (f64::from(self.camera.width), f64::from(self.camera.height));
         let centre = self.last_tracked.pose.apply(self.centre);
@@ -372,7 +378,7 @@ impl LoweTracker {
                     continue;
                 }
                 let support = view.support(&found.segs);
-                if support >= view.min_support && best.as_ref().is_none_or(|(s, _)| support > *s) {
+                if best.as_ref().is_none_or(|(s, _)| support > *s) {
                     best = Some((support, found));
                 }
             }
@@ -480,8 +486,10 @@ struct FrameView<'a> {
     /// The frame's zero crossings at or above the hysteresis' low
     /// threshold, by position.
     crossing_map: &'a CrossingMap,
-    /// Least outline support a solution needs this frame: `min_support`
-    /// while tracking, `search_min_support` after a loss.
+    /// Least coverage and outline support a solution needs this frame:
+    /// `min_coverage` and `min_support` while tracking,
+    /// `search_min_coverage` and `search_min_support` after a loss.
+    min_coverage: f64,
     min_support: f64,
 }
 
@@ -556,7 +564,9 @@ impl SearchFrame for FrameView<'_> {
     }
 
     fn verify(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> bool {
-        coverage(segs, matches) >= self.tracker.params.min_coverage && self.support(segs) >= self.min_support
+        matches.len() > segments_needed(self.tracker.n())
+            && coverage(segs, matches) >= self.min_coverage
+            && self.support(segs) >= self.min_support
     }
 
     fn covered_length(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
@@ -647,8 +657,12 @@ impl Tracker for LoweTracker {
             min_probability: self.params.min_probability,
         };
         let mut diag = LoweDiagnostics { image_segments: self.image_segments.len(), ..LoweDiagnostics::default() };
-        let min_support = if self.lost_frames > 0 { self.params.search_min_support } else { self.params.min_support };
-        let view = FrameView { tracker: self, ctx, crossing_map: &self.crossing_map, min_support };
+        let (min_coverage, min_support) = if self.lost_frames > 0 {
+            (self.params.search_min_coverage, self.params.search_min_support)
+        } else {
+            (self.params.min_coverage, self.params.min_support)
+        };
+        let view = FrameView { tracker: self, ctx, crossing_map: &self.crossing_map, min_coverage, min_support };
         let mut segs = Vec::new();
         view.visible_segments(&self.prediction, &mut segs);
         let mut accepted = self.search_at(&view, &self.prediction, &segs, self.first_doubling, &mut diag);
@@ -683,11 +697,18 @@ impl Tracker for LoweTracker {
                 diag.residual_sigma = solution.residual_sigma;
                 diag.coverage = coverage(segs, matches);
                 diag.support = view.support(segs);
-                if diag.coverage < self.params.min_coverage {
+                let node = segments_needed(n);
+                if matches.len() <= node {
+                    lost_reason = Some(format!(
+                        "{} matches, no more than a search node's {node}: none joined on locking on",
+                        matches.len()
+                    ));
+                    None
+                } else if diag.coverage < min_coverage {
                     lost_reason = Some(format!(
                         "matches cover {:.0} % of the visible edges (< {:.0} %)",
                         100.0 * diag.coverage,
-                        100.0 * self.params.min_coverage
+                        100.0 * min_coverage
                     ));
                     None
                 } else if diag.support < min_support {
