@@ -152,6 +152,21 @@
 //!   without normal motion when the object turns about a distant centre
 //!   (exact for an edge tangent to a circle about the pivot, with no
 //!   second-order drift). Without fitted lines nothing turns.
+//! - **Held lines on the frame's edges** (`held_line_edges`): the turn is
+//!   the fitted lines' estimate, and its errors add up over the frames a
+//!   line goes without motion pixels (the pendulum's top and bottom edges
+//!   get none for most of a swing); a second object's pixels in a fitted
+//!   line's strip tilt that estimate further (on the pendulum with a hexagon
+//!   crossing behind it at 1.1 px/frame the bottom line tilted until its
+//!   corners were 6–8 px off, and the contour support lost 30 frames). So
+//!   each held line, after turning, is fitted to the static edge pixels of
+//!   the frame (Sobel on the smoothed frame, the pixels of the
+//!   verification) labelled to it by the tests of eq. 3–4 in the same
+//!   strip, with the same robust fit, and takes that position when the fit
+//!   succeeds. An edge that moves along itself is at the same place at
+//!   band time t − ½ and at t, so the static fit is the band-time line the
+//!   motion fit would give. Needs the edge pixels (requested whenever this
+//!   or `verify` is on).
 //!
 //! # Initialisation and loss
 //! The operator's corners (`init.json`) are the model at frame 0. The tracker
@@ -211,8 +226,12 @@
 //! pendulum: every side ≥ 96 % on every frame at 1.1–16 px/frame; after a
 //! jump, with the operator's corners 40 px off, or with an outline slid 3 px
 //! along one side, the weakest side falls to 0–20 %: the per-side test sees
-//! the slide the overall fraction misses. Without an edge list
-//! ([`MotionEdgeTracker::update`]) the check is skipped.
+//! the slide the overall fraction misses. The first frame reported tracking
+//! after a loss must have `reacquire_min_support` (85 %) overall and on
+//! every side: re-acquisitions on target have ≥ 88 % on every side, and the
+//! thresholds while tracking, low enough for a side hidden in part by a
+//! second object, let a re-acquired outline 6 px off through. Without an
+//! edge list ([`MotionEdgeTracker::update`]) the check is skipped.
 //!
 //! # Loss and re-acquisition
 //! When lost, the tracker keeps predicting (fed as for a missing
@@ -304,6 +323,9 @@ pub struct MotionEdgeTracker {
     last_reported: Vec<[f64; 2]>,
     /// This frame's edge pixels for the verification, when given.
     support_map: Option<EdgeMap>,
+    /// This frame's edge pixels with their edge orientation (the θ
+    /// convention of eq. 2) as `theta`, for the held lines' fit.
+    edge_pixels: Vec<Feature>,
     /// While lost: the band-time corners of the previous frame's
     /// re-acquisition measurement, awaiting confirmation by this frame's.
     reacquisition_candidate: Option<Vec<[f64; 2]>>,
@@ -313,6 +335,11 @@ pub struct MotionEdgeTracker {
     /// Lost frames in a row.
     lost_run: usize,
 }
+
+/// Largest move of a held line's end points by its fit to the frame's
+/// edges, px (module doc, "Held lines on the frame's edges").
+const HELD_LINE_CORRECTION_PX: f64 = 2.0;
+const HELD_LINE_SPREAD_PX: f64 = 1.5;
 
 /// One frame's measurement (steps 1–5).
 struct Measurement {
@@ -358,6 +385,7 @@ impl MotionEdgeTracker {
             earlier_measured_speed: None,
             held_lines,
             support_map: None,
+            edge_pixels: Vec::new(),
             reacquisition_candidate: None,
             last_tracked: corners,
             lost_run: 0,
@@ -455,6 +483,18 @@ impl MotionEdgeTracker {
             })),
             _ => None,
         };
+        self.edge_pixels.clear();
+        if self.params.held_line_edges
+            && let Some(edges) = edges
+        {
+            let edge_orientation = |f: &Feature| wrap_orientation(f64::from(f.theta) + std::f64::consts::FRAC_PI_2);
+            self.edge_pixels.extend(
+                edges
+                    .iter()
+                    .filter(|f| f.magnitude >= self.params.support_edge_threshold && f.theta.is_finite())
+                    .map(|f| Feature { theta: edge_orientation(f) as f32, ..*f }),
+            );
+        }
         match self.phase {
             Phase::Acquiring => self.acquire(frame, motion),
             Phase::Tracking => self.track_frame(frame, motion),
@@ -493,7 +533,7 @@ impl MotionEdgeTracker {
             }
         }
         let (corners, measured, fallback_lines) = if self.holds_lines() {
-            let held = self.turned_held_lines(&fitted);
+            let held = self.edge_fitted_held_lines(self.turned_held_lines(&fitted), &fitted, &lines, tolerances);
             let (corners, measured) = intersect_corners(&fitted, &held, &self.last_measured, &self.corner_lines);
             (corners, measured, held)
         } else {
@@ -507,6 +547,53 @@ impl MotionEdgeTracker {
                 && labelling.unexplained[k] >= self.params.lost_evidence
         });
         Measurement { labelling, fitted, fallback_lines, corners, measured, deviation, contradicted }
+    }
+
+    /// The held lines of the lines not fitted this frame, each fitted to the
+    /// frame's edge pixels in its strip of `lines` where that succeeds
+    /// (module doc, "Held lines on the frame's edges").
+    fn edge_fitted_held_lines(
+        &self,
+        mut held: Vec<Option<Line>>,
+        fitted: &[Option<LineFit>],
+        lines: &[Option<ModelLine>],
+        tolerances: &[LineTolerance],
+    ) -> Vec<Option<Line>> {
+        if self.edge_pixels.is_empty() {
+            return held;
+        }
+        let strips: Vec<Option<ModelLine>> = lines
+            .iter()
+            .zip(fitted)
+            .zip(&held)
+            .map(|((line, fit), held)| if fit.is_none() && held.is_some() { *line } else { None })
+            .collect();
+        if strips.iter().all(Option::is_none) {
+            return held;
+        }
+        let labelling = label_motion_pixels(&self.edge_pixels, &strips, tolerances, self.params.delta, 0.0);
+        let fits = fit_model_lines(
+            &labelling,
+            &strips,
+            self.params.min_points_per_line,
+            self.params.delta,
+            LineFitMethod::Across,
+        );
+        for ((line, fit), strip) in held.iter_mut().zip(fits).zip(&strips) {
+            let (Some(fit), Some(strip), Some(old)) = (fit, strip, *line) else { continue };
+            // A correction of the held line, not a jump to another edge.
+            let end = [
+                strip.start[0] + strip.length * strip.direction[0],
+                strip.start[1] + strip.length * strip.direction[1],
+            ];
+            let moved = |p: [f64; 2]| fit.line.distance(old.project(p)).abs();
+            if moved(strip.start).max(moved(end)) <= HELD_LINE_CORRECTION_PX
+                && fit.perpendicular_residual_variance() <= HELD_LINE_SPREAD_PX * HELD_LINE_SPREAD_PX
+            {
+                *line = Some(fit.line);
+            }
+        }
+        held
     }
 
     /// The held lines of the lines not fitted this frame, turned with the
@@ -980,20 +1067,27 @@ impl MotionEdgeTracker {
         });
         let contour_support = support.map(|(total, _)| total);
         let side_support = support.map(|(_, weakest)| weakest);
+        // After a loss the outline must fit the image's edges as a frame on
+        // target does, nearly everywhere.
+        let (min_support, min_side_support) = if self.lost_run > 0 {
+            (self.params.reacquire_min_support, self.params.reacquire_min_support)
+        } else {
+            (self.params.min_support, self.params.min_side_support)
+        };
         if status == Status::Tracking
             && let Some((total, weakest)) = support
-            && !(total >= self.params.min_support && weakest >= self.params.min_side_support)
+            && !(total >= min_support && weakest >= min_side_support)
         {
             status = Status::Lost;
             if self.phase == Phase::Tracking {
                 self.phase = Phase::Lost;
             }
             lost_reason = Some(format!(
-                "contour support {:.0} % (min_support {:.0} %), weakest side {:.0} % (min_side_support {:.0} %): the reported outline is not on image edges",
+                "contour support {:.0} % (at least {:.0} %), weakest side {:.0} % (at least {:.0} %): the reported outline is not on image edges",
                 100.0 * total,
-                100.0 * self.params.min_support,
+                100.0 * min_support,
                 100.0 * weakest,
-                100.0 * self.params.min_side_support
+                100.0 * min_side_support
             ));
         }
         if status == Status::Tracking {
@@ -1051,7 +1145,7 @@ impl Tracker for MotionEdgeTracker {
                     seed: 0,
                 },
             }),
-            edges: self.params.verify.then(|| EdgeRequest {
+            edges: (self.params.verify || self.params.held_line_edges).then(|| EdgeRequest {
                 threshold: self.params.support_edge_threshold,
                 smoothed: true,
                 list: ListSpec {
