@@ -287,6 +287,46 @@ const KEPT: u8 = 1;
 /// Edgel bit: traced into a chain.
 const VISITED: u8 = 2;
 
+/// The eight neighbours of a pixel as `(dx, dy)`, in the order of their
+/// bits in an edgel's neighbour mask: the side neighbours east, south,
+/// west, north, then the diagonals south-east, south-west, north-west,
+/// north-east (diagonal `4 + k` lies between sides `k` and `(k + 1) % 4`).
+const NEIGHBOURS: [(isize, isize); 8] = [(1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1, -1)];
+
+/// The m-adjacent neighbours of a kept edgel (module doc, "Linking"), as
+/// directions into [`NEIGHBOURS`], in its order.
+#[derive(Clone, Copy, Debug)]
+struct MNeighbours {
+    /// How many (at most four).
+    count: u8,
+    /// The first `count` are the directions.
+    directions: [u8; 4],
+}
+
+/// [`MNeighbours`] by the mask of an edgel's kept 8-neighbours (bit `d` for
+/// `NEIGHBOURS[d]`): every side neighbour, and a diagonal one when neither
+/// side neighbour it shares with the edgel is kept. There are never more
+/// than four (a kept side neighbour rules out the two diagonals beside it),
+/// which the table's construction checks when it is compiled.
+const M_ADJACENCY: [MNeighbours; 256] = {
+    let mut table = [MNeighbours { count: 0, directions: [0; 4] }; 256];
+    let mut mask = 0;
+    while mask < 256 {
+        let mut d = 0;
+        while d < 8 {
+            let kept = mask >> d & 1 != 0;
+            let sides_free = d < 4 || (mask >> (d - 4) & 1 == 0 && mask >> ((d - 3) % 4) & 1 == 0);
+            if kept && sides_free {
+                table[mask].directions[table[mask].count as usize] = d as u8;
+                table[mask].count += 1;
+            }
+            d += 1;
+        }
+        mask += 1;
+    }
+    table
+};
+
 /// Links zero crossings into chains and cuts them into [`ImageSegment`]s
 /// (module doc), reusing its buffers from frame to frame: a frame
 /// allocates nothing unless it has more edgels, chains or segments, or a
@@ -297,16 +337,17 @@ pub struct SegmentExtractor {
     /// Edgel number + 1 per pixel of the candidates' bounding box, padded
     /// by one empty pixel on each side (0 = none); all zero between calls.
     grid: Vec<u32>,
-    /// Width of `grid`'s rows (bounding box width + 2).
-    grid_width: usize,
+    /// Offset in `grid` of each of the [`NEIGHBOURS`] of a cell.
+    offsets: [isize; 8],
     /// The candidate edgels (magnitude ≥ low), in list order.
     edgels: Vec<Feature>,
     /// `grid` cell of each edgel.
     cells: Vec<usize>,
     /// [`KEPT`] and [`VISITED`] bits of each edgel.
     flags: Vec<u8>,
-    /// m-adjacent kept neighbours of each kept edgel.
-    degree: Vec<u8>,
+    /// Mask of the kept 8-neighbours of each kept edgel (bit `d` for
+    /// `NEIGHBOURS[d]`; index of [`M_ADJACENCY`]), 0 for the others.
+    neighbours: Vec<u8>,
     /// Work stack of the hysteresis flood fill.
     stack: Vec<u32>,
     /// Edgel numbers of all chains, chain after chain.
@@ -347,11 +388,11 @@ impl SegmentExtractor {
         Ok(Self {
             params,
             grid: Vec::new(),
-            grid_width: 0,
+            offsets: [0; 8],
             edgels: Vec::new(),
             cells: Vec::new(),
             flags: Vec::new(),
-            degree: Vec::new(),
+            neighbours: Vec::new(),
             stack: Vec::new(),
             chain_pixels: Vec::new(),
             chains: Vec::new(),
@@ -388,7 +429,6 @@ impl SegmentExtractor {
     pub fn link(&mut self, crossings: &[Feature], window: Window) {
         self.collect_candidates(crossings, window);
         self.hysteresis();
-        self.count_neighbours();
         self.trace_chains();
         // Leave the grid all zero for the next call.
         for &cell in &self.cells {
@@ -418,49 +458,55 @@ impl SegmentExtractor {
     }
 
     /// Fill `edgels` with the features of `window` at least `low_threshold`
-    /// strong and mark them in `grid`.
+    /// strong, the first at each pixel, and mark them in `grid`.
     fn collect_candidates(&mut self, crossings: &[Feature], window: Window) {
         self.edgels.clear();
         self.cells.clear();
         self.flags.clear();
-        self.degree.clear();
+        self.neighbours.clear();
         let low = self.params.low_threshold;
-        let candidate = |f: &&Feature| {
-            (window.x0..window.x1).contains(&f.x) && (window.y0..window.y1).contains(&f.y) && f.magnitude >= low
-        };
         // The grid spans the candidates' bounding box (at most the window).
         let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
-        for f in crossings.iter().filter(candidate) {
-            (x0, y0, x1, y1) = (x0.min(f.x), y0.min(f.y), x1.max(f.x), y1.max(f.y));
+        for f in crossings {
+            if (window.x0..window.x1).contains(&f.x) && (window.y0..window.y1).contains(&f.y) && f.magnitude >= low {
+                (x0, y0, x1, y1) = (x0.min(f.x), y0.min(f.y), x1.max(f.x), y1.max(f.y));
+                self.edgels.push(*f);
+            }
         }
         if x0 > x1 {
             return;
         }
-        self.grid_width = (x1 - x0) as usize + 3;
-        let cells = self.grid_width * ((y1 - y0) as usize + 3);
+        let width = (x1 - x0) as usize + 3;
+        let cells = width * ((y1 - y0) as usize + 3);
         if self.grid.len() < cells {
             // The grid is all zero between calls, so growing keeps it so.
             self.grid.resize(cells, 0);
         }
-        for f in crossings.iter().filter(candidate) {
-            let cell = (f.y - y0 + 1) as usize * self.grid_width + (f.x - x0 + 1) as usize;
+        self.offsets = NEIGHBOURS.map(|(dx, dy)| dy * width as isize + dx);
+        // Keep the first candidate at each pixel, in list order.
+        let mut kept = 0;
+        for e in 0..self.edgels.len() {
+            let f = self.edgels[e];
+            let cell = (f.y - y0 + 1) as usize * width + (f.x - x0 + 1) as usize;
             if self.grid[cell] != 0 {
                 continue;
             }
-            self.edgels.push(*f);
+            self.edgels[kept] = f;
+            kept += 1;
             self.cells.push(cell);
-            self.grid[cell] = self.edgels.len() as u32;
+            self.grid[cell] = kept as u32;
         }
-        self.flags.resize(self.edgels.len(), 0);
-        self.degree.resize(self.edgels.len(), 0);
+        self.edgels.truncate(kept);
+        self.flags.resize(kept, 0);
+        self.neighbours.resize(kept, 0);
     }
 
     /// Canny's hysteresis: flood from every edgel at least `high_threshold`
-    /// strong through 8-neighbouring candidates, marking them [`KEPT`]; then
-    /// take the others out of `grid`.
+    /// strong through 8-neighbouring candidates, marking them [`KEPT`] and
+    /// noting each one's neighbour mask. A candidate 8-neighbouring a kept
+    /// edgel is kept too, so the mask is that of its kept neighbours, and
+    /// the grid needs no clearing of the others.
     fn hysteresis(&mut self) {
-        let gw = self.grid_width as isize;
-        let around = [-gw - 1, -gw, -gw + 1, -1, 1, gw - 1, gw, gw + 1];
         let high = self.params.high_threshold;
         for seed in 0..self.edgels.len() {
             if self.flags[seed] & KEPT != 0 || !(self.edgels[seed].magnitude >= high) {
@@ -470,58 +516,32 @@ impl SegmentExtractor {
             self.stack.push(seed as u32);
             while let Some(e) = self.stack.pop() {
                 let cell = self.cells[e as usize];
-                for d in around {
-                    // The grid's one-pixel border is empty, so every neighbour of a window pixel is in it.
-                    let n = self.grid[cell.wrapping_add_signed(d)];
-                    if n != 0 && self.flags[n as usize - 1] & KEPT == 0 {
-                        self.flags[n as usize - 1] |= KEPT;
-                        self.stack.push(n - 1);
+                let mut mask = 0;
+                for (d, &offset) in self.offsets.iter().enumerate() {
+                    // The grid's one-pixel border is empty, so every neighbour of a candidate is in it.
+                    let n = self.grid[cell.wrapping_add_signed(offset)];
+                    if n != 0 {
+                        mask |= 1 << d;
+                        if self.flags[n as usize - 1] & KEPT == 0 {
+                            self.flags[n as usize - 1] |= KEPT;
+                            self.stack.push(n - 1);
+                        }
                     }
                 }
-            }
-        }
-        for (e, &cell) in self.cells.iter().enumerate() {
-            if self.flags[e] & KEPT == 0 {
-                self.grid[cell] = 0;
+                self.neighbours[e as usize] = mask;
             }
         }
     }
 
-    /// The kept edgels m-adjacent to the kept edgel at `cell` (module doc,
-    /// "Linking"), at most four; returns how many.
-    fn m_neighbours(&self, cell: usize, out: &mut [u32; 4]) -> usize {
-        let gw = self.grid_width;
-        let g = &self.grid;
-        let (east, south, west, north) = (g[cell + 1], g[cell + gw], g[cell - 1], g[cell - gw]);
-        let diagonal = |a: u32, b: u32, d: usize| if a == 0 && b == 0 { g[d] } else { 0 };
-        let candidates = [
-            east,
-            south,
-            west,
-            north,
-            diagonal(east, south, cell + gw + 1),
-            diagonal(south, west, cell + gw - 1),
-            diagonal(west, north, cell - gw - 1),
-            diagonal(north, east, cell - gw + 1),
-        ];
-        let mut count = 0;
-        for n in candidates {
-            if n != 0 && count < out.len() {
-                out[count] = n - 1;
-                count += 1;
-            }
-        }
-        count
+    /// The m-adjacent neighbours of edgel `e` (none unless it is kept).
+    fn m_neighbours(&self, e: usize) -> MNeighbours {
+        M_ADJACENCY[usize::from(self.neighbours[e])]
     }
 
-    /// The m-adjacency degree of every kept edgel.
-    fn count_neighbours(&mut self) {
-        let mut nb = [0; 4];
-        for e in 0..self.edgels.len() {
-            if self.flags[e] & KEPT != 0 {
-                self.degree[e] = self.m_neighbours(self.cells[e], &mut nb) as u8;
-            }
-        }
+    /// The edgel next to the kept edgel `e` in direction `NEIGHBOURS[d]`
+    /// (which must be one of its kept neighbours).
+    fn neighbour(&self, e: usize, d: u8) -> u32 {
+        self.grid[self.cells[e].wrapping_add_signed(self.offsets[usize::from(d)])] - 1
     }
 
     /// Trace every chain (module doc, "Linking"), starting from each kept,
@@ -529,25 +549,23 @@ impl SegmentExtractor {
     fn trace_chains(&mut self) {
         self.chain_pixels.clear();
         self.chains.clear();
-        let mut nb = [0; 4];
         for start in 0..self.edgels.len() {
-            if self.flags[start] != KEPT || self.degree[start] >= 3 || self.degree[start] == 0 {
+            let m = self.m_neighbours(start);
+            if self.flags[start] != KEPT || m.count >= 3 || m.count == 0 {
                 continue;
             }
             self.flags[start] |= VISITED;
-            let n = self.m_neighbours(self.cells[start], &mut nb);
-            let start = start as u32;
             let mut forward = std::mem::take(&mut self.forward);
             let mut backward = std::mem::take(&mut self.backward);
             forward.clear();
             backward.clear();
-            let closed = self.walk(start, nb[0], &mut forward);
-            if !closed && n == 2 {
-                self.walk(start, nb[1], &mut backward);
+            let closed = self.walk(start, self.neighbour(start, m.directions[0]), &mut forward);
+            if !closed && m.count == 2 {
+                self.walk(start, self.neighbour(start, m.directions[1]), &mut backward);
             }
             let first = self.chain_pixels.len();
             self.chain_pixels.extend(backward.iter().rev());
-            self.chain_pixels.push(start);
+            self.chain_pixels.push(start as u32);
             self.chain_pixels.extend(&forward);
             self.chains.push(Chain { first, end: self.chain_pixels.len(), closed });
             self.forward = forward;
@@ -558,15 +576,15 @@ impl SegmentExtractor {
     /// Follow the chain from `start` through its neighbour `next`, appending
     /// the edgels met to `out` until an end, a junction (appended, not
     /// marked traced) or `start` again; true in the last case (a loop).
-    fn walk(&mut self, start: u32, mut next: u32, out: &mut Vec<u32>) -> bool {
-        let mut nb = [0; 4];
-        let mut prev = start;
+    fn walk(&mut self, start: usize, mut next: u32, out: &mut Vec<u32>) -> bool {
+        let mut prev = start as u32;
         loop {
             let e = next as usize;
-            if next == start {
+            if e == start {
                 return true;
             }
-            if self.degree[e] >= 3 {
+            let m = self.m_neighbours(e);
+            if m.count >= 3 {
                 out.push(next);
                 return false;
             }
@@ -575,9 +593,9 @@ impl SegmentExtractor {
             }
             self.flags[e] |= VISITED;
             out.push(next);
-            let n = self.m_neighbours(self.cells[e], &mut nb);
-            match nb[..n].iter().find(|&&q| q != prev) {
-                Some(&q) => {
+            let directions = &m.directions[..usize::from(m.count)];
+            match directions.iter().map(|&d| self.neighbour(e, d)).find(|&q| q != prev) {
+                Some(q) => {
                     prev = next;
                     next = q;
                 }
