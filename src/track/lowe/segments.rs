@@ -330,8 +330,8 @@ const M_ADJACENCY: [MNeighbours; 256] = {
 
 /// Links zero crossings into chains and cuts them into [`ImageSegment`]s
 /// (module doc), reusing its buffers from frame to frame: a frame
-/// allocates nothing unless it has more edgels, chains or segments, or a
-/// wider spread of edgels, than any before.
+/// allocates nothing unless it has more zero crossings, edgels, chains or
+/// segments, or a wider spread of edgels, than any before.
 #[derive(Clone, Debug)]
 pub struct SegmentExtractor {
     params: SegmentParams,
