@@ -129,7 +129,7 @@ pub fn orientation_difference(a: f64, b: f64) -> f64 {
 /// negative one; for π ≤ x < 2π it is x − π, which is exact there
 /// (Sterbenz).
 #[inline]
-fn rem_pi(x: f64) -> f64 {
+pub(crate) fn rem_pi(x: f64) -> f64 {
     use std::f64::consts::PI;
     if x.abs() < PI {
         if x < 0.0 { x + PI } else { x }

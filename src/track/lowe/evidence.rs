@@ -9,6 +9,9 @@
 //! none), rebuilt each frame into the same buffer.
 
 use crate::early::{Feature, Window};
+use std::f64::consts::{FRAC_PI_2, PI};
+
+use crate::estimate::line_fit::rem_pi;
 
 /// Samples closer than this to a segment's end points are not taken, px
 /// (two edges blur into each other at a corner).
@@ -16,33 +19,52 @@ pub const END_MARGIN_PX: f64 = 2.0;
 /// Orientation levels over [0, π) (1 ..= 255; 0 marks an empty pixel).
 const LEVELS: f64 = 255.0;
 
+/// The edge orientation of a zero crossing of direction `theta`, in
+/// [0, π]: `rem_pi(theta + π/2)` bit for bit. Directions lie in (−π, π]
+/// (a little past π in `f32`), so the sum lies in (−π, 2π), where the
+/// remainder adds π below 0, keeps [0, π) and subtracts π from [π, 2π)
+/// ([`rem_pi`]); the case picks the term from a table rather than by a
+/// branch, as a frame's directions fall into the cases at random. (Adding
+/// 0 changes only −0, and the sum is never −0: `theta = −π/2` gives +0.)
+#[inline]
+fn edge_orientation(theta: f32) -> f64 {
+    const TERM: [f64; 3] = [PI, 0.0, -PI];
+    let x = f64::from(theta) + FRAC_PI_2;
+    if !(-PI < x && x < 2.0 * PI) {
+        return rem_pi(x);
+    }
+    x + TERM[usize::from(x >= 0.0) + usize::from(x >= PI)]
+}
+
 /// Zero-crossing orientations over a window of interest.
 #[derive(Clone, Debug, Default)]
 pub struct CrossingMap {
     window: Window,
     width: usize,
+    height: usize,
+    /// Row after row of the window, then a spare cell.
     cells: Vec<u8>,
 }
 
 impl CrossingMap {
     /// Refill the map with the crossings of `crossings` inside `window`
-    /// whose magnitude is at least `min_magnitude`.
+    /// whose magnitude is at least `min_magnitude` (a later crossing at the
+    /// same pixel replacing an earlier one).
     pub fn rebuild(&mut self, crossings: &[Feature], window: Window, min_magnitude: f32) {
         self.window = window;
         self.width = (window.x1.saturating_sub(window.x0)) as usize;
-        let height = (window.y1.saturating_sub(window.y0)) as usize;
+        self.height = (window.y1.saturating_sub(window.y0)) as usize;
+        // One more cell, past the window's, takes the writes of the
+        // crossings left out, so that no branch depends on the crossing.
+        let spare = self.width * self.height;
         self.cells.clear();
-        self.cells.resize(self.width * height, 0);
+        self.cells.resize(spare + 1, 0);
         for f in crossings {
-            if f.magnitude < min_magnitude || !f.theta.is_finite() {
-                continue;
-            }
-            if f.x < window.x0 || f.y < window.y0 || f.x >= window.x1 || f.y >= window.y1 {
-                continue;
-            }
-            let edge = (f64::from(f.theta) + std::f64::consts::FRAC_PI_2).rem_euclid(std::f64::consts::PI);
-            let level = 1 + ((edge / std::f64::consts::PI * LEVELS) as u8).min(254);
-            self.cells[(f.y - window.y0) as usize * self.width + (f.x - window.x0) as usize] = level;
+            let inside = (f.x >= window.x0) & (f.y >= window.y0) & (f.x < window.x1) & (f.y < window.y1);
+            let taken = inside & !(f.magnitude < min_magnitude) & f.theta.is_finite();
+            let at = (f.y.wrapping_sub(window.y0)) as usize * self.width + (f.x.wrapping_sub(window.x0)) as usize;
+            let edge = edge_orientation(f.theta);
+            self.cells[if taken { at } else { spare }] = 1 + ((edge / PI * LEVELS) as u8).min(254);
         }
     }
 
@@ -50,7 +72,7 @@ impl CrossingMap {
     /// there is no crossing.
     fn level(&self, x: i64, y: i64) -> u8 {
         let (cx, cy) = (x - i64::from(self.window.x0), y - i64::from(self.window.y0));
-        if cx < 0 || cy < 0 || cx >= self.width as i64 || cy as usize * self.width >= self.cells.len() {
+        if cx < 0 || cy < 0 || cx >= self.width as i64 || cy >= self.height as i64 {
             return 0;
         }
         self.cells[cy as usize * self.width + cx as usize]
@@ -127,6 +149,25 @@ mod tests {
         // A weak edge below the threshold supports nothing.
         map.rebuild(&horizontal(30, 10..110, 1.0), window, 1.5);
         assert_eq!(map.support([([10.0, 30.0], [109.0, 30.0])].into_iter(), angle).0, 0);
+    }
+
+    /// The edge orientation's table of terms gives `rem_pi`'s bits, around
+    /// the cases' bounds, over the directions an `f32` can hold in
+    /// (−π, π] and past them.
+    #[test]
+    fn edge_orientation_is_rem_pi_bit_for_bit() {
+        use std::f32::consts::{FRAC_PI_2 as HALF, PI as PI32};
+        let next = |t: f32, k: i32| f32::from_bits(t.to_bits().wrapping_add_signed(k));
+        let mut thetas = vec![0.0, -0.0, PI32, -PI32, HALF, -HALF, 3.0 * HALF, 7.0, -7.0, 1e30, -1e30];
+        for t in [0.0f32, PI32, -PI32, HALF, -HALF] {
+            thetas.extend((-40..=40).map(|k| next(t, k)));
+        }
+        thetas.extend((0..=20_000).map(|k| -PI32 + k as f32 * (2.0 * PI32 / 20_000.0)));
+        for theta in thetas {
+            let expected = rem_pi(f64::from(theta) + FRAC_PI_2);
+            assert_eq!(edge_orientation(theta).to_bits(), expected.to_bits(), "theta = {theta:e}");
+        }
+        assert!(edge_orientation(f32::NAN).is_nan());
     }
 
     #[test]

@@ -145,6 +145,7 @@ use serde::{Deserialize, Serialize};
 use crate::Result;
 use crate::bounds::{Interval, check_count};
 use crate::early::{Feature, Window};
+use crate::estimate::line_fit::rem_pi;
 
 /// Upper bound of [`SegmentParams::high_threshold`] and
 /// [`SegmentParams::low_threshold`]: no zero crossing of an 8-bit frame is
@@ -287,26 +288,78 @@ const KEPT: u8 = 1;
 /// Edgel bit: traced into a chain.
 const VISITED: u8 = 2;
 
+/// The eight neighbours of a pixel as `(dx, dy)`, in the order of their
+/// bits in an edgel's neighbour mask: the side neighbours east, south,
+/// west, north, then the diagonals south-east, south-west, north-west,
+/// north-east (diagonal `4 + k` lies between sides `k` and `(k + 1) % 4`).
+const NEIGHBOURS: [(isize, isize); 8] = [(1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1, -1)];
+
+/// The m-adjacent neighbours of a kept edgel (module doc, "Linking"), as
+/// directions into [`NEIGHBOURS`], in its order.
+#[derive(Clone, Copy, Debug)]
+struct MNeighbours {
+    /// How many (at most four).
+    count: u8,
+    /// The first `count` are the directions.
+    directions: [u8; 4],
+}
+
+/// [`MNeighbours`] by the mask of an edgel's kept 8-neighbours (bit `d` for
+/// `NEIGHBOURS[d]`): every side neighbour, and a diagonal one when neither
+/// side neighbour it shares with the edgel is kept. There are never more
+/// than four (a kept side neighbour rules out the two diagonals beside it),
+/// which the table's construction checks when it is compiled.
+const M_ADJACENCY: [MNeighbours; 256] = {
+    let mut table = [MNeighbours { count: 0, directions: [0; 4] }; 256];
+    let mut mask = 0;
+    while mask < 256 {
+        let mut d = 0;
+        while d < 8 {
+            let kept = mask >> d & 1 != 0;
+            let sides_free = d < 4 || (mask >> (d - 4) & 1 == 0 && mask >> ((d - 3) % 4) & 1 == 0);
+            if kept && sides_free {
+                table[mask].directions[table[mask].count as usize] = d as u8;
+                table[mask].count += 1;
+            }
+            d += 1;
+        }
+        mask += 1;
+    }
+    table
+};
+
 /// Links zero crossings into chains and cuts them into [`ImageSegment`]s
 /// (module doc), reusing its buffers from frame to frame: a frame
-/// allocates nothing unless it has more edgels, chains or segments, or a
-/// wider spread of edgels, than any before.
+/// allocates nothing unless it has more zero crossings, edgels, chains or
+/// segments, or a wider spread of edgels, than any before.
 #[derive(Clone, Debug)]
 pub struct SegmentExtractor {
     params: SegmentParams,
-    /// Edgel number + 1 per pixel of the candidates' bounding box, padded
-    /// by one empty pixel on each side (0 = none); all zero between calls.
+    /// One bit per cell (pixel) of the candidates' bounding box, padded by
+    /// one empty pixel on each side, in rows of `stride` cells, and a spare
+    /// word at the end: whether an edgel lies there.
+    occupied: Vec<u64>,
+    /// Cells per row of `occupied` and `grid`, a multiple of 64.
+    stride: usize,
+    /// Edgel number of each occupied cell (the others hold stale numbers
+    /// and are not read).
     grid: Vec<u32>,
-    /// Width of `grid`'s rows (bounding box width + 2).
-    grid_width: usize,
+    /// Offset in `grid` of each of the [`NEIGHBOURS`] of a cell.
+    offsets: [isize; 8],
+    /// The features of the list that pass the candidates' test, at its
+    /// start (only grows: its tail is scratch).
+    passed: Vec<Feature>,
     /// The candidate edgels (magnitude ≥ low), in list order.
     edgels: Vec<Feature>,
     /// `grid` cell of each edgel.
     cells: Vec<usize>,
     /// [`KEPT`] and [`VISITED`] bits of each edgel.
     flags: Vec<u8>,
-    /// m-adjacent kept neighbours of each kept edgel.
+    /// Number of m-adjacent candidates of each edgel.
     degree: Vec<u8>,
+    /// The m-adjacent candidates of each edgel, the first `degree` entries
+    /// (only grows: entries past `degree` are scratch).
+    adjacent: Vec<[u32; 4]>,
     /// Work stack of the hysteresis flood fill.
     stack: Vec<u32>,
     /// Edgel numbers of all chains, chain after chain.
@@ -346,12 +399,16 @@ impl SegmentExtractor {
         params.validate()?;
         Ok(Self {
             params,
+            occupied: Vec::new(),
+            stride: 0,
             grid: Vec::new(),
-            grid_width: 0,
+            offsets: [0; 8],
+            passed: Vec::new(),
             edgels: Vec::new(),
             cells: Vec::new(),
             flags: Vec::new(),
             degree: Vec::new(),
+            adjacent: Vec::new(),
             stack: Vec::new(),
             chain_pixels: Vec::new(),
             chains: Vec::new(),
@@ -387,13 +444,9 @@ impl SegmentExtractor {
     /// and [`chain`](Self::chain).
     pub fn link(&mut self, crossings: &[Feature], window: Window) {
         self.collect_candidates(crossings, window);
+        self.find_neighbours();
         self.hysteresis();
-        self.count_neighbours();
         self.trace_chains();
-        // Leave the grid all zero for the next call.
-        for &cell in &self.cells {
-            self.grid[cell] = 0;
-        }
     }
 
     /// Number of chains of the last [`link`](Self::link) or
@@ -418,110 +471,132 @@ impl SegmentExtractor {
     }
 
     /// Fill `edgels` with the features of `window` at least `low_threshold`
-    /// strong and mark them in `grid`.
+    /// strong, the first at each pixel, and mark them in `occupied` and `grid`.
     fn collect_candidates(&mut self, crossings: &[Feature], window: Window) {
         self.edgels.clear();
         self.cells.clear();
         self.flags.clear();
         self.degree.clear();
+        // About half of a frame's crossings pass, unpredictably: every
+        // feature is written to `passed`, and counted when it passes.
+        if self.passed.len() < crossings.len() {
+            self.passed.resize(crossings.len(), Feature::default());
+        }
         let low = self.params.low_threshold;
-        let candidate = |f: &&Feature| {
-            (window.x0..window.x1).contains(&f.x) && (window.y0..window.y1).contains(&f.y) && f.magnitude >= low
-        };
+        let mut count = 0;
+        for f in crossings {
+            self.passed[count] = *f;
+            let inside = (f.x >= window.x0) & (f.x < window.x1) & (f.y >= window.y0) & (f.y < window.y1);
+            count += usize::from(inside & (f.magnitude >= low));
+        }
+        let passed = &self.passed[..count];
         // The grid spans the candidates' bounding box (at most the window).
         let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
-        for f in crossings.iter().filter(candidate) {
+        for f in passed {
             (x0, y0, x1, y1) = (x0.min(f.x), y0.min(f.y), x1.max(f.x), y1.max(f.y));
         }
         if x0 > x1 {
             return;
         }
-        self.grid_width = (x1 - x0) as usize + 3;
-        let cells = self.grid_width * ((y1 - y0) as usize + 3);
+        self.stride = ((x1 - x0) as usize + 2) / 64 * 64 + 64;
+        let cells = self.stride * ((y1 - y0) as usize + 3);
+        self.occupied.clear();
+        self.occupied.resize(cells / 64 + 1, 0);
         if self.grid.len() < cells {
-            // The grid is all zero between calls, so growing keeps it so.
             self.grid.resize(cells, 0);
         }
-        for f in crossings.iter().filter(candidate) {
-            let cell = (f.y - y0 + 1) as usize * self.grid_width + (f.x - x0 + 1) as usize;
-            if self.grid[cell] != 0 {
+        self.offsets = NEIGHBOURS.map(|(dx, dy)| dy * self.stride as isize + dx);
+        // Keep the first candidate at each pixel, in list order.
+        for f in passed {
+            let cell = (f.y - y0 + 1) as usize * self.stride + (f.x - x0 + 1) as usize;
+            let (word, bit) = (cell / 64, 1 << (cell % 64));
+            if self.occupied[word] & bit != 0 {
                 continue;
             }
+            self.occupied[word] |= bit;
+            self.grid[cell] = self.edgels.len() as u32;
             self.edgels.push(*f);
             self.cells.push(cell);
-            self.grid[cell] = self.edgels.len() as u32;
         }
-        self.flags.resize(self.edgels.len(), 0);
-        self.degree.resize(self.edgels.len(), 0);
+        let n = self.edgels.len();
+        self.flags.resize(n, 0);
+        self.degree.resize(n, 0);
+        if self.adjacent.len() < n {
+            self.adjacent.resize(n, [0; 4]);
+        }
+    }
+
+    /// Occupancy of the cells `cell - 1`, `cell`, `cell + 1` as bits 0, 1, 2.
+    fn occupied_three(&self, cell: usize) -> u32 {
+        let (word, bit) = ((cell - 1) / 64, (cell - 1) % 64);
+        let pair = u128::from(self.occupied[word]) | u128::from(self.occupied[word + 1]) << 64;
+        (pair >> bit) as u32 & 7
+    }
+
+    /// The m-adjacent candidates of every candidate edgel, from the
+    /// occupancy of the 3×3 cells around it.
+    fn find_neighbours(&mut self) {
+        for e in 0..self.edgels.len() {
+            // The one-pixel border is empty, so every neighbour of a candidate is a cell.
+            let cell = self.cells[e];
+            // Bits 0, 1, 2 of each: west, centre, east.
+            let north = self.occupied_three(cell - self.stride);
+            let middle = self.occupied_three(cell);
+            let south = self.occupied_three(cell + self.stride);
+            // Bit `d` for `NEIGHBOURS[d]`.
+            let mask = (middle >> 2)
+                | (south >> 1 & 1) << 1
+                | (middle & 1) << 2
+                | (north >> 1 & 1) << 3
+                | (south >> 2) << 4
+                | (south & 1) << 5
+                | (north & 1) << 6
+                | (north >> 2) << 7;
+            let m = M_ADJACENCY[mask as usize];
+            self.degree[e] = m.count;
+            for (slot, &d) in self.adjacent[e].iter_mut().zip(&m.directions[..usize::from(m.count)]) {
+                *slot = self.grid[cell.wrapping_add_signed(self.offsets[usize::from(d)])];
+            }
+        }
     }
 
     /// Canny's hysteresis: flood from every edgel at least `high_threshold`
-    /// strong through 8-neighbouring candidates, marking them [`KEPT`]; then
-    /// take the others out of `grid`.
+    /// strong through connected candidates, marking them [`KEPT`].
+    /// m-adjacency connects the same candidates as 8-adjacency (a diagonal
+    /// pair that is not m-adjacent shares a side neighbour that is
+    /// m-adjacent to both), so the flood follows `adjacent`; and as every
+    /// candidate m-adjacent to a kept edgel is kept, `adjacent` of a kept
+    /// edgel lists kept edgels only.
     fn hysteresis(&mut self) {
-        let gw = self.grid_width as isize;
-        let around = [-gw - 1, -gw, -gw + 1, -1, 1, gw - 1, gw, gw + 1];
         let high = self.params.high_threshold;
+        // Every edgel is pushed at most once; a push writes the top slot
+        // and only counts when the edgel was not kept yet.
+        self.stack.clear();
+        self.stack.resize(self.edgels.len() + 1, 0);
         for seed in 0..self.edgels.len() {
             if self.flags[seed] & KEPT != 0 || !(self.edgels[seed].magnitude >= high) {
                 continue;
             }
             self.flags[seed] |= KEPT;
-            self.stack.push(seed as u32);
-            while let Some(e) = self.stack.pop() {
-                let cell = self.cells[e as usize];
-                for d in around {
-                    // The grid's one-pixel border is empty, so every neighbour of a window pixel is in it.
-                    let n = self.grid[cell.wrapping_add_signed(d)];
-                    if n != 0 && self.flags[n as usize - 1] & KEPT == 0 {
-                        self.flags[n as usize - 1] |= KEPT;
-                        self.stack.push(n - 1);
-                    }
+            self.stack[0] = seed as u32;
+            let mut top = 1;
+            while top > 0 {
+                top -= 1;
+                let e = self.stack[top] as usize;
+                let adjacent = self.adjacent[e];
+                for &n in &adjacent[..usize::from(self.degree[e])] {
+                    let fresh = self.flags[n as usize] & KEPT == 0;
+                    self.flags[n as usize] |= KEPT;
+                    self.stack[top] = n;
+                    top += usize::from(fresh);
                 }
             }
         }
-        for (e, &cell) in self.cells.iter().enumerate() {
-            if self.flags[e] & KEPT == 0 {
-                self.grid[cell] = 0;
-            }
-        }
     }
 
-    /// The kept edgels m-adjacent to the kept edgel at `cell` (module doc,
-    /// "Linking"), at most four; returns how many.
-    fn m_neighbours(&self, cell: usize, out: &mut [u32; 4]) -> usize {
-        let gw = self.grid_width;
-        let g = &self.grid;
-        let (east, south, west, north) = (g[cell + 1], g[cell + gw], g[cell - 1], g[cell - gw]);
-        let diagonal = |a: u32, b: u32, d: usize| if a == 0 && b == 0 { g[d] } else { 0 };
-        let candidates = [
-            east,
-            south,
-            west,
-            north,
-            diagonal(east, south, cell + gw + 1),
-            diagonal(south, west, cell + gw - 1),
-            diagonal(west, north, cell - gw - 1),
-            diagonal(north, east, cell - gw + 1),
-        ];
-        let mut count = 0;
-        for n in candidates {
-            if n != 0 && count < out.len() {
-                out[count] = n - 1;
-                count += 1;
-            }
-        }
-        count
-    }
-
-    /// The m-adjacency degree of every kept edgel.
-    fn count_neighbours(&mut self) {
-        let mut nb = [0; 4];
-        for e in 0..self.edgels.len() {
-            if self.flags[e] & KEPT != 0 {
-                self.degree[e] = self.m_neighbours(self.cells[e], &mut nb) as u8;
-            }
-        }
+    /// The m-adjacent candidates of edgel `e` (kept edgels when it is kept).
+    fn m_neighbours(&self, e: usize) -> &[u32] {
+        &self.adjacent[e][..usize::from(self.degree[e])]
     }
 
     /// Trace every chain (module doc, "Linking"), starting from each kept,
@@ -529,25 +604,24 @@ impl SegmentExtractor {
     fn trace_chains(&mut self) {
         self.chain_pixels.clear();
         self.chains.clear();
-        let mut nb = [0; 4];
         for start in 0..self.edgels.len() {
-            if self.flags[start] != KEPT || self.degree[start] >= 3 || self.degree[start] == 0 {
+            let degree = self.degree[start];
+            if self.flags[start] != KEPT || degree >= 3 || degree == 0 {
                 continue;
             }
             self.flags[start] |= VISITED;
-            let n = self.m_neighbours(self.cells[start], &mut nb);
-            let start = start as u32;
+            let [one, other, ..] = self.adjacent[start];
             let mut forward = std::mem::take(&mut self.forward);
             let mut backward = std::mem::take(&mut self.backward);
             forward.clear();
             backward.clear();
-            let closed = self.walk(start, nb[0], &mut forward);
-            if !closed && n == 2 {
-                self.walk(start, nb[1], &mut backward);
+            let closed = self.walk(start, one, &mut forward);
+            if !closed && degree == 2 {
+                self.walk(start, other, &mut backward);
             }
             let first = self.chain_pixels.len();
             self.chain_pixels.extend(backward.iter().rev());
-            self.chain_pixels.push(start);
+            self.chain_pixels.push(start as u32);
             self.chain_pixels.extend(&forward);
             self.chains.push(Chain { first, end: self.chain_pixels.len(), closed });
             self.forward = forward;
@@ -558,12 +632,11 @@ impl SegmentExtractor {
     /// Follow the chain from `start` through its neighbour `next`, appending
     /// the edgels met to `out` until an end, a junction (appended, not
     /// marked traced) or `start` again; true in the last case (a loop).
-    fn walk(&mut self, start: u32, mut next: u32, out: &mut Vec<u32>) -> bool {
-        let mut nb = [0; 4];
-        let mut prev = start;
+    fn walk(&mut self, start: usize, mut next: u32, out: &mut Vec<u32>) -> bool {
+        let mut prev = start as u32;
         loop {
             let e = next as usize;
-            if next == start {
+            if e == start {
                 return true;
             }
             if self.degree[e] >= 3 {
@@ -575,8 +648,7 @@ impl SegmentExtractor {
             }
             self.flags[e] |= VISITED;
             out.push(next);
-            let n = self.m_neighbours(self.cells[e], &mut nb);
-            match nb[..n].iter().find(|&&q| q != prev) {
+            match self.m_neighbours(e).iter().find(|&&q| q != prev) {
                 Some(&q) => {
                     prev = next;
                     next = q;
@@ -618,11 +690,8 @@ impl SegmentExtractor {
             self.subdivide(0, self.points.len() - 1);
         }
         for &(i, j) in &self.pieces {
-            let segment =
-                fit_segment(&self.points[i..=j], self.point_edgels[i..=j].iter().map(|&e| &self.edgels[e as usize]));
-            if segment.length >= self.params.min_length {
-                segments.push(segment);
-            }
+            let edgels = self.point_edgels[i..=j].iter().map(|&e| &self.edgels[e as usize]);
+            segments.extend(fit_segment(&self.points[i..=j], edgels, self.params.min_length));
         }
     }
 
@@ -636,8 +705,7 @@ impl SegmentExtractor {
         while let Some(task) = self.tasks.pop() {
             match task {
                 Task::Split { i, j } => {
-                    let (deviation, k) = largest_deviation(&self.points[i..=j]);
-                    let chord = distance(self.points[i], self.points[j]);
+                    let (deviation, k, chord) = largest_deviation(&self.points[i..=j]);
                     let significance = chord / deviation.max(floor);
                     if j - i < 2 || deviation <= floor {
                         self.pieces.push((i, j));
@@ -666,11 +734,6 @@ impl SegmentExtractor {
     }
 }
 
-/// Euclidean distance.
-fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (b[0] - a[0]).hypot(b[1] - a[1])
-}
-
 /// Index of the first of `points` farthest from `from`.
 fn farthest(points: impl Iterator<Item = [f64; 2]>, from: [f64; 2]) -> usize {
     let mut best = (0, -1.0);
@@ -684,9 +747,9 @@ fn farthest(points: impl Iterator<Item = [f64; 2]>, from: [f64; 2]) -> usize {
 }
 
 /// The largest distance of `points` from the chord through the first and
-/// the last (from the first when they coincide), and the index of the
-/// first point at that distance.
-fn largest_deviation(points: &[[f64; 2]]) -> (f64, usize) {
+/// the last (from the first when they coincide), the index of the first
+/// point at that distance, and the chord's length.
+fn largest_deviation(points: &[[f64; 2]]) -> (f64, usize, f64) {
     let (a, b) = (points[0], points[points.len() - 1]);
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let chord = dx.hypot(dy);
@@ -698,13 +761,18 @@ fn largest_deviation(points: &[[f64; 2]]) -> (f64, usize) {
             best = (d, k);
         }
     }
-    best
+    (best.0, best.1, chord)
 }
 
 /// The segment of a piece: the total least squares line through `points`
 /// (principal axis of their scatter), its ends the projections of the first
-/// and last points; strength and direction the means over `edgels`.
-fn fit_segment<'a>(points: &[[f64; 2]], edgels: impl Iterator<Item = &'a Feature>) -> ImageSegment {
+/// and last points; strength and direction the means over `edgels`. None
+/// when it is shorter than `min_length` (its edgels are then not read).
+fn fit_segment<'a>(
+    points: &[[f64; 2]],
+    edgels: impl Iterator<Item = &'a Feature>,
+    min_length: f64,
+) -> Option<ImageSegment> {
     let n = points.len() as f64;
     let (sx, sy) = points.iter().fold((0.0, 0.0), |(sx, sy), p| (sx + p[0], sy + p[1]));
     let c = [sx / n, sy / n];
@@ -722,27 +790,31 @@ fn fit_segment<'a>(points: &[[f64; 2]], edgels: impl Iterator<Item = &'a Feature
     let (t0, t1) = (along(points[0]), along(points[points.len() - 1]));
     let start = [c[0] + t0 * d[0], c[1] + t0 * d[1]];
     let end = [c[0] + t1 * d[0], c[1] + t1 * d[1]];
+    let length = (t1 - t0).abs();
+    if !(length >= min_length) {
+        return None;
+    }
     let (mut strength, mut cos, mut sin) = (0.0, 0.0, 0.0);
     for f in edgels {
         strength += f64::from(f.magnitude);
         cos += f64::from(f.theta).cos();
         sin += f64::from(f.theta).sin();
     }
-    ImageSegment {
+    Some(ImageSegment {
         start,
         end,
         midpoint: [0.5 * (start[0] + end[0]), 0.5 * (start[1] + end[1])],
-        length: (t1 - t0).abs(),
+        length,
         orientation: undirected(end[1] - start[1], end[0] - start[0]),
         strength: strength / n,
         direction: sin.atan2(cos),
         pixels: points.len() as u32,
-    }
+    })
 }
 
 /// `atan2(dy, dx)` folded into `[0, π)`.
 fn undirected(dy: f64, dx: f64) -> f64 {
-    let a = dy.atan2(dx).rem_euclid(PI);
+    let a = rem_pi(dy.atan2(dx));
     if a >= PI { 0.0 } else { a }
 }
 
@@ -992,6 +1064,11 @@ mod tests {
         let mut list: Vec<Feature> = pixels.iter().map(|&(x, y)| Feature { x, y, theta: 0.0, magnitude }).collect();
         list.sort_by_key(|f| (f.y, f.x));
         list
+    }
+
+    /// Euclidean distance.
+    fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+        (b[0] - a[0]).hypot(b[1] - a[1])
     }
 
     fn window(x0: u32, y0: u32, x1: u32, y1: u32) -> Window {
