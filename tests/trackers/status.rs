@@ -197,9 +197,10 @@ fn motion_edge_covered_for_20_frames_is_lost_then_reacquired_gpu() {
 #[test]
 fn motion_edge_jump_is_lost_at_once_and_never_falsely_tracked() {
     // The pendulum at frame 40 shows frame 70: the object is ~90 px away.
-    // Motion-edge re-acquires only around its prediction (± init_tolerance
-    // = 24 px): the object swings back through the held position with the
-    // orientation it had there, which re-acquires it if it happens.
+    // After `search_after` (2) lost frames the whole image is searched for
+    // the last tracked shape, turned in steps of δ; the side a step leaves
+    // a few degrees off is reported lost for a frame or two before the track
+    // settles.
     let mut seq = pendulum();
     jump(&mut seq, 40, 30);
     let out = run(&seq, motion_edge(&seq), &mut CpuBackend::new());
@@ -210,8 +211,10 @@ fn motion_edge_jump_is_lost_at_once_and_never_falsely_tracked() {
     assert!(lost <= 41, "lost at {lost}");
     let back = first(&st, lost, 'T').expect("re-acquired");
     println!("motion-edge jump: re-acquired at {back}");
-    assert!(back <= 50, "re-acquired at {back}");
-    assert!(st[back..].chars().all(|c| c == 'T'), "holds the object once re-acquired");
+    assert!(back <= 44, "re-acquired at {back}");
+    let relost = st[back..].chars().filter(|&c| c == 'L').count();
+    assert!(relost <= 2, "{relost} frames lost after re-acquisition");
+    assert!(st[60..].chars().all(|c| c == 'T'), "holds the object from frame 60");
 }
 
 #[test]

@@ -166,7 +166,7 @@
 //!   tests of eq. 3–4 in the same strip, with the same robust fit. An edge
 //!   that moves along itself is at the same place at band time t − ½ and at
 //!   t, so the static fit is the band-time line the motion fit would give.
-//!   A fit that would move the held line's ends by more than 2 px, or whose
+//!   A fit that would move the held line's ends by more than 4 px, or whose
 //!   pixels spread more than 1.5 px (standard deviation) across it, is not
 //!   taken: a correction, not a jump to a parallel background edge. With
 //!   the distractor at 1.1 / 3.9 / 16 px/frame: 196 / 200 / 172 of 200
@@ -351,7 +351,7 @@ pub struct MotionEdgeTracker {
 
 /// Largest move of a held line's end points by its fit to the frame's
 /// edges, px (module doc, "Held lines on the frame's edges").
-const HELD_LINE_CORRECTION_PX: f64 = 2.0;
+const HELD_LINE_CORRECTION_PX: f64 = 4.0;
 const HELD_LINE_SPREAD_PX: f64 = 1.5;
 /// Fastest motion across itself of a held line fitted to the frame's edges,
 /// px/frame.
