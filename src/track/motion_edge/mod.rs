@@ -352,6 +352,9 @@ pub struct MotionEdgeTracker {
 /// Largest move of a held line's end points by its fit to the frame's
 /// edges, px (module doc, "Held lines on the frame's edges").
 const HELD_LINE_CORRECTION_PX: f64 = 4.0;
+/// Largest standard deviation across a held line's edge fit of the pixels
+/// it keeps, px (a Sobel band of one edge is about ±1 px; a fit mixing two
+/// parallel edges spreads wider).
 const HELD_LINE_SPREAD_PX: f64 = 1.5;
 /// Fastest motion across itself of a held line fitted to the frame's edges,
 /// px/frame.
