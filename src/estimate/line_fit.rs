@@ -127,17 +127,17 @@ pub fn orientation_difference(a: f64, b: f64) -> f64 {
 /// (the difference of two orientations, an edge direction turned by π/2):
 /// for |x| < π the remainder is `x` itself, and `rem_euclid` adds π to a
 /// negative one; for π ≤ x < 2π it is x − π, which is exact there
-/// (Sterbenz).
+/// (Sterbenz). The term is taken from a table rather than picked by
+/// branches: a frame's orientations fall into the three cases at random.
+/// Subtracting 0 keeps −0 as `rem_euclid` does.
 #[inline]
 pub(crate) fn rem_pi(x: f64) -> f64 {
     use std::f64::consts::PI;
-    if x.abs() < PI {
-        if x < 0.0 { x + PI } else { x }
-    } else if (PI..2.0 * PI).contains(&x) {
-        x - PI
-    } else {
-        x.rem_euclid(PI)
+    const TERM: [f64; 3] = [-PI, 0.0, PI];
+    if !(-PI < x && x < 2.0 * PI) {
+        return x.rem_euclid(PI);
     }
+    x - TERM[usize::from(x >= 0.0) + usize::from(x >= PI)]
 }
 
 /// Weighted sums of points for a least-squares line fit, relative to an
@@ -525,6 +525,16 @@ mod tests {
         values.extend([1e20, -1e20, f64::NAN, f64::INFINITY, f64::NEG_INFINITY]);
         values.extend((0..=1000).map(|k| PI + f64::from(k) * PI / 1000.0));
         values.extend((-400..=400).map(|k| f64::from(k) * 0.01 + 1e-9));
+        // Edge directions turned by π/2: `f32` directions in (−π, π], a
+        // little past π, around the cases' bounds and across the range.
+        use std::f32::consts::{FRAC_PI_2 as HALF, PI as PI32};
+        let next = |t: f32, k: i32| f32::from_bits(t.to_bits().wrapping_add_signed(k));
+        let mut thetas = vec![0.0, -0.0, PI32, -PI32, HALF, -HALF, 3.0 * HALF, 7.0, -7.0, 1e30, -1e30];
+        for t in [0.0f32, PI32, -PI32, HALF, -HALF] {
+            thetas.extend((-40..=40).map(|k| next(t, k)));
+        }
+        thetas.extend((0..=20_000).map(|k| -PI32 + k as f32 * (2.0 * PI32 / 20_000.0)));
+        values.extend(thetas.into_iter().map(|t| f64::from(t) + std::f64::consts::FRAC_PI_2));
         for x in values {
             assert_eq!(rem_pi(x).to_bits(), x.rem_euclid(PI).to_bits(), "x = {x:e}");
         }

@@ -19,23 +19,6 @@ pub const END_MARGIN_PX: f64 = 2.0;
 /// Orientation levels over [0, π) (1 ..= 255; 0 marks an empty pixel).
 const LEVELS: f64 = 255.0;
 
-/// The edge orientation of a zero crossing of direction `theta`, in
-/// [0, π]: `rem_pi(theta + π/2)` bit for bit. Directions lie in (−π, π]
-/// (a little past π in `f32`), so the sum lies in (−π, 2π), where the
-/// remainder adds π below 0, keeps [0, π) and subtracts π from [π, 2π)
-/// ([`rem_pi`]); the case picks the term from a table rather than by a
-/// branch, as a frame's directions fall into the cases at random. (Adding
-/// 0 changes only −0, and the sum is never −0: `theta = −π/2` gives +0.)
-#[inline]
-fn edge_orientation(theta: f32) -> f64 {
-    const TERM: [f64; 3] = [PI, 0.0, -PI];
-    let x = f64::from(theta) + FRAC_PI_2;
-    if !(-PI < x && x < 2.0 * PI) {
-        return rem_pi(x);
-    }
-    x + TERM[usize::from(x >= 0.0) + usize::from(x >= PI)]
-}
-
 /// Zero-crossing orientations over a window of interest.
 #[derive(Clone, Debug, Default)]
 pub struct CrossingMap {
@@ -63,7 +46,7 @@ impl CrossingMap {
             let inside = (f.x >= window.x0) & (f.y >= window.y0) & (f.x < window.x1) & (f.y < window.y1);
             let taken = inside & !(f.magnitude < min_magnitude) & f.theta.is_finite();
             let at = (f.y.wrapping_sub(window.y0)) as usize * self.width + (f.x.wrapping_sub(window.x0)) as usize;
-            let edge = edge_orientation(f.theta);
+            let edge = rem_pi(f64::from(f.theta) + FRAC_PI_2);
             self.cells[if taken { at } else { spare }] = 1 + ((edge / PI * LEVELS) as u8).min(254);
         }
     }
@@ -149,25 +132,6 @@ mod tests {
         // A weak edge below the threshold supports nothing.
         map.rebuild(&horizontal(30, 10..110, 1.0), window, 1.5);
         assert_eq!(map.support([([10.0, 30.0], [109.0, 30.0])].into_iter(), angle).0, 0);
-    }
-
-    /// The edge orientation's table of terms gives `rem_pi`'s bits, around
-    /// the cases' bounds, over the directions an `f32` can hold in
-    /// (−π, π] and past them.
-    #[test]
-    fn edge_orientation_is_rem_pi_bit_for_bit() {
-        use std::f32::consts::{FRAC_PI_2 as HALF, PI as PI32};
-        let next = |t: f32, k: i32| f32::from_bits(t.to_bits().wrapping_add_signed(k));
-        let mut thetas = vec![0.0, -0.0, PI32, -PI32, HALF, -HALF, 3.0 * HALF, 7.0, -7.0, 1e30, -1e30];
-        for t in [0.0f32, PI32, -PI32, HALF, -HALF] {
-            thetas.extend((-40..=40).map(|k| next(t, k)));
-        }
-        thetas.extend((0..=20_000).map(|k| -PI32 + k as f32 * (2.0 * PI32 / 20_000.0)));
-        for theta in thetas {
-            let expected = rem_pi(f64::from(theta) + FRAC_PI_2);
-            assert_eq!(edge_orientation(theta).to_bits(), expected.to_bits(), "theta = {theta:e}");
-        }
-        assert!(edge_orientation(f32::NAN).is_nan());
     }
 
     #[test]

@@ -396,8 +396,9 @@ impl LoweTracker {
     /// supported samples by the margin of [`better_supported`].
     fn joint_alternatives(&self, view: &FrameView<'_>, found: Found, diag: &mut LoweDiagnostics) -> Found {
         let own = view.support_counts(&found.segs);
-        let mut hypotheses: Vec<(usize, State)> = Vec::new();
-        let mut segs = Vec::new();
+        // Each hypothesis with its visible model segments and how many of
+        // their samples are supported.
+        let mut hypotheses: Vec<(usize, State, Vec<ModelSegment>)> = Vec::new();
         for (joint, &[lo, hi]) in self.limits.iter().enumerate() {
             let current = found.solution.state.params[joint];
             for k in 0..JOINT_ALTERNATIVES {
@@ -407,15 +408,15 @@ impl LoweTracker {
                 }
                 let mut hypothesis = found.solution.state.clone();
                 hypothesis.params[joint] = value;
+                let mut segs = Vec::new();
                 view.visible_segments(&hypothesis, &mut segs);
-                hypotheses.push((view.supported_samples(&segs), hypothesis));
+                hypotheses.push((view.support_counts(&segs).0, hypothesis, segs));
             }
         }
         hypotheses.sort_by_key(|h| std::cmp::Reverse(h.0));
         let mut best: Option<(usize, Found)> = None;
-        for (_, hypothesis) in hypotheses.iter().take(JOINT_REFITS) {
-            view.visible_segments(hypothesis, &mut segs);
-            let Some(other) = self.search_at(view, hypothesis, &segs, 0, diag) else { continue };
+        for (_, hypothesis, segs) in hypotheses.iter().take(JOINT_REFITS) {
+            let Some(other) = self.search_at(view, hypothesis, segs, 0, diag) else { continue };
             let counts = view.support_counts(&other.segs);
             let moved = other
                 .solution
@@ -519,11 +520,7 @@ impl FrameView<'_> {
         crate::track::support::fraction(self.support_counts(segs))
     }
 
-    /// Samples of `segs` with a zero crossing along them (as [`Self::support`]).
-    fn supported_samples(&self, segs: &[ModelSegment]) -> usize {
-        self.support_counts(segs).0
-    }
-
+    /// `(supported, samples)` of `segs` (as [`Self::support`]).
     fn support_counts(&self, segs: &[ModelSegment]) -> (usize, usize) {
         self.crossing_map.support(segs.iter().map(|s| (s.a, s.b)), SUPPORT_ANGLE_DEG.to_radians())
     }

@@ -501,17 +501,21 @@ impl MotionEdgeTracker {
     /// frame, as [`Tracker::request`] asks for them); `None` skips the
     /// verification. Every call returns an outcome (also when lost).
     pub fn update_with_edges(&mut self, frame: usize, motion: &[Feature], edges: Option<&[Feature]>) -> FrameOutcome {
+        let edge_orientation = |f: &Feature| wrap_orientation(f64::from(f.theta) + std::f64::consts::FRAC_PI_2);
         self.support_map = match edges {
-            Some(edges) if self.params.verify => Some(EdgeMap::new(edges, self.params.support_edge_threshold, |f| {
-                wrap_orientation(f64::from(f.theta) + std::f64::consts::FRAC_PI_2)
-            })),
+            Some(edges) if self.params.verify => {
+                Some(EdgeMap::new(edges, self.params.support_edge_threshold, edge_orientation))
+            }
             _ => None,
         };
+        // The held lines' fit needs them only while tracking with a line
+        // held long enough (`edge_fitted_held_lines`).
         self.edge_pixels.clear();
         if self.params.held_line_edges
+            && self.phase == Phase::Tracking
+            && self.unfitted_run.iter().any(|&run| run >= HELD_LINE_MIN_FRAMES)
             && let Some(edges) = edges
         {
-            let edge_orientation = |f: &Feature| wrap_orientation(f64::from(f.theta) + std::f64::consts::FRAC_PI_2);
             self.edge_pixels.extend(
                 edges
                     .iter()
