@@ -45,7 +45,10 @@
 //!    quarter of the neighbour's length: at the right state the edges
 //!    around the thin face (the lid's sides, whose image segments the
 //!    overlap test of eq. 3 refuses at the wrong one) find their matches.
-//!    At most [`MAX_SWAPS`] swaps are kept per frame.
+//!    When both lines of the pair were found and both joined the one model
+//!    segment (the fit then lies between them, 2 px off each), the swap
+//!    that gives the neighbour only the image segments on its side is
+//!    tried as well. At most [`MAX_SWAPS`] swaps are kept per frame.
 
 use super::estimation::{Match, Matrix, Problem, Solution, solve};
 use super::matching::{Candidate, Endpoints};
@@ -280,36 +283,58 @@ fn swap_parallel(
                 continue;
             }
             tried.push([f.edge, t.edge]);
-            let swapped: Vec<Match> = matches
-                .iter()
-                .map(|m| {
-                    if m.edge == f.edge && m.interval == f.interval {
-                        Match { edge: t.edge, interval: t.interval, ..*m }
-                    } else {
-                        *m
-                    }
-                })
-                .collect();
-            let Some(first) = solve(problem, &solution.state, &swapped, settings.iterations) else { continue };
-            if !passes(&first, settings.residual_limit) {
-                continue;
-            }
-            let gain = 0.25 * t.length();
-            let (next, next_matches, next_segs, _) = lock_on(frame, problem, first, swapped, settings, needed);
-            if !frame.verify(&next_segs, &next_matches) {
-                continue;
-            }
-            let before = frame.covered_length(&segs, &matches);
-            let after = frame.covered_length(&next_segs, &next_matches);
-            if after >= before + gain {
-                (solution, matches, segs) = (next, next_matches, next_segs);
-                kept += 1;
-                continue 'swaps;
+            for moved in swap_choices(f, t, &matches) {
+                let swapped: Vec<Match> = matches
+                    .iter()
+                    .zip(&moved)
+                    .map(|(m, &go)| if go { Match { edge: t.edge, interval: t.interval, ..*m } } else { *m })
+                    .collect();
+                let Some(first) = solve(problem, &solution.state, &swapped, settings.iterations) else { continue };
+                if !passes(&first, settings.residual_limit) {
+                    continue;
+                }
+                let gain = 0.25 * t.length();
+                let (next, next_matches, next_segs, _) = lock_on(frame, problem, first, swapped, settings, needed);
+                if !frame.verify(&next_segs, &next_matches) {
+                    continue;
+                }
+                let before = frame.covered_length(&segs, &matches);
+                let after = frame.covered_length(&next_segs, &next_matches);
+                if after >= before + gain {
+                    (solution, matches, segs) = (next, next_matches, next_segs);
+                    kept += 1;
+                    continue 'swaps;
+                }
             }
         }
         break;
     }
     (solution, matches, segs)
+}
+
+/// Which of `matches` a swap from model segment `from` to its unmatched
+/// parallel neighbour `to` gives to `to` (module doc, step 6), as flags
+/// over `matches`: first all of `from`'s image segments; then, when they
+/// lie on both sides of `from`'s line (both lines of the pair were found
+/// and both joined `from`, the fit splitting the difference), only those on
+/// `to`'s side.
+fn swap_choices(from: &ModelSegment, to: &ModelSegment, matches: &[Match]) -> Vec<Vec<bool>> {
+    let of_from = |m: &Match| m.edge == from.edge && m.interval == from.interval;
+    let [nx, ny] = from.normal();
+    let across = |p: [f64; 2]| (p[0] - from.a[0]) * nx + (p[1] - from.a[1]) * ny;
+    let side = across([0.5 * (to.a[0] + to.b[0]), 0.5 * (to.a[1] + to.b[1])]).signum();
+    let offset = |m: &Match| {
+        let [p, q] = m.endpoints;
+        side * across([0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])])
+    };
+    let all: Vec<bool> = matches.iter().map(of_from).collect();
+    let toward: Vec<bool> = matches.iter().map(|m| of_from(m) && offset(m) > COINCIDENT_PX).collect();
+    let away = matches.iter().any(|m| of_from(m) && offset(m) < -COINCIDENT_PX);
+    let mut choices = vec![all];
+    if away && toward.contains(&true) {
+        choices.push(toward);
+    }
+    choices
 }
 
 /// Pairs `[matched, unmatched]` of model segments of different edges,
