@@ -291,14 +291,15 @@ impl LoweTracker {
 
     /// Steps 4–6 of the module doc at `prediction`, whose visible model
     /// segments are `segs`, from doubling `first` to the widest: the first
-    /// confident verified solution, else the first verified one, else the
-    /// last accepted one.
+    /// verified solution with outline support at least `confident_support`,
+    /// else the first verified one, else the last accepted one.
     fn search_at(
         &self,
         view: &FrameView<'_>,
         prediction: &State,
         segs: &[ModelSegment],
         first: usize,
+        confident_support: f64,
         diag: &mut LoweDiagnostics,
     ) -> Option<Found> {
         let n = self.n();
@@ -330,14 +331,15 @@ impl LoweTracker {
             let outcome = search::search(view, &problem, segs.to_vec(), &cands, &settings);
             diag.branches += outcome.branches;
             let Some(solution) = outcome.solution else { continue };
-            let found = Found { solution, matches: outcome.matches, segs: outcome.model_segments, verified: outcome.verified };
+            let found =
+                Found { solution, matches: outcome.matches, segs: outcome.model_segments, verified: outcome.verified };
             if !found.verified {
                 accepted = Some(found);
                 continue;
             }
             // A weakly supported solution does not end the search: a wider
             // range may hold a confident one (module doc, step 6).
-            let confident = view.support(&found.segs) >= self.params.confident_support;
+            let confident = view.support(&found.segs) >= confident_support;
             if confident || verified.is_none() {
                 verified = Some(found);
             }
@@ -387,7 +389,8 @@ impl LoweTracker {
                 let y = (v - self.camera.cy) * centre.z / self.camera.fy;
                 hypothesis.pose.translation += DVec3::new(x - centre.x, y - centre.y, 0.0);
                 view.visible_segments(&hypothesis, &mut segs);
-                let Some(found) = self.search_at(view, &hypothesis, &segs, self.params.range_doublings, diag) else {
+                let Some(found) = self.search_at(view, &hypothesis, &segs, self.params.range_doublings, 0.0, diag)
+                else {
                     continue;
                 };
                 if !found.verified {
@@ -432,7 +435,7 @@ impl LoweTracker {
         hypotheses.sort_by_key(|h| std::cmp::Reverse(h.0));
         let mut best: Option<(usize, Found)> = None;
         for (_, hypothesis, segs) in hypotheses.iter().take(JOINT_REFITS) {
-            let Some(other) = self.search_at(view, hypothesis, segs, 0, diag) else { continue };
+            let Some(other) = self.search_at(view, hypothesis, segs, 0, 0.0, diag) else { continue };
             let counts = view.support_counts(&other.segs);
             let moved = other
                 .solution
@@ -678,7 +681,14 @@ impl Tracker for LoweTracker {
         let view = FrameView { tracker: self, ctx, crossing_map: &self.crossing_map, min_coverage, min_support };
         let mut segs = Vec::new();
         view.visible_segments(&self.prediction, &mut segs);
-        let mut accepted = self.search_at(&view, &self.prediction, &segs, self.first_doubling, &mut diag);
+        let mut accepted = self.search_at(
+            &view,
+            &self.prediction,
+            &segs,
+            self.first_doubling,
+            self.params.confident_support,
+            &mut diag,
+        );
         let verified_here = accepted.as_ref().is_some_and(|found| found.verified);
         if !verified_here && self.lost_frames >= self.params.search_after {
             if let Some(found) = self.search_image(&view, &mut diag) {
