@@ -42,10 +42,11 @@
 //!    least `min_coverage` of the visible model edges' length, and at least
 //!    `min_support` of that length has a zero crossing along it (within
 //!    1 px across, at an edge orientation within 20°:
-//!    [`crate::track::support`]). The second test is independent of the
-//!    matching: a few long clutter segments can cover a quarter of a model
-//!    put in the wrong place, but the rest of its outline then runs over
-//!    nothing. Otherwise it is `lost`: the output carries the prediction,
+//!    [`crate::track::support`]; two model edges on one image line, as a
+//!    shut lid's front on the box's rim, count once). The second test is
+//!    independent of the matching: a few long clutter segments can cover a
+//!    quarter of a model put in the wrong place, but the rest of its
+//!    outline then runs over nothing. Otherwise it is `lost`: the output carries the prediction,
 //!    which coasts on the last velocity while the model's centre stays in
 //!    the image at a depth within a factor 1.5 of the last verified one
 //!    (else it stands at the last verified state), and the next frame
@@ -539,10 +540,64 @@ impl FrameView<'_> {
         crate::track::support::fraction(self.support_counts(segs))
     }
 
-    /// `(supported, samples)` of `segs` (as [`Self::support`]).
+    /// `(supported, samples)` of `segs` (as [`Self::support`]), each part of
+    /// the outline counted once ([`distinct_outline`]).
     fn support_counts(&self, segs: &[ModelSegment]) -> (usize, usize) {
-        self.crossing_map.support(segs.iter().map(|s| (s.a, s.b)), SUPPORT_ANGLE_DEG.to_radians())
+        self.crossing_map.support(distinct_outline(segs).into_iter(), SUPPORT_ANGLE_DEG.to_radians())
     }
+}
+
+/// Farthest two model segments may lie from each other's line to be the
+/// same line of the outline, px.
+const SAME_LINE_PX: f64 = 1.0;
+
+/// The pieces of `segs` that no earlier segment already covers: a part of a
+/// model segment running along an earlier one (within [`SAME_LINE_PX`],
+/// nearly parallel) is left out. Two edges can project onto one line — a
+/// shut lid's front on the box's rim, a hinge — and there the image has one
+/// edge: counted twice it would let an outline that folds a part onto
+/// another gain support from the fold alone.
+fn distinct_outline(segs: &[ModelSegment]) -> Vec<([f64; 2], [f64; 2])> {
+    let max_sine = 3f64.to_radians().sin();
+    let mut pieces: Vec<([f64; 2], [f64; 2])> = Vec::with_capacity(segs.len());
+    for (i, seg) in segs.iter().enumerate() {
+        let length = seg.length();
+        if !(length > 0.0) {
+            continue;
+        }
+        let [ux, uy] = seg.direction();
+        // Intervals of `seg` (by distance from `a`) covered by earlier segments.
+        let mut covered: Vec<[f64; 2]> = Vec::new();
+        for other in &segs[..i] {
+            let [vx, vy] = other.direction();
+            if (ux * vy - uy * vx).abs() > max_sine {
+                continue;
+            }
+            let across = |p: [f64; 2]| ((p[1] - seg.a[1]) * ux - (p[0] - seg.a[0]) * uy).abs();
+            if across(other.a).max(across(other.b)) > SAME_LINE_PX {
+                continue;
+            }
+            let along = |p: [f64; 2]| (p[0] - seg.a[0]) * ux + (p[1] - seg.a[1]) * uy;
+            let (s0, s1) = (along(other.a), along(other.b));
+            let (lo, hi) = (s0.min(s1).max(0.0), s0.max(s1).min(length));
+            if hi > lo {
+                covered.push([lo, hi]);
+            }
+        }
+        covered.sort_by(|x, y| x[0].total_cmp(&y[0]));
+        let at = |t: f64| [seg.a[0] + t * ux, seg.a[1] + t * uy];
+        let mut start = 0.0;
+        for [lo, hi] in covered {
+            if lo > start {
+                pieces.push((at(start), at(lo)));
+            }
+            start = f64::max(start, hi);
+        }
+        if start < length {
+            pieces.push((at(start), at(length)));
+        }
+    }
+    pieces
 }
 
 /// Largest angle between a model segment and a zero crossing's edge
@@ -811,7 +866,39 @@ impl Tracker for LoweTracker {
 
 #[cfg(test)]
 mod tests {
-    use super::better_supported;
+    use super::{better_supported, distinct_outline};
+    use crate::track::lowe::params::MAX_PARAMS;
+    use crate::track::lowe::projection::ModelSegment;
+
+    fn segment(a: [f64; 2], b: [f64; 2]) -> ModelSegment {
+        let rows = [[0.0; MAX_PARAMS]; 2];
+        ModelSegment { edge: 0, interval: [0.0, 1.0], a, b, da: rows, db: rows }
+    }
+
+    fn length((p, q): ([f64; 2], [f64; 2])) -> f64 {
+        (q[0] - p[0]).hypot(q[1] - p[1])
+    }
+
+    #[test]
+    fn an_outline_counts_two_edges_on_one_line_once() {
+        let segs = [
+            segment([0.0, 0.0], [100.0, 0.0]),
+            // The same line, drawn the other way, 0.4 px off: left out.
+            segment([100.0, 0.4], [0.0, 0.4]),
+            // Half along the first, half beyond it: the half beyond stays.
+            segment([50.0, -0.3], [150.0, -0.3]),
+            // Parallel but 3 px away, and one crossing: both stay whole.
+            segment([0.0, 3.0], [100.0, 3.0]),
+            segment([50.0, -50.0], [50.0, 50.0]),
+        ];
+        let pieces = distinct_outline(&segs);
+        let lengths: Vec<f64> = pieces.iter().map(|&p| length(p)).collect();
+        assert_eq!(pieces.len(), 4, "{pieces:?}");
+        for (got, want) in lengths.iter().zip([100.0, 50.0, 100.0, 100.0]) {
+            assert!((got - want).abs() < 1e-9, "{lengths:?}");
+        }
+        assert!((pieces[1].0[0] - 100.0).abs() < 1e-9, "the piece beyond starts at x = 100: {pieces:?}");
+    }
 
     #[test]
     fn another_joint_value_needs_more_supported_samples_the_farther_it_moves() {
