@@ -69,14 +69,15 @@ const HINGED_25: Case = Case {
 };
 /// The fastest motion `synth` makes (the box turns up to ≈ 20° per frame,
 /// with abrupt reversals): at most 1 % of the frames more than 5 px off;
-/// frames that lose the box as it slips out of reach are `lost`, not wrong.
+/// frames that lose the box as it slips out of reach are `lost`, not wrong,
+/// and the whole-image search finds it again (box seed 1 is lost four
+/// times and holds 291 frames).
 const BOX_30: Case = Case { speed: 30.0, min_tracked: 285, max_false: 3, max_mean_px: 1.0, ..BOX_SLOW };
-const HINGED_30: Case = Case { seed: 2, min_tracked: 250, ..Case { speed: 30.0, ..HINGED_25 } };
-/// Half the edges hidden at 20 px/frame: no frame more than 5 px off.
-/// Seed 1 holds 282 frames; seed 0 loses the box at frame 77, turned far
-/// from any pose the whole-image search tries (it moves the last verified
-/// pose across the image, not its orientation), and stays `lost`.
-const HINGED_OCCLUDED_FAST: Case = Case { speed: 20.0, occlude: 0.5, seed: 1, min_tracked: 270, ..HINGED_25 };
+const HINGED_30: Case = Case { seed: 2, min_tracked: 270, ..Case { speed: 30.0, ..HINGED_25 } };
+/// Half the edges hidden at 20 px/frame: at most 1 % of the frames more
+/// than 5 px off (seed 0 loses the box at frame 77 and finds it again at a
+/// remembered view).
+const HINGED_OCCLUDED_FAST: Case = Case { speed: 20.0, occlude: 0.5, seed: 1, min_tracked: 275, ..HINGED_25 };
 const HINGED_OCCLUDED: Case = Case { occlude: 0.5, max_lid_frames_over_2deg: 15, max_lid_deg: 6.0, ..HINGED_SLOW };
 
 /// Track `case` on `backend`, assert its figures and return the results.
@@ -180,14 +181,14 @@ fn lowe_holds_25_px_per_frame_without_false_tracking_cpu() {
 
 #[test]
 fn lowe_at_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
-    for case in [BOX_30, HINGED_30] {
+    for case in [BOX_30, Case { seed: 1, ..BOX_30 }, HINGED_30] {
         check(&case, &mut CpuBackend::new(), "cpu");
     }
 }
 
 #[test]
-fn lowe_hinged_box_occluded_at_20_px_per_frame_has_no_false_tracking_cpu() {
-    let seed_0 = Case { seed: 0, min_tracked: 70, ..HINGED_OCCLUDED_FAST };
+fn lowe_hinged_box_occluded_at_20_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
+    let seed_0 = Case { seed: 0, ..HINGED_OCCLUDED_FAST };
     for case in [HINGED_OCCLUDED_FAST, seed_0] {
         check(&case, &mut CpuBackend::new(), "cpu");
     }

@@ -62,8 +62,14 @@
 //!    the widest search reaches (3 σ of the doubled translation prior) and
 //!    searched at each position; of the verified solutions the one whose
 //!    outline has the most zero crossings along it is taken when it passes
-//!    those thresholds. After a loss the velocity
-//!    starts again from zero.
+//!    those thresholds. The same grid is searched with the model at each of
+//!    up to four remembered views: verified states of earlier frames whose
+//!    orientations lie at least 20° from each other's (and from the last
+//!    verified one's), the oldest replaced first. A model lost while it
+//!    turns quickly is found again when it shows a side seen before, not
+//!    only the last one: at 30 px/frame a box lost for 41 frames while it
+//!    turned away from the last verified orientation is now lost for 4.
+//!    After a loss the velocity starts again from zero.
 //! 9. **Other joint values** (our addition): a joint's part can fold onto
 //!    another part (a shut lid's edges lie on the box's rim), and the fit
 //!    then stays there while the part opens again. After every verified
@@ -167,6 +173,9 @@ pub struct LoweTracker {
     /// Window of interest around this frame's prediction.
     window: Window,
     last_diagnostics: LoweDiagnostics,
+    /// Verified states at orientations at least [`VIEW_GAP_RAD`] apart, the
+    /// oldest first (where the whole-image search also starts).
+    views: Vec<State>,
 }
 
 impl LoweTracker {
@@ -215,6 +224,7 @@ impl LoweTracker {
             phase: Phase::Tracking,
             window: Window::full(camera.width as usize, camera.height as usize),
             last_diagnostics: LoweDiagnostics::default(),
+            views: Vec::new(),
             geometry,
             params,
         };
@@ -363,29 +373,46 @@ impl LoweTracker {
     }
 
     /// The whole-image search of a lost model (module doc, step 8): the
-    /// last solution moved across the image on a grid as wide as the
-    /// widest search reaches, each position searched at the widest range;
-    /// of the solutions verified (at `search_min_coverage` and
-    /// `search_min_support`), the one whose outline has the most zero
-    /// crossings along it.
+    /// last verified state and the remembered views, each moved across the
+    /// image on a grid as wide as the widest search reaches, each position
+    /// searched at the widest range; of the solutions verified (at
+    /// `search_min_coverage` and `search_min_support`), the one whose
+    /// outline has the most zero crossings along it.
     fn search_image(&self, view: &FrameView<'_>, diag: &mut LoweDiagnostics) -> Option<Found> {
+        let mut best: Option<(f64, Found)> = None;
+        let others = self.views.iter().filter(|v| rotation_between(v, &self.last_tracked) > VIEW_GAP_RAD);
+        for base in std::iter::once(&self.last_tracked).chain(others) {
+            self.search_image_from(view, base, &mut best, diag);
+        }
+        best.map(|(_, found)| found)
+    }
+
+    /// The whole-image search's grid with the model at `base`'s orientation,
+    /// depth and joint values, keeping in `best` the verified solution
+    /// whose outline has the most zero crossings along it.
+    fn search_image_from(
+        &self,
+        view: &FrameView<'_>,
+        base: &State,
+        best: &mut Option<(f64, Found)>,
+        diag: &mut LoweDiagnostics,
+    ) {
         let (width, height) = (f64::from(self.camera.width), f64::from(self.camera.height));
-        let centre = self.last_tracked.pose.apply(self.centre);
+        let centre = base.pose.apply(self.centre);
         if !(centre.z > 0.0) {
-            return None;
+            return;
         }
         let step = (self.params.search_sigmas
             * self.params.prior_translation_px
             * f64::from(1u32 << self.params.range_doublings))
         .max(8.0);
         let (columns, rows) = ((width / step).ceil() as usize, (height / step).ceil() as usize);
-        let mut best: Option<(f64, Found)> = None;
         let mut segs = Vec::new();
         for row in 0..rows {
             for column in 0..columns {
                 let u = (column as f64 + 0.5) * width / columns as f64;
                 let v = (row as f64 + 0.5) * height / rows as f64;
-                let mut hypothesis = self.last_tracked.clone();
+                let mut hypothesis = base.clone();
                 let x = (u - self.camera.cx) * centre.z / self.camera.fx;
                 let y = (v - self.camera.cy) * centre.z / self.camera.fy;
                 hypothesis.pose.translation += DVec3::new(x - centre.x, y - centre.y, 0.0);
@@ -399,11 +426,10 @@ impl LoweTracker {
                 }
                 let support = view.support(&found.segs);
                 if best.as_ref().is_none_or(|(s, _)| support > *s) {
-                    best = Some((support, found));
+                    *best = Some((support, found));
                 }
             }
         }
-        best.map(|(_, found)| found)
     }
 
     /// Other values of each joint (module doc, step 9): the joint's range
@@ -468,6 +494,20 @@ impl LoweTracker {
             swap_gap: self.params.swap_gap_px,
         }
     }
+}
+
+/// Most remembered views (see [`LoweTracker::search_image`]).
+const MAX_VIEWS: usize = 4;
+/// Least rotation between two remembered views, radians (20°).
+const VIEW_GAP_RAD: f64 = 0.35;
+
+/// The angle of the rotation between two states' orientations, radians.
+fn rotation_between(a: &State, b: &State) -> f64 {
+    // sin θ from the skew-symmetric part, cos θ from the trace.
+    let r = a.pose.rotation.transpose() * b.pose.rotation;
+    let cosine = 0.5 * (r.x_axis.x + r.y_axis.y + r.z_axis.z - 1.0);
+    let axis = DVec3::new(r.y_axis.z - r.z_axis.y, r.z_axis.x - r.x_axis.z, r.x_axis.y - r.y_axis.x);
+    (0.5 * axis.length()).atan2(cosine)
 }
 
 /// Values on each joint's range that [`LoweTracker::joint_alternatives`]
@@ -810,6 +850,12 @@ impl Tracker for LoweTracker {
                 let previous = std::mem::replace(&mut self.last, solution.state.clone());
                 self.before_last = (self.lost_frames == 0).then_some(previous);
                 self.last_tracked = solution.state.clone();
+                if self.views.iter().all(|v| rotation_between(v, &solution.state) > VIEW_GAP_RAD) {
+                    if self.views.len() == MAX_VIEWS {
+                        self.views.remove(0);
+                    }
+                    self.views.push(solution.state.clone());
+                }
                 self.first_doubling = 0;
                 self.lost_frames = 0;
                 self.phase = Phase::Tracking;
@@ -866,7 +912,10 @@ impl Tracker for LoweTracker {
 
 #[cfg(test)]
 mod tests {
-    use super::{better_supported, distinct_outline};
+    use glam::DVec3;
+
+    use super::{State, better_supported, distinct_outline, rotation_between};
+    use crate::geometry::Pose;
     use crate::track::lowe::params::MAX_PARAMS;
     use crate::track::lowe::projection::ModelSegment;
 
@@ -877,6 +926,21 @@ mod tests {
 
     fn length((p, q): ([f64; 2], [f64; 2])) -> f64 {
         (q[0] - p[0]).hypot(q[1] - p[1])
+    }
+
+    #[test]
+    fn rotation_between_two_views_is_the_angle_of_their_relative_turn() {
+        let state = |axis_angle: DVec3| State {
+            pose: Pose::from_axis_angle(axis_angle, DVec3::new(0.0, 0.0, 1.0)),
+            params: Vec::new(),
+        };
+        let a = state(DVec3::new(0.3, -0.2, 0.1));
+        // a turned a further 25° about some axis, in the camera frame.
+        let turn = Pose::from_axis_angle(DVec3::new(1.0, 2.0, -2.0).normalize() * 25f64.to_radians(), DVec3::ZERO);
+        let b = State { pose: Pose { rotation: turn.rotation * a.pose.rotation, ..a.pose }, params: Vec::new() };
+        assert!((rotation_between(&a, &b) - 25f64.to_radians()).abs() < 1e-12);
+        assert!((rotation_between(&b, &a) - 25f64.to_radians()).abs() < 1e-12);
+        assert!(rotation_between(&a, &a) < 1e-15);
     }
 
     #[test]
