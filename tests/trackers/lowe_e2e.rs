@@ -78,6 +78,10 @@ const HINGED_30: Case = Case { seed: 2, min_tracked: 270, ..Case { speed: 30.0, 
 /// than 5 px off (seed 0 loses the box at frame 77 and finds it again at a
 /// remembered view).
 const HINGED_OCCLUDED_FAST: Case = Case { speed: 20.0, occlude: 0.5, seed: 1, min_tracked: 275, ..HINGED_25 };
+/// The box half hidden at 10 px/frame: frames 286–292 of seed 0 were
+/// fitted to the wrong edges on 5–7 matches at 1.5–2.2 px residual and
+/// reported tracking; a loose fit on few matches is no longer verified.
+const BOX_OCCLUDED_10: Case = Case { speed: 10.0, occlude: 0.5, min_tracked: 295, max_false: 3, ..BOX_SLOW };
 const HINGED_OCCLUDED: Case = Case { occlude: 0.5, max_lid_frames_over_2deg: 15, max_lid_deg: 6.0, ..HINGED_SLOW };
 
 /// Track `case` on `backend`, assert its figures and return the results.
@@ -152,7 +156,7 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<
 
 #[test]
 fn lowe_holds_box_slow_fast_and_occluded_cpu() {
-    for case in [&BOX_SLOW, &BOX_FAST, &BOX_OCCLUDED] {
+    for case in [&BOX_SLOW, &BOX_FAST, &BOX_OCCLUDED, &BOX_OCCLUDED_10] {
         check(case, &mut CpuBackend::new(), "cpu");
     }
 }

@@ -38,7 +38,11 @@
 //!    to the node's (a node of ⌊n/2⌋ + 1 matches leaves one or two redundant
 //!    measurements for n parameters, and a wrong node fits them: on `box`
 //!    at 25–30 px/frame, 8 frames 12–32 px off had only the node's 4
-//!    matches, no frame on target did), its matched image segments cover at
+//!    matches, no frame on target did), it is not a loose fit on few matches
+//!    (at most `loose_fit_extra_matches` more than the node's, with a
+//!    residual σ above `loose_fit_residual_ratio` measurement σ: a box half
+//!    hidden, fitted to the wrong edges, kept 5–7 matches at 1.5–2.2 px),
+//!    its matched image segments cover at
 //!    least `min_coverage` of the visible model edges' length, and at least
 //!    `min_support` of that length has a zero crossing along it (within
 //!    1 px across, at an edge orientation within 20°:
@@ -483,6 +487,15 @@ impl LoweTracker {
         best.map_or(found, |(_, other)| other)
     }
 
+    /// Whether a solution of `matches` matches with residual σ `residual`
+    /// is a loose fit on few matches (module doc, step 7): at most
+    /// `loose_fit_extra_matches` more than a search node's and a residual σ
+    /// above `loose_fit_residual_ratio` measurement σ.
+    fn loose_fit(&self, matches: usize, residual: Option<f64>) -> bool {
+        matches <= segments_needed(self.n()) + self.params.loose_fit_extra_matches
+            && residual.is_some_and(|r| r > self.params.loose_fit_residual_ratio * self.params.measurement_sigma_px)
+    }
+
     fn settings(&self) -> SearchSettings {
         SearchSettings {
             set_probability: self.params.set_probability,
@@ -674,8 +687,9 @@ impl SearchFrame for FrameView<'_> {
         [s.start, s.end]
     }
 
-    fn verify(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> bool {
+    fn verify(&self, segs: &[ModelSegment], matches: &[estimation::Match], residual_sigma: Option<f64>) -> bool {
         matches.len() > segments_needed(self.tracker.n())
+            && !self.tracker.loose_fit(matches.len(), residual_sigma)
             && coverage(segs, matches) >= self.min_coverage
             && self.support(segs) >= self.min_support
     }
@@ -820,6 +834,13 @@ impl Tracker for LoweTracker {
                     lost_reason = Some(format!(
                         "{} matches, no more than a search node's {node}: none joined on locking on",
                         matches.len()
+                    ));
+                    None
+                } else if self.loose_fit(matches.len(), solution.residual_sigma) {
+                    lost_reason = Some(format!(
+                        "{} matches fitted with a residual σ of {:.2} px",
+                        matches.len(),
+                        solution.residual_sigma.unwrap_or(f64::NAN)
                     ));
                     None
                 } else if diag.coverage < min_coverage {

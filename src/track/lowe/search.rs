@@ -64,10 +64,10 @@ pub trait SearchFrame {
     fn candidates(&self, segs: &[ModelSegment], p: &Matrix, out: &mut Vec<Candidate>);
     /// Endpoints of image segment `image`.
     fn endpoints(&self, image: usize) -> Endpoints;
-    /// Whether a locked-on solution with these matches (and the model
-    /// segments at its state) is verified: overdetermined enough to end the
-    /// search.
-    fn verify(&self, segs: &[ModelSegment], matches: &[Match]) -> bool;
+    /// Whether a locked-on solution with these matches, the model segments
+    /// at its state and its residual σ (px) is verified: overdetermined
+    /// enough to end the search.
+    fn verify(&self, segs: &[ModelSegment], matches: &[Match], residual_sigma: Option<f64>) -> bool;
     /// Length of `segs` covered by the matched image segments, px.
     fn covered_length(&self, segs: &[ModelSegment], matches: &[Match]) -> f64;
 }
@@ -198,7 +198,7 @@ pub fn search(
         {
             let (solution, matches, final_segs, steps) = lock_on(frame, problem, solution, matches, settings, needed);
             outcome.lock_steps += steps;
-            if frame.verify(&final_segs, &matches) {
+            if frame.verify(&final_segs, &matches, solution.residual_sigma) {
                 let (solution, matches, final_segs) =
                     swap_parallel(frame, problem, solution, matches, final_segs, settings, needed);
                 outcome.solution = Some(solution);
@@ -295,7 +295,7 @@ fn swap_parallel(
                 }
                 let gain = 0.25 * t.length();
                 let (next, next_matches, next_segs, _) = lock_on(frame, problem, first, swapped, settings, needed);
-                if !frame.verify(&next_segs, &next_matches) {
+                if !frame.verify(&next_segs, &next_matches, next.residual_sigma) {
                     continue;
                 }
                 let before = frame.covered_length(&segs, &matches);
@@ -446,7 +446,7 @@ mod tests {
         fn endpoints(&self, image: usize) -> Endpoints {
             self.images[image]
         }
-        fn verify(&self, _segs: &[ModelSegment], matches: &[Match]) -> bool {
+        fn verify(&self, _segs: &[ModelSegment], matches: &[Match], _residual_sigma: Option<f64>) -> bool {
             matches.len() >= 8
         }
         fn covered_length(&self, segs: &[ModelSegment], _matches: &[Match]) -> f64 {
