@@ -101,7 +101,7 @@ pub struct LoweParams {
     /// A solution with at most this many matches more than a search node's
     /// (⌊n/2⌋ + 1) is not verified when its residual σ is above
     /// `loose_fit_residual_ratio` measurement σ. Over 15 554 tracking
-    /// frames of 60 synthetic sequences (box and hinged box, 4–30 px/frame,
+    /// frames of 54 synthetic sequences (box and hinged box, 4–30 px/frame,
     /// half the edges hidden, noise σ 8), 3 and 7 (with a ratio of 1.4)
     /// singled out 11 of the 62 frames more than 5 px off and 3 of the
     /// others; the residual alone (1.4) would have taken 14 and 90.
