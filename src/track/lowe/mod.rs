@@ -42,19 +42,19 @@
 //!    (at most `loose_fit_extra_matches` more than the node's, with a
 //!    residual σ above `loose_fit_residual_ratio` measurement σ: a box half
 //!    hidden, fitted to the wrong edges, kept 5–7 matches at 1.5–2.2 px),
-//!    its matched image segments cover at
-//!    least `min_coverage` of the visible model edges' length, and at least
-//!    `min_support` of that length has a zero crossing along it (within
-//!    1 px across, at an edge orientation within 20°:
-//!    [`crate::track::support`]; two model edges on one image line, as a
-//!    shut lid's front on the box's rim, count once). The second test is
-//!    independent of the matching: a few long clutter segments can cover a
-//!    quarter of a model put in the wrong place, but the rest of its
-//!    outline then runs over nothing. Otherwise it is `lost`: the output carries the prediction,
-//!    which coasts on the last velocity while the model's centre stays in
-//!    the image at a depth within a factor 1.5 of the last verified one
-//!    (else it stands at the last verified state), and the next frame
-//!    starts its search at the widest range.
+//!    its matched image segments cover at least `min_coverage` of the
+//!    visible model edges' length, and at least `min_support` of that
+//!    length has a zero crossing along it (within 1 px across, at an edge
+//!    orientation within 20°: [`crate::track::support`]; two model edges on
+//!    one image line, as a shut lid's front on the box's rim, count once).
+//!    The second test is independent of the matching: a few long clutter
+//!    segments can cover a quarter of a model put in the wrong place, but
+//!    the rest of its outline then runs over nothing. Otherwise it is
+//!    `lost`: the output carries the prediction, which coasts on the last
+//!    velocity while the model's centre stays in the image at a depth
+//!    within a factor 1.5 of the last verified one (else it stands at the
+//!    last verified state), and the next frame starts its search at the
+//!    widest range.
 //!    After a loss the coverage must reach `search_min_coverage` and the
 //!    support `search_min_support` instead, whichever search found the
 //!    solution: re-acquisition is a claim about a new place, with dozens of
@@ -72,7 +72,7 @@
 //!    verified one's), the oldest replaced first. A model lost while it
 //!    turns quickly is found again when it shows a side seen before, not
 //!    only the last one: at 30 px/frame a box lost for 41 frames while it
-//!    turned away from the last verified orientation is now lost for 4.
+//!    turned away from the last verified orientation is now lost for 3.
 //!    After a loss the velocity starts again from zero.
 //! 9. **Other joint values** (our addition): a joint's part can fold onto
 //!    another part (a shut lid's edges lie on the box's rim), and the fit
