@@ -110,7 +110,7 @@ use self::params::MAX_PARAMS;
 use self::projection::{Linearised, ModelSegment, Row, State};
 use self::search::{SearchFrame, SearchSettings, segments_needed};
 use self::segments::{ImageSegment, SegmentExtractor, SegmentIndex};
-use super::{Diagnostics, FrameExtras, FrameOutcome, Observations, Phase, Tracker};
+use super::{Diagnostics, FrameExtras, FrameOutcome, Observations, Phase, Tracker, support};
 use crate::backend::{FrameRequest, ListSpec, ZeroCrossingRequest};
 use crate::early::Window;
 use crate::early::log::LogParams;
@@ -346,15 +346,16 @@ impl LoweTracker {
             let outcome = search::search(view, &problem, segs.to_vec(), &cands, &settings);
             diag.branches += outcome.branches;
             let Some(solution) = outcome.solution else { continue };
-            let found =
-                Found { solution, matches: outcome.matches, segs: outcome.model_segments, verified: outcome.verified };
-            if !found.verified {
-                accepted = Some(found);
+            let segs = outcome.model_segments;
+            if !outcome.verified {
+                accepted = Some(Found { solution, matches: outcome.matches, segs, support: None });
                 continue;
             }
+            let support = view.support_counts(&segs);
+            let found = Found { solution, matches: outcome.matches, segs, support: Some(support) };
             // A weakly supported solution does not end the search: a wider
             // range may hold a confident one (module doc, step 6).
-            let confident = view.support(&found.segs) >= confident_support;
+            let confident = support::fraction(support) >= confident_support;
             if confident || verified.is_none() {
                 verified = Some(found);
             }
@@ -425,10 +426,8 @@ impl LoweTracker {
                 else {
                     continue;
                 };
-                if !found.verified {
-                    continue;
-                }
-                let support = view.support(&found.segs);
+                let Some(counts) = found.support else { continue };
+                let support = support::fraction(counts);
                 if best.as_ref().is_none_or(|(s, _)| support > *s) {
                     *best = Some((support, found));
                 }
@@ -445,7 +444,8 @@ impl LoweTracker {
     /// `found`'s joint values replaces `found` when its outline has more
     /// supported samples by the margin of [`better_supported`].
     fn joint_alternatives(&self, view: &FrameView<'_>, found: Found, diag: &mut LoweDiagnostics) -> Found {
-        let own = view.support_counts(&found.segs);
+        // Only a verified solution has its outline's support counted.
+        let Some(own) = found.support else { return found };
         // Each hypothesis with its visible model segments and how many of
         // their samples are supported.
         let mut hypotheses: Vec<(usize, State, Vec<ModelSegment>)> = Vec::new();
@@ -467,7 +467,7 @@ impl LoweTracker {
         let mut best: Option<(usize, Found)> = None;
         for (_, hypothesis, segs) in hypotheses.iter().take(JOINT_REFITS) {
             let Some(other) = self.search_at(view, hypothesis, segs, 0, 0.0, diag) else { continue };
-            let counts = view.support_counts(&other.segs);
+            let Some(counts) = other.support else { continue };
             let moved = other
                 .solution
                 .state
@@ -476,8 +476,7 @@ impl LoweTracker {
                 .zip(&found.solution.state.params)
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max);
-            if other.verified
-                && moved >= JOINT_ALTERNATIVE_GAP
+            if moved >= JOINT_ALTERNATIVE_GAP
                 && better_supported(counts, own, moved)
                 && best.as_ref().is_none_or(|(c, _)| counts.0 > *c)
             {
@@ -516,11 +515,7 @@ const VIEW_GAP_RAD: f64 = 0.35;
 
 /// The angle of the rotation between two states' orientations, radians.
 fn rotation_between(a: &State, b: &State) -> f64 {
-    // sin θ from the skew-symmetric part, cos θ from the trace.
-    let r = a.pose.rotation.transpose() * b.pose.rotation;
-    let cosine = 0.5 * (r.x_axis.x + r.y_axis.y + r.z_axis.z - 1.0);
-    let axis = DVec3::new(r.y_axis.z - r.z_axis.y, r.z_axis.x - r.x_axis.z, r.x_axis.y - r.y_axis.x);
-    (0.5 * axis.length()).atan2(cosine)
+    crate::geometry::axis_angle_from_rotation(&(a.pose.rotation.transpose() * b.pose.rotation)).length()
 }
 
 /// Values on each joint's range that [`LoweTracker::joint_alternatives`]
@@ -549,8 +544,16 @@ struct Found {
     matches: Vec<estimation::Match>,
     /// The visible model segments at the solution.
     segs: Vec<ModelSegment>,
-    /// Whether it passed the verification.
-    verified: bool,
+    /// `(supported, samples)` of their outline when the solution passed the
+    /// verification, `None` when it did not.
+    support: Option<(usize, usize)>,
+}
+
+impl Found {
+    /// Whether the solution passed the verification.
+    fn verified(&self) -> bool {
+        self.support.is_some()
+    }
 }
 
 /// The frame as the search sees it.
@@ -590,7 +593,33 @@ impl FrameView<'_> {
     /// it at an edge orientation within 20° of its own (a crossing's
     /// `theta` is the gradient's direction, across the edge).
     fn support(&self, segs: &[ModelSegment]) -> f64 {
-        crate::track::support::fraction(self.support_counts(segs))
+        support::fraction(self.support_counts(segs))
+    }
+
+    /// Why a solution with `matches`, residual σ `residual` and the model
+    /// segments `segs` at its state is not verified (module doc, step 7),
+    /// or `None` when it is; `support` gives its outline support, asked
+    /// for only when the other tests pass.
+    fn rejection(
+        &self,
+        segs: &[ModelSegment],
+        matches: &[estimation::Match],
+        residual: Option<f64>,
+        support: impl FnOnce() -> f64,
+    ) -> Option<Rejection> {
+        let node = segments_needed(self.tracker.n());
+        if matches.len() <= node {
+            return Some(Rejection::NodeOnly { matches: matches.len(), node });
+        }
+        if self.tracker.loose_fit(matches.len(), residual) {
+            return Some(Rejection::LooseFit { matches: matches.len(), residual: residual.unwrap_or(f64::NAN) });
+        }
+        let coverage = coverage(segs, matches);
+        if coverage < self.min_coverage {
+            return Some(Rejection::Coverage { coverage, least: self.min_coverage });
+        }
+        let support = support();
+        (support < self.min_support).then_some(Rejection::Support { support, least: self.min_support })
     }
 
     /// `(supported, samples)` of `segs` (as [`Self::support`]), each part of
@@ -613,14 +642,15 @@ const SAME_LINE_PX: f64 = 1.0;
 fn distinct_outline(segs: &[ModelSegment]) -> Vec<([f64; 2], [f64; 2])> {
     let max_sine = 3f64.to_radians().sin();
     let mut pieces: Vec<([f64; 2], [f64; 2])> = Vec::with_capacity(segs.len());
+    // Intervals of a segment (by distance from its `a`) covered by earlier segments.
+    let mut covered: Vec<[f64; 2]> = Vec::new();
     for (i, seg) in segs.iter().enumerate() {
         let length = seg.length();
         if !(length > 0.0) {
             continue;
         }
         let [ux, uy] = seg.direction();
-        // Intervals of `seg` (by distance from `a`) covered by earlier segments.
-        let mut covered: Vec<[f64; 2]> = Vec::new();
+        covered.clear();
         for other in &segs[..i] {
             let [vx, vy] = other.direction();
             if (ux * vy - uy * vx).abs() > max_sine {
@@ -640,7 +670,7 @@ fn distinct_outline(segs: &[ModelSegment]) -> Vec<([f64; 2], [f64; 2])> {
         covered.sort_by(|x, y| x[0].total_cmp(&y[0]));
         let at = |t: f64| [seg.a[0] + t * ux, seg.a[1] + t * uy];
         let mut start = 0.0;
-        for [lo, hi] in covered {
+        for &[lo, hi] in &covered {
             if lo > start {
                 pieces.push((at(start), at(lo)));
             }
@@ -651,6 +681,40 @@ fn distinct_outline(segs: &[ModelSegment]) -> Vec<([f64; 2], [f64; 2])> {
         }
     }
     pieces
+}
+
+/// The test of the verification a solution failed (module doc, step 7).
+enum Rejection {
+    /// No more matches than a search node's.
+    NodeOnly { matches: usize, node: usize },
+    /// A loose fit on few matches ([`LoweTracker::loose_fit`]).
+    LooseFit { matches: usize, residual: f64 },
+    /// Matches cover too little of the visible outline.
+    Coverage { coverage: f64, least: f64 },
+    /// Too little of the visible outline has zero crossings along it.
+    Support { support: f64, least: f64 },
+}
+
+impl std::fmt::Display for Rejection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            Self::NodeOnly { matches, node } => {
+                write!(f, "{matches} matches, no more than a search node's {node}: none joined on locking on")
+            }
+            Self::LooseFit { matches, residual } => {
+                write!(f, "{matches} matches fitted with a residual σ of {residual:.2} px")
+            }
+            Self::Coverage { coverage, least } => {
+                write!(f, "matches cover {:.0} % of the visible edges (< {:.0} %)", 100.0 * coverage, 100.0 * least)
+            }
+            Self::Support { support, least } => write!(
+                f,
+                "zero crossings lie along {:.0} % of the visible edges (< {:.0} %)",
+                100.0 * support,
+                100.0 * least
+            ),
+        }
+    }
 }
 
 /// Largest angle between a model segment and a zero crossing's edge
@@ -688,10 +752,7 @@ impl SearchFrame for FrameView<'_> {
     }
 
     fn verify(&self, segs: &[ModelSegment], matches: &[estimation::Match], residual_sigma: Option<f64>) -> bool {
-        matches.len() > segments_needed(self.tracker.n())
-            && !self.tracker.loose_fit(matches.len(), residual_sigma)
-            && coverage(segs, matches) >= self.min_coverage
-            && self.support(segs) >= self.min_support
+        self.rejection(segs, matches, residual_sigma, || self.support(segs)).is_none()
     }
 
     fn covered_length(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
@@ -798,14 +859,14 @@ impl Tracker for LoweTracker {
             self.params.confident_support,
             &mut diag,
         );
-        let verified_here = accepted.as_ref().is_some_and(|found| found.verified);
+        let verified_here = accepted.as_ref().is_some_and(Found::verified);
         if !verified_here && self.lost_frames >= self.params.search_after {
             if let Some(found) = self.search_image(&view, &mut diag) {
                 accepted = Some(found);
             }
         }
         if let Some(found) = accepted.take() {
-            accepted = Some(if found.verified && !self.limits.is_empty() {
+            accepted = Some(if found.verified() && !self.limits.is_empty() {
                 self.joint_alternatives(&view, found, &mut diag)
             } else {
                 found
@@ -824,41 +885,17 @@ impl Tracker for LoweTracker {
                 ));
                 None
             }
-            Some(Found { solution, matches, segs, .. }) => {
+            Some(Found { solution, matches, segs, support }) => {
                 diag.matches = matches.len();
                 diag.residual_sigma = solution.residual_sigma;
                 diag.coverage = coverage(segs, matches);
-                diag.support = view.support(segs);
-                let node = segments_needed(n);
-                if matches.len() <= node {
-                    lost_reason = Some(format!(
-                        "{} matches, no more than a search node's {node}: none joined on locking on",
-                        matches.len()
-                    ));
-                    None
-                } else if self.loose_fit(matches.len(), solution.residual_sigma) {
-                    lost_reason = Some(format!(
-                        "{} matches fitted with a residual σ of {:.2} px",
-                        matches.len(),
-                        solution.residual_sigma.unwrap_or(f64::NAN)
-                    ));
-                    None
-                } else if diag.coverage < min_coverage {
-                    lost_reason = Some(format!(
-                        "matches cover {:.0} % of the visible edges (< {:.0} %)",
-                        100.0 * diag.coverage,
-                        100.0 * min_coverage
-                    ));
-                    None
-                } else if diag.support < min_support {
-                    lost_reason = Some(format!(
-                        "zero crossings lie along {:.0} % of the visible edges (< {:.0} %)",
-                        100.0 * diag.support,
-                        100.0 * min_support
-                    ));
-                    None
-                } else {
-                    Some(solution.clone())
+                diag.support = support::fraction(support.unwrap_or_else(|| view.support_counts(segs)));
+                match view.rejection(segs, matches, solution.residual_sigma, || diag.support) {
+                    Some(rejection) => {
+                        lost_reason = Some(rejection.to_string());
+                        None
+                    }
+                    None => Some(solution.clone()),
                 }
             }
         };
