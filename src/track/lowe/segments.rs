@@ -145,7 +145,7 @@ use serde::{Deserialize, Serialize};
 use crate::Result;
 use crate::bounds::{Interval, check_count};
 use crate::early::{Feature, Window};
-use crate::estimate::line_fit::rem_pi;
+use crate::estimate::line_fit::{orientation_difference, wrap_orientation};
 
 /// Upper bound of [`SegmentParams::high_threshold`] and
 /// [`SegmentParams::low_threshold`]: no zero crossing of an 8-bit frame is
@@ -814,16 +814,7 @@ fn fit_segment<'a>(
 
 /// `atan2(dy, dx)` folded into `[0, π)`.
 fn undirected(dy: f64, dx: f64) -> f64 {
-    let a = rem_pi(dy.atan2(dx));
-    if a >= PI { 0.0 } else { a }
-}
-
-/// Difference between two undirected orientations, radians in `[0, π/2]`
-/// (NaN when either is not finite).
-#[must_use]
-pub fn orientation_difference(a: f64, b: f64) -> f64 {
-    let d = (a - b).rem_euclid(PI);
-    d.min(PI - d)
+    wrap_orientation(dy.atan2(dx))
 }
 
 /// The segments of a frame indexed by midpoint and orientation (module doc,
