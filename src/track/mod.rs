@@ -78,20 +78,16 @@ pub(crate) fn hold_finite_corners(corners: &mut [[f64; 2]], last: &mut [[f64; 2]
 }
 
 /// `x.round() as i64` (halves away from zero), without a call into libm
-/// where the fraction is exact (|x| < 2⁵²): truncate, then step by the fraction.
+/// where the fraction is exact (|x| < 2⁵²): truncate, then step by the
+/// fraction, with comparisons rather than branches (the fraction of a vote's
+/// cell coordinate is as likely above one half as below).
 #[inline]
 pub(crate) fn round_to_i64(x: f64) -> i64 {
     const EXACT_FRACTION: f64 = 4_503_599_627_370_496.0;
     if x.abs() < EXACT_FRACTION {
         let truncated = x as i64;
         let fraction = x - truncated as f64;
-        if fraction >= 0.5 {
-            truncated + 1
-        } else if fraction <= -0.5 {
-            truncated - 1
-        } else {
-            truncated
-        }
+        truncated + i64::from(fraction >= 0.5) - i64::from(fraction <= -0.5)
     } else {
         x.round() as i64
     }

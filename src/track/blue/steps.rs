@@ -333,19 +333,21 @@ impl BlueTracker {
                     along >= first && along <= last
                 };
                 // Shifted line: a·(x − s_x) + b·(y − s_y) + c = 0 ⇔ a·s_x + b·s_y = d.
+                // Along the dominant axis the other coordinate is
+                // d/a − (b·step/a)·i (or with a and b swapped).
                 if a.abs() >= b.abs() {
-                    let b_step = b * step;
+                    let (start, slope) = (d / a, b * step / a);
                     let rows = votes.chunks_exact_mut(n).skip((y_lo + r) as usize);
                     for (iy, row) in (y_lo..=y_hi).zip(rows) {
-                        let ix = to_cells((d - b_step * iy as f64) / a);
+                        let ix = to_cells(start - slope * iy as f64);
                         if (x_lo..=x_hi).contains(&ix) && foot_inside(ix, iy) {
                             row[(ix + r) as usize] += 1;
                         }
                     }
                 } else {
-                    let a_step = a * step;
+                    let (start, slope) = (d / b, a * step / b);
                     for ix in x_lo..=x_hi {
-                        let iy = to_cells((d - a_step * ix as f64) / b);
+                        let iy = to_cells(start - slope * ix as f64);
                         if (y_lo..=y_hi).contains(&iy) && foot_inside(ix, iy) {
                             votes[(iy + r) as usize * n + (ix + r) as usize] += 1;
                         }
