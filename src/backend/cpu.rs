@@ -6,12 +6,12 @@ use super::{EarlyVision, FrameFeatures, FrameRequest, WindowRequest};
 use crate::Result;
 use crate::early::compaction::CompactionParams;
 use crate::early::compaction::compaction_cpu;
-use crate::early::gaussian::gaussian_cpu;
+use crate::early::gaussian::{gaussian_cpu, gaussian_region_cpu};
 use crate::early::ingest::ingest_cpu;
 use crate::early::log::log_cpu;
 use crate::early::log::log_kernels;
 use crate::early::sobel::{
-    SobelOutput, SobelPixel, gradient_at_pixel, sobel_cpu, sobel_gradient_magnitude_cpu, sobel_of_gradient,
+    SobelOutput, SobelPixel, gradient_at_pixel, sobel_cpu, sobel_gradient_magnitude_region_cpu, sobel_of_gradient,
 };
 use crate::early::temporal_diff;
 use crate::early::window_energy;
@@ -28,6 +28,17 @@ pub struct CpuBackend {
     tmp2: FloatImage,
     /// What `images.previous` holds, if it holds a usable previous frame.
     previous: Option<PreviousFrame>,
+    /// Where `images.previous` holds the previous frame smoothed: `None`
+    /// for the whole frame, a window when that frame was smoothed there
+    /// only ([`smoothing_region`]); `images.previous_luma` then holds that
+    /// frame, to smooth elsewhere when this frame needs it.
+    previous_part: Option<Window>,
+    /// Whether the smoothing and the motion step may run on a window of
+    /// the frame ([`smoothing_region`]); off only to test that they give
+    /// the whole frame's lists.
+    windowed: bool,
+    /// Scratch of [`gaussian_region_cpu`].
+    piece: Vec<f32>,
     /// For each Sobel set of this frame's plan, the plane its last
     /// [`Step::Sobel`] differentiated and how much of it is whole planes
     /// (see [`sobel_need`]); the parts not in planes are evaluated at the
@@ -50,6 +61,7 @@ struct Images {
     luma: FloatImage,
     smoothed: FloatImage,
     previous: FloatImage,
+    previous_luma: FloatImage,
     motion_mask: FloatImage,
     sum: FloatImage,
     log: FloatImage,
@@ -64,6 +76,7 @@ impl Images {
             luma: FloatImage::new(0, 0),
             smoothed: FloatImage::new(0, 0),
             previous: FloatImage::new(0, 0),
+            previous_luma: FloatImage::new(0, 0),
             motion_mask: FloatImage::new(0, 0),
             sum: FloatImage::new(0, 0),
             log: FloatImage::new(0, 0),
@@ -109,18 +122,26 @@ impl Images {
 
     /// Sobel of plane `input` into set `output` (disjoint fields of `self`):
     /// all five planes, or without the angles unless `angles`.
-    fn sobel_into(&mut self, input: Plane, output: SobelPlanes, angles: bool) {
+    /// The five Sobel planes of `input` into `output`.
+    fn sobel_into(&mut self, input: Plane, output: SobelPlanes) {
+        let (src, dst) = self.sobel_source_and_set(input, output);
+        sobel_cpu(src, dst);
+    }
+
+    /// The gradients and magnitude of `input` into `output`, inside `region`.
+    fn gradient_magnitude_into(&mut self, input: Plane, output: SobelPlanes, region: Window) {
+        let (src, dst) = self.sobel_source_and_set(input, output);
+        sobel_gradient_magnitude_region_cpu(src, region, dst);
+    }
+
+    fn sobel_source_and_set(&mut self, input: Plane, output: SobelPlanes) -> (&FloatImage, &mut SobelOutput) {
         let Self { luma, smoothed, previous, motion_mask, sum, log, sobel_of_sum, sobel_of_frame, .. } = self;
         let src = plane(luma, smoothed, previous, motion_mask, sum, log, input);
         let dst = match output {
             SobelPlanes::OfSum => sobel_of_sum,
             SobelPlanes::OfFrame => sobel_of_frame,
         };
-        if angles {
-            sobel_cpu(src, dst);
-        } else {
-            sobel_gradient_magnitude_cpu(src, dst);
-        }
+        (src, dst)
     }
 }
 
@@ -159,6 +180,9 @@ impl CpuBackend {
             tmp: FloatImage::new(0, 0),
             tmp2: FloatImage::new(0, 0),
             previous: None,
+            previous_part: None,
+            windowed: true,
+            piece: Vec::new(),
             sparse_sobel: [None; 2],
             gradients: Vec::new(),
             spare: FrameFeatures::default(),
@@ -208,26 +232,57 @@ impl CpuBackend {
         // The LoG and its edgels, when computed on a part of the frame, are
         // that part's size, and the lists reading them are offset by its corner.
         let log_part = log_region(&plan, w, h);
+        // The smoothing and the motion step run on the part of the frame
+        // their outputs are read in, when that is less than half the frame.
+        let full = Window::full(w, h);
+        let smoothing_part = match smoothing_region(&plan, w, h) {
+            part if self.windowed && 2 * part.area() < full.area() => Some(part),
+            _ => None,
+        };
+        // The frame itself is kept for the next frame's motion step when
+        // this one smooths a part of it only.
+        let keeps_luma = smoothing_part.is_some() && plan.next_previous().is_some();
         for (i, step) in plan.steps().iter().enumerate() {
             let last_step = i + 1 == plan.steps().len();
             match *step {
-                Step::Smooth(p) => gaussian_cpu(&img.luma, &p, &mut self.tmp, &mut img.smoothed)?,
+                Step::Smooth(p) => match smoothing_part {
+                    Some(part) => {
+                        gaussian_region_cpu(&img.luma, &p, part, &mut self.tmp, &mut self.piece, &mut img.smoothed)?;
+                    }
+                    None => gaussian_cpu(&img.luma, &p, &mut self.tmp, &mut img.smoothed)?,
+                },
                 // 000 eq. 1: G*_t − G*_{t+1}, thresholded, and the sum of both
                 // for eq. 2, fused into one pass over the two frames.
-                Step::DiffAndSum(p) => temporal_diff::temporal_diff_and_sum_cpu(
-                    &img.previous,
-                    &img.smoothed,
-                    &p,
-                    &mut img.motion_mask,
-                    &mut img.sum,
-                )?,
+                Step::DiffAndSum(p) => {
+                    // The previous frame smoothed where this frame needs it.
+                    let needed = smoothing_part.unwrap_or(full);
+                    match self.previous_part {
+                        Some(had) if !had.contains(&needed) => {
+                            let (src, tmp, piece) = (&img.previous_luma, &mut self.tmp, &mut self.piece);
+                            match smoothing_part {
+                                Some(part) => {
+                                    gaussian_region_cpu(src, &request.smoothing, part, tmp, piece, &mut img.previous)?
+                                }
+                                None => gaussian_cpu(src, &request.smoothing, tmp, &mut img.previous)?,
+                            }
+                        }
+                        _ => {}
+                    }
+                    let (prev, cur, mask, sum) = (&img.previous, &img.smoothed, &mut img.motion_mask, &mut img.sum);
+                    match smoothing_part {
+                        Some(part) => temporal_diff::temporal_diff_and_sum_region_cpu(prev, cur, &p, part, mask, sum)?,
+                        None => temporal_diff::temporal_diff_and_sum_cpu(prev, cur, &p, mask, sum)?,
+                    }
+                }
                 Step::Sobel { input, output } => {
                     let need = sobel_need(&plan, output);
                     self.sparse_sobel[sobel_slot(output)] = Some((input, need));
                     match need {
                         SobelNeed::Listed => {}
-                        SobelNeed::GradientMagnitude => img.sobel_into(input, output, false),
-                        SobelNeed::Planes => img.sobel_into(input, output, true),
+                        SobelNeed::GradientMagnitude => {
+                            img.gradient_magnitude_into(input, output, dense_region(&plan, output, w, h));
+                        }
+                        SobelNeed::Planes => img.sobel_into(input, output),
                     }
                 }
                 Step::Log(p) => match log_part {
@@ -315,19 +370,21 @@ impl CpuBackend {
                         // 0, four copies of the frame, are not made.
                         cpf::cpf_cpu_coarser_levels(&img.luma, &mut cpf_levels);
                     }
-                    if last_step {
-                        // Nothing reads the frame or its gradient after this
-                        // step: they move into level 0 instead of being copied
-                        // (the next frame overwrites the buffers they leave).
-                        if returned {
+                    // When nothing reads the frame or its gradient after this
+                    // step, they move into level 0 instead of being copied
+                    // (the next frame overwrites the buffers they leave); the
+                    // frame stays when it is kept as the previous one.
+                    if returned {
+                        if last_step && !keeps_luma {
                             cpf::cpf_cpu_taking(&mut img.luma, &mut cpf_levels);
+                        } else {
+                            cpf::cpf_cpu(&img.luma, &mut cpf_levels);
                         }
+                    }
+                    if last_step {
                         let g = img.sobel_mut(gradient);
                         edge_pyramid::edge_pyramid_cpu_taking(&mut g.gx, &mut g.gy, &mut edge_levels)?;
                     } else {
-                        if returned {
-                            cpf::cpf_cpu(&img.luma, &mut cpf_levels);
-                        }
                         let g = img.sobel(gradient);
                         edge_pyramid::edge_pyramid_cpu(&g.gx, &g.gy, &mut edge_levels)?;
                     }
@@ -364,6 +421,10 @@ impl CpuBackend {
         self.previous = plan.next_previous();
         if self.previous.is_some() {
             std::mem::swap(&mut img.previous, &mut img.smoothed);
+            if keeps_luma {
+                std::mem::swap(&mut img.previous_luma, &mut img.luma);
+            }
+            self.previous_part = smoothing_part;
         }
         Ok(out)
     }
@@ -482,6 +543,56 @@ fn sobel_need(plan: &FramePlan, set: SobelPlanes) -> SobelNeed {
     }
 }
 
+/// Where this frame's smoothed image is read, directly or through the
+/// images made from it (the previous frame's, the motion mask, the frame
+/// sum and their Sobel sets): the bounding box of the windows of the
+/// compactions reading those images, grown by the one pixel a Sobel step
+/// reads around each of its pixels. The whole frame when any other step
+/// reads them (the pyramids, through a Sobel set). Inside the region every
+/// value a list reads is computed from values inside it, and each equals
+/// the whole frame's bit for bit.
+fn smoothing_region(plan: &FramePlan, width: usize, height: usize) -> Window {
+    let full = Window::full(width, height);
+    let smoothing = |p: Plane| matches!(p, Plane::Smoothed | Plane::Previous | Plane::MotionMask | Plane::Sum);
+    let mut region = Window::default();
+    for step in plan.steps() {
+        let part = match *step {
+            Step::Smooth(_) | Step::DiffAndSum(_) => continue,
+            Step::Sobel { input, output } if smoothing(input) => {
+                dense_region(plan, output, width, height).grown(1).clipped(width, height)
+            }
+            Step::Compact { select, theta, magnitude, params, .. }
+                if [select, theta, magnitude].iter().any(|s| matches!(*s, Source::Plane(p) if smoothing(p))) =>
+            {
+                params.window.clipped(width, height)
+            }
+            ref other if other.reads().iter().any(|s| matches!(*s, Source::Plane(p) if smoothing(p))) => full,
+            _ => continue,
+        };
+        region = region.union(&part);
+    }
+    region
+}
+
+/// Where the dense planes of Sobel set `set` are read: the bounding box of
+/// the windows of the compactions reading them, or the whole frame when the
+/// pyramids read them too. Nothing else reads a Sobel set.
+fn dense_region(plan: &FramePlan, set: SobelPlanes, width: usize, height: usize) -> Window {
+    let mut region = Window::default();
+    for step in plan.steps() {
+        match *step {
+            Step::Pyramids { gradient, .. } if gradient == set => return Window::full(width, height),
+            Step::Compact { select, theta, magnitude, params, .. }
+                if [select, theta, magnitude].iter().any(|s| matches!(*s, Source::Sobel(s, _) if s == set)) =>
+            {
+                region = region.union(&params.window.clipped(width, height));
+            }
+            _ => {}
+        }
+    }
+    region
+}
+
 /// Set each feature's θ and magnitude, where a part is given, to that part
 /// of the Sobel values of `src` at the feature's pixel
 /// ([`crate::early::sobel::sobel_at`], bit for bit). Two passes: the
@@ -532,6 +643,7 @@ fn recycled_list(spare: &mut Option<Vec<Feature>>) -> Vec<Feature> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::early::temporal_diff::TemporalDiffParams;
     use crate::testimage::natural;
 
     /// The motion list, whose θ and magnitude the backend computes at the
@@ -615,6 +727,62 @@ mod tests {
             assert_eq!(got, expected);
             recycling.recycle(got);
         }
+    }
+
+    /// Motion and edge lists computed on a part of the frame (the smoothing,
+    /// the motion step and the Sobel sets only where the lists read them)
+    /// equal those of the whole-frame computation, bit for bit, over a
+    /// sequence whose windows move, shrink to a pixel, touch each border, go
+    /// empty and cover the frame, with the edges of the raw or the smoothed
+    /// frame, pyramids on some frames and a frame without motion.
+    #[test]
+    fn lists_of_windows_equal_the_whole_frame_computations() {
+        use crate::backend::{EdgeRequest, ListSpec, MotionRequest, Pyramids};
+        let (w, h) = (97, 61);
+        let base = natural(w + 60, h + 4, 13);
+        let frames: Vec<GrayImage> =
+            (0..16).map(|k| GrayImage::from_fn(w, h, |x, y| base.get(x + 3 * k + (k % 3), y + k % 4))).collect();
+        let windows = [
+            Window { x0: 20, y0: 15, x1: 51, y1: 40 },
+            Window { x0: 0, y0: 0, x1: 13, y1: 9 },
+            Window { x0: 80, y0: 50, x1: 97, y1: 61 },
+            Window { x0: 30, y0: 10, x1: 60, y1: 35 },
+            Window { x0: 0, y0: 30, x1: 97, y1: 31 },
+            Window { x0: 45, y0: 0, x1: 46, y1: 61 },
+            Window { x0: 33, y0: 22, x1: 34, y1: 23 },
+            Window { x0: 50, y0: 20, x1: 50, y1: 40 },
+            Window { x0: 0, y0: 0, x1: 97, y1: 61 },
+            Window { x0: 25, y0: 12, x1: 58, y1: 44 },
+            Window { x0: 90, y0: 55, x1: 200, y1: 300 },
+        ];
+        let list = |window| ListSpec { window, cap: None, seed: 0 };
+        let (mut parts, mut whole) = (CpuBackend::new(), CpuBackend::new());
+        whole.windowed = false;
+        let bits = |l: &Option<Vec<Feature>>| {
+            l.iter().flatten().map(|f| (f.x, f.y, f.theta.to_bits(), f.magnitude.to_bits())).collect::<Vec<_>>()
+        };
+        let mut motion_pixels = 0;
+        for (k, frame) in frames.iter().enumerate() {
+            let request = FrameRequest {
+                motion: (k != 11).then(|| MotionRequest {
+                    diff: TemporalDiffParams { threshold: 2.0 },
+                    list: list(windows[k % windows.len()]),
+                }),
+                edges: Some(EdgeRequest {
+                    threshold: 30.0,
+                    smoothed: k % 4 != 3,
+                    list: list(windows[(k + 3) % windows.len()]),
+                }),
+                pyramids: if [3, 6, 7].contains(&k) { Pyramids::Return } else { Pyramids::Off },
+                ..FrameRequest::default()
+            };
+            let got = parts.process(frame, &request).unwrap();
+            let expected = whole.process(frame, &request).unwrap();
+            assert_eq!(bits(&got.motion), bits(&expected.motion), "frame {k}: motion");
+            assert_eq!(bits(&got.edges), bits(&expected.edges), "frame {k}: edges");
+            motion_pixels += expected.motion.map_or(0, |m| m.len());
+        }
+        assert!(motion_pixels > 500, "{motion_pixels} motion pixels");
     }
 
     /// The zero-crossing list of a window, computed on the window's part of

@@ -5,9 +5,12 @@
 //! sum 1, then rounded to f32 so both twins use identical weights. Borders
 //! clamp to the edge. σ must lie in `(0, MAX_SIGMA]`.
 
+use std::ops::Range;
+
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
+use super::Window;
 use super::rows::{RowStore, for_each_row, parallel};
 
 use crate::Result;
@@ -338,6 +341,107 @@ fn blur_col_pair_fixed<'a, const N: usize, const M: usize>(
     }
 }
 
+/// CPU twin inside `region` only (clipped to the image): `dst` is resized to
+/// `src`'s size, its values inside the region are bit for bit those of
+/// [`gaussian_cpu`], and outside it they are whatever `dst` held before.
+/// The row pass covers the region's columns on the rows the column pass
+/// reads (the region's rows and `r` more on each side, within the image),
+/// into `tmp`; `piece` holds a row's span clamped to the image where the
+/// span reaches within `r` of a border. For callers that read the smoothed
+/// image in a window of interest.
+pub fn gaussian_region_cpu(
+    src: &FloatImage,
+    params: &GaussianParams,
+    region: Window,
+    tmp: &mut FloatImage,
+    piece: &mut Vec<f32>,
+    dst: &mut FloatImage,
+) -> Result<()> {
+    let half = half_kernel(params.sigma)?;
+    let (w, h) = src.size();
+    dst.resize(w, h);
+    let region = region.clipped(w, h);
+    if region.is_empty() {
+        return Ok(());
+    }
+    let r = half.len() - 1;
+    let (x0, x1, y0, y1) = (region.x0 as usize, region.x1 as usize, region.y0 as usize, region.y1 as usize);
+    let rows = y0.saturating_sub(r)..(y1 + r).min(h);
+    tmp.resize(x1 - x0, rows.len());
+    let span = Span { width: w, height: h, columns: x0..x1, output_rows: y0..y1, rows };
+    blur_region(src.data(), &span, &half, tmp.data_mut(), piece, dst.data_mut());
+    Ok(())
+}
+
+/// Where [`gaussian_region_cpu`] works: the image's size, the region's
+/// columns and rows, and the rows of the row pass.
+struct Span {
+    width: usize,
+    height: usize,
+    columns: Range<usize>,
+    output_rows: Range<usize>,
+    rows: Range<usize>,
+}
+
+simd_dispatch!(fn blur_region(src: &[f32], span: &Span, half: &[f32], tmp: &mut [f32], piece: &mut Vec<f32>, dst: &mut [f32]) => blur_region_body);
+
+/// Both passes of [`gaussian_region_cpu`]; each value sums its taps in the
+/// order of [`blur_row_body`] and [`blur_col_row_body`] (a span near a
+/// border reads its values clamped to the image, as those do).
+#[inline(always)]
+fn blur_region_body(src: &[f32], span: &Span, half: &[f32], tmp: &mut [f32], piece: &mut Vec<f32>, dst: &mut [f32]) {
+    let (w, r) = (span.width, half.len() - 1);
+    let (x0, x1) = (span.columns.start, span.columns.end);
+    let n = x1 - x0;
+    for (v, out) in span.rows.clone().zip(tmp.chunks_exact_mut(n)) {
+        let row = &src[v * w..(v + 1) * w];
+        // Values x0 − r .. x1 + r of the row, clamped to it.
+        let values = if x0 >= r && x1 + r <= w {
+            &row[x0 - r..x1 + r]
+        } else {
+            let last = w as isize - 1;
+            piece.clear();
+            piece.extend((0..n + 2 * r).map(|j| row[(x0 as isize - r as isize + j as isize).clamp(0, last) as usize]));
+            &piece[..]
+        };
+        match half.len() {
+            2 => blur_interior::<2>(values, out, half),
+            3 => blur_interior::<3>(values, out, half),
+            4 => blur_interior::<4>(values, out, half),
+            5 => blur_interior::<5>(values, out, half),
+            _ => blur_interior_any(values, out, half),
+        }
+    }
+    // Row v of the image (clamped) is row v − rows.start of `tmp`.
+    let first = span.rows.start as isize;
+    let last = span.height as isize - 1;
+    let row = |v: isize| {
+        let t = (v.clamp(0, last) - first) as usize;
+        &tmp[t * n..(t + 1) * n]
+    };
+    for y in span.output_rows.clone() {
+        let out = &mut dst[y * w + x0..y * w + x1];
+        let rows_at = |k: usize| (row(y as isize - k as isize), row(y as isize + k as isize));
+        match half.len() {
+            2 => blur_col_fixed::<2>(out, half, rows_at),
+            3 => blur_col_fixed::<3>(out, half, rows_at),
+            4 => blur_col_fixed::<4>(out, half, rows_at),
+            5 => blur_col_fixed::<5>(out, half, rows_at),
+            _ => {
+                for (d, &c) in out.iter_mut().zip(row(y as isize)) {
+                    *d = half[0] * c;
+                }
+                for (k, &wk) in half.iter().enumerate().skip(1) {
+                    let (up, down) = rows_at(k);
+                    for ((d, &u), &v) in out.iter_mut().zip(up).zip(down) {
+                        *d += wk * (u + v);
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// CPU twin, allocating its outputs: the smoothed image.
 pub fn gaussian(src: &FloatImage, params: &GaussianParams) -> Result<FloatImage> {
     let mut tmp = FloatImage::new(0, 0);
@@ -402,6 +506,50 @@ mod tests {
         assert!((s.get(7, 7) - h[0] * h[0]).abs() < 1e-7);
         assert!((s.get(9, 6) - h[2] * h[1]).abs() < 1e-7);
         assert_eq!(s.get(11, 7), 0.0); // beyond radius 3
+    }
+
+    /// A region's values are the whole image's, bit for bit, and nothing
+    /// outside the region is written: regions inside, at each border, one
+    /// pixel, empty, larger than the image; kernels with and without a
+    /// specialised loop; images narrower and shorter than the kernel.
+    #[test]
+    fn region_equals_the_whole_image_inside_it_bitwise() {
+        for (w, h) in [(37, 29), (23, 3), (5, 40), (1, 1)] {
+            let src = crate::testimage::natural(w, h, 5).to_f32();
+            for sigma in [0.3, 1.0, 2.5, 4.0] {
+                let params = GaussianParams { sigma };
+                let whole = gaussian(&src, &params).unwrap();
+                let (wu, hu) = (w as u32, h as u32);
+                let regions = [
+                    Window { x0: 10, y0: 8, x1: 25, y1: 20 },
+                    Window { x0: 0, y0: 0, x1: 4, y1: 3 },
+                    Window { x0: wu.saturating_sub(3), y0: hu.saturating_sub(2), x1: wu, y1: hu },
+                    Window { x0: 0, y0: 1, x1: wu, y1: 2 },
+                    Window { x0: wu / 2, y0: 0, x1: wu / 2 + 1, y1: hu },
+                    Window { x0: 2, y0: 2, x1: 3, y1: 3 },
+                    Window { x0: 6, y0: 6, x1: 6, y1: 9 },
+                    Window { x0: 1, y0: 1, x1: 500, y1: 500 },
+                ];
+                for region in regions {
+                    let (mut tmp, mut piece) = (FloatImage::new(0, 0), Vec::new());
+                    let mut got = FloatImage::from_fn(w, h, |_, _| -7.0);
+                    gaussian_region_cpu(&src, &params, region, &mut tmp, &mut piece, &mut got).unwrap();
+                    let r = region.clipped(w, h);
+                    for y in 0..h {
+                        for x in 0..w {
+                            let inside = (r.x0 as usize..r.x1 as usize).contains(&x)
+                                && (r.y0 as usize..r.y1 as usize).contains(&y);
+                            let expected = if inside { whole.get(x, y) } else { -7.0 };
+                            assert_eq!(
+                                got.get(x, y).to_bits(),
+                                expected.to_bits(),
+                                "{w}x{h} σ {sigma} {region:?} at ({x}, {y})"
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// The ring of rows gives the bits of the two whole-image passes, for

@@ -142,6 +142,43 @@ impl Window {
         Self { x0: self.x0.min(w), y0: self.y0.min(h), x1: self.x1.min(w), y1: self.y1.min(h) }
     }
 
+    /// The smallest window holding both (the other when one is empty).
+    #[must_use]
+    pub fn union(&self, other: &Self) -> Self {
+        match (self.is_empty(), other.is_empty()) {
+            (true, _) => *other,
+            (_, true) => *self,
+            _ => Self {
+                x0: self.x0.min(other.x0),
+                y0: self.y0.min(other.y0),
+                x1: self.x1.max(other.x1),
+                y1: self.y1.max(other.y1),
+            },
+        }
+    }
+
+    /// Whether every pixel of `other` lies in this window (an empty one
+    /// lies in any).
+    #[must_use]
+    pub fn contains(&self, other: &Self) -> bool {
+        other.is_empty() || (self.x0 <= other.x0 && self.y0 <= other.y0 && self.x1 >= other.x1 && self.y1 >= other.y1)
+    }
+
+    /// The window grown by `margin` pixels on every side (not clipped; an
+    /// empty window stays empty).
+    #[must_use]
+    pub fn grown(&self, margin: u32) -> Self {
+        if self.is_empty() {
+            return *self;
+        }
+        Self {
+            x0: self.x0.saturating_sub(margin),
+            y0: self.y0.saturating_sub(margin),
+            x1: self.x1.saturating_add(margin),
+            y1: self.y1.saturating_add(margin),
+        }
+    }
+
     /// Width in pixels (0 when empty).
     #[must_use]
     pub fn width(&self) -> u32 {

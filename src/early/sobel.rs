@@ -37,10 +37,12 @@
 //! `down − up` differences.
 
 use std::f32::consts::{FRAC_PI_2, PI};
+use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
+use super::Window;
 use super::angle::fast_atan_quotient;
 use super::rows::for_each_row;
 use crate::Result;
@@ -258,21 +260,32 @@ struct Rows<'a> {
 simd_dispatch!(fn sobel_row(src: &[f32], width: usize, height: usize, y: usize, out: Rows<'_>) => sobel_row_body);
 
 simd_dispatch!(
-    fn gradient_magnitude_row(src: &[f32], width: usize, height: usize, y: usize, gx: &mut [f32], gy: &mut [f32], magnitude: &mut [f32]) => gradient_magnitude_row_body
+    fn gradient_magnitude_row(src: &[f32], size: (usize, usize), y: usize, columns: Range<usize>, gx: &mut [f32], gy: &mut [f32], magnitude: &mut [f32]) => gradient_magnitude_row_body
 );
 
-/// The derivatives of output row `y`: interior without clamping
-/// (vectorisable), then the two border columns clamped.
+/// The derivatives of output row `y` in `columns`: interior without
+/// clamping (vectorisable), then the border columns among them clamped.
+/// Each value is the same whatever the span.
 #[inline(always)]
-fn derivative_row(src: &[f32], width: usize, height: usize, y: usize, gx: &mut [f32], gy: &mut [f32]) {
+fn derivative_row(
+    src: &[f32],
+    width: usize,
+    height: usize,
+    y: usize,
+    columns: Range<usize>,
+    gx: &mut [f32],
+    gy: &mut [f32],
+) {
     let row = |yy: usize| &src[yy * width..(yy + 1) * width];
     let (up, mid, down) = (row(y.saturating_sub(1)), row(y), row((y + 1).min(height - 1)));
-    if width >= 3 {
-        let n = width - 2;
-        let (ul, uc, ur) = (&up[..n], &up[1..n + 1], &up[2..]);
-        let (ml, mr) = (&mid[..n], &mid[2..]);
-        let (dl, dc, dr) = (&down[..n], &down[1..n + 1], &down[2..]);
-        let (gx_in, gy_in) = (&mut gx[1..n + 1], &mut gy[1..n + 1]);
+    // Interior columns 1..width − 1 within the span.
+    let (lo, hi) = (columns.start.max(1), columns.end.min(width.saturating_sub(1)));
+    if lo < hi {
+        let n = hi - lo;
+        let (ul, uc, ur) = (&up[lo - 1..hi - 1], &up[lo..hi], &up[lo + 1..hi + 1]);
+        let (ml, mr) = (&mid[lo - 1..hi - 1], &mid[lo + 1..hi + 1]);
+        let (dl, dc, dr) = (&down[lo - 1..hi - 1], &down[lo..hi], &down[lo + 1..hi + 1]);
+        let (gx_in, gy_in) = (&mut gx[lo..hi], &mut gy[lo..hi]);
         for i in 0..n {
             let sum_l = (ul[i] + 2.0 * ml[i]) + dl[i];
             let sum_r = (ur[i] + 2.0 * mr[i]) + dr[i];
@@ -281,7 +294,7 @@ fn derivative_row(src: &[f32], width: usize, height: usize, y: usize, gx: &mut [
         }
     }
     let last = width - 1;
-    for xc in [0, last] {
+    for xc in [0, last].into_iter().filter(|x| columns.contains(x)) {
         let (x, y) = gradient_at(up, mid, down, xc.saturating_sub(1), xc, (xc + 1).min(last));
         gx[xc] = x;
         gy[xc] = y;
@@ -292,7 +305,7 @@ fn derivative_row(src: &[f32], width: usize, height: usize, y: usize, gx: &mut [
 #[inline(always)]
 fn sobel_row_body(src: &[f32], width: usize, height: usize, y: usize, out: Rows<'_>) {
     let Rows { gx, gy, magnitude, direction, theta } = out;
-    derivative_row(src, width, height, y, gx, gy);
+    derivative_row(src, width, height, y, 0..width, gx, gy);
     for i in 0..width {
         let (x, y) = (gx[i], gy[i]);
         magnitude[i] = (x * x + y * y).sqrt();
@@ -300,19 +313,20 @@ fn sobel_row_body(src: &[f32], width: usize, height: usize, y: usize, out: Rows<
     }
 }
 
-/// One output row `y`: derivatives and magnitude, no angles.
+/// One output row `y` of a `size` (width, height) image: derivatives and
+/// magnitude in `columns`, no angles.
 #[inline(always)]
 fn gradient_magnitude_row_body(
     src: &[f32],
-    width: usize,
-    height: usize,
+    (width, height): (usize, usize),
     y: usize,
+    columns: Range<usize>,
     gx: &mut [f32],
     gy: &mut [f32],
     magnitude: &mut [f32],
 ) {
-    derivative_row(src, width, height, y, gx, gy);
-    for ((m, &x), &y) in magnitude.iter_mut().zip(gx.iter()).zip(gy.iter()) {
+    derivative_row(src, width, height, y, columns.clone(), gx, gy);
+    for ((m, &x), &y) in magnitude[columns.clone()].iter_mut().zip(&gx[columns.clone()]).zip(&gy[columns]) {
         *m = (x * x + y * y).sqrt();
     }
 }
@@ -323,22 +337,35 @@ fn gradient_magnitude_row_body(
 /// pixels only ([`sobel_at`]) and so skip the arctangent of every pixel.
 pub fn sobel_gradient_magnitude_cpu(src: &FloatImage, out: &mut SobelOutput) {
     let (w, h) = src.size();
+    sobel_gradient_magnitude_region_cpu(src, Window::full(w, h), out);
+}
+
+/// [`sobel_gradient_magnitude_cpu`] inside `region` only (clipped to the
+/// image): the planes are the image's size, their values inside the region
+/// are bit for bit those of the whole image's, and outside it they are
+/// whatever the planes held before. For callers that read the planes in a
+/// window of interest.
+pub fn sobel_gradient_magnitude_region_cpu(src: &FloatImage, region: Window, out: &mut SobelOutput) {
+    let (w, h) = src.size();
     out.gx.resize(w, h);
     out.gy.resize(w, h);
     out.magnitude.resize(w, h);
     out.direction.resize(0, 0);
     out.theta.resize(0, 0);
-    if w == 0 || h == 0 {
+    let region = region.clipped(w, h);
+    if region.is_empty() {
         return;
     }
+    let (rows, columns) = (region.y0 as usize * w..region.y1 as usize * w, region.x0 as usize..region.x1 as usize);
     let s = src.data();
     let planes = (
-        out.gx.data_mut().par_chunks_mut(w),
-        out.gy.data_mut().par_chunks_mut(w),
-        out.magnitude.data_mut().par_chunks_mut(w),
+        out.gx.data_mut()[rows.clone()].par_chunks_mut(w),
+        out.gy.data_mut()[rows.clone()].par_chunks_mut(w),
+        out.magnitude.data_mut()[rows].par_chunks_mut(w),
     );
-    for_each_row(w * h, planes.into_par_iter().enumerate(), |(y, (gx, gy, magnitude))| {
-        gradient_magnitude_row(s, w, h, y, gx, gy, magnitude);
+    let (y0, pixels) = (region.y0 as usize, region.width() as usize * region.height() as usize);
+    for_each_row(pixels, planes.into_par_iter().enumerate(), |(y, (gx, gy, magnitude))| {
+        gradient_magnitude_row(s, (w, h), y0 + y, columns.clone(), gx, gy, magnitude);
     });
 }
 

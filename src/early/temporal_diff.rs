@@ -9,6 +9,7 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
+use super::Window;
 use super::rows::for_each_row;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
@@ -128,6 +129,37 @@ pub fn temporal_diff_and_sum_cpu(
     let planes = (prev.data().par_chunks(band).zip(cur.data().par_chunks(band)))
         .zip(mask.data_mut().par_chunks_mut(band).zip(sum.data_mut().par_chunks_mut(band)));
     for_each_row(w * h, planes, |((p, c), (m, s))| diff_and_sum_row(p, c, m, s, t));
+    Ok(())
+}
+
+/// [`temporal_diff_and_sum_cpu`] inside `region` only (clipped): `mask` and
+/// `sum` are resized to the frames' size, their values inside the region
+/// are those of the whole frames, and outside it they are whatever the
+/// images held before. `prev` and `cur` need only be valid inside the
+/// region.
+pub fn temporal_diff_and_sum_region_cpu(
+    prev: &FloatImage,
+    cur: &FloatImage,
+    params: &TemporalDiffParams,
+    region: Window,
+    mask: &mut FloatImage,
+    sum: &mut FloatImage,
+) -> Result<()> {
+    params.validate()?;
+    prev.check_same_size(cur, "temporal difference prev/cur")?;
+    let (w, h) = prev.size();
+    mask.resize(w, h);
+    sum.resize(w, h);
+    let region = region.clipped(w, h);
+    if region.is_empty() {
+        return Ok(());
+    }
+    let (x0, x1) = (region.x0 as usize, region.x1 as usize);
+    for y in region.y0 as usize..region.y1 as usize {
+        let run = y * w + x0..y * w + x1;
+        let (p, c) = (&prev.data()[run.clone()], &cur.data()[run.clone()]);
+        diff_and_sum_row(p, c, &mut mask.data_mut()[run.clone()], &mut sum.data_mut()[run], params.threshold);
+    }
     Ok(())
 }
 
