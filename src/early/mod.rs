@@ -46,6 +46,8 @@ macro_rules! simd_dispatch {
     };
 }
 
+pub(crate) use simd_dispatch;
+
 pub mod angle;
 pub mod compaction;
 pub mod cpf;

@@ -3,7 +3,7 @@
 //! line fits (eq. 4–8), corners (intersections) and the deviation check (eq. 9).
 
 use super::params::LineFitMethod;
-use crate::early::Feature;
+use crate::early::{Feature, simd_dispatch};
 use crate::estimate::line_fit::{
     Line, LineFit, LineSums, fit_band_across, fit_line, fit_line_orthogonal, orientation_difference,
 };
@@ -108,11 +108,27 @@ pub fn label_motion_pixels(
         unexplained: vec![0; lines.len()],
         unexplained_total: 0,
     };
+    let kept: Vec<&Feature> = motion.iter().filter(|f| f.magnitude >= min_magnitude && f.theta.is_finite()).collect();
+    let in_range = kept.iter().all(|f| (0.0..=std::f32::consts::PI).contains(&f.theta));
+    if in_range && lines.len() <= MAX_LINE_MASK {
+        label_by_lines(&kept, lines, tolerances, delta, &mut labelling);
+    } else {
+        label_pixel_by_pixel(&kept, lines, tolerances, delta, &mut labelling);
+    }
+    labelling
+}
+
+/// [`label_motion_pixels`] of `pixels`, pixel by pixel (any orientations,
+/// any number of lines).
+fn label_pixel_by_pixel(
+    pixels: &[&Feature],
+    lines: &[Option<ModelLine>],
+    tolerances: &[LineTolerance],
+    delta: f64,
+    labelling: &mut Labelling,
+) {
     let mut compatible = Vec::with_capacity(lines.len());
-    for feature in motion {
-        if !(feature.magnitude >= min_magnitude) || !feature.theta.is_finite() {
-            continue;
-        }
+    for feature in pixels {
         let p = [f64::from(feature.x), f64::from(feature.y)];
         let theta = f64::from(feature.theta);
         compatible.clear();
@@ -155,7 +171,116 @@ pub fn label_motion_pixels(
             None => {}
         }
     }
-    labelling
+}
+
+/// Most lines [`label_by_lines`] takes: one bit per line of a pixel's mask.
+const MAX_LINE_MASK: usize = 64;
+
+/// [`label_motion_pixels`] of `pixels` (edge orientations in [0, π]), line
+/// by line over all pixels instead of pixel by pixel: each line's tests run
+/// over arrays of the pixels' coordinates without branches, so they
+/// vectorise, keeping per pixel the nearest line within tolerance (the
+/// first of equals, as in pixel order) and a mask of the lines of its
+/// orientation; the pixels are then labelled in their order. The same
+/// arithmetic as [`orientation_difference`], [`Line::distance`] and
+/// [`ModelLine::along`], so the same labelling bit for bit.
+fn label_by_lines(
+    pixels: &[&Feature],
+    lines: &[Option<ModelLine>],
+    tolerances: &[LineTolerance],
+    delta: f64,
+    labelling: &mut Labelling,
+) {
+    let n = pixels.len();
+    let x: Vec<f64> = pixels.iter().map(|f| f64::from(f.x)).collect();
+    let y: Vec<f64> = pixels.iter().map(|f| f64::from(f.y)).collect();
+    let theta: Vec<f64> = pixels.iter().map(|f| f64::from(f.theta)).collect();
+    let mut nearest = Nearest { line: vec![u32::MAX; n], distance: vec![f64::INFINITY; n], along: vec![0.0; n] };
+    let mut masks = vec![0u64; n];
+    for (k, (line, tolerance)) in lines.iter().zip(tolerances).enumerate() {
+        let Some(line) = line else { continue };
+        let points = Points { x: &x, y: &y, theta: &theta };
+        test_line(points, line, tolerance, k, delta, &mut nearest, &mut masks);
+    }
+    for (i, feature) in pixels.iter().enumerate() {
+        let k = nearest.line[i];
+        if k != u32::MAX {
+            let (k, s) = (k as usize, nearest.along[i]);
+            let (Some(line), tolerance) = (&lines[k], &tolerances[k]) else { continue };
+            if s >= tolerance.trim && s <= line.length - tolerance.trim {
+                labelling.sums[k].add(x[i], y[i]);
+                labelling.pixels[k].push((feature.x, feature.y));
+            }
+        } else if masks[i] != 0 {
+            labelling.unexplained_total += 1;
+            let mut mask = masks[i];
+            while mask != 0 {
+                labelling.unexplained[mask.trailing_zeros() as usize] += 1;
+                mask &= mask - 1;
+            }
+        }
+    }
+}
+
+/// Pixel coordinates and edge orientations, as f64 arrays.
+#[derive(Clone, Copy)]
+struct Points<'a> {
+    x: &'a [f64],
+    y: &'a [f64],
+    theta: &'a [f64],
+}
+
+/// Per pixel: the nearest line within tolerance so far (`u32::MAX`: none),
+/// its distance and the pixel's foot along it.
+struct Nearest {
+    line: Vec<u32>,
+    distance: Vec<f64>,
+    along: Vec<f64>,
+}
+
+simd_dispatch!(fn test_line(points: Points<'_>, line: &ModelLine, tolerance: &LineTolerance, k: usize, delta: f64, nearest: &mut Nearest, masks: &mut [u64]) => test_line_body);
+
+/// Eq. 3–4 of every pixel against line `k`: its bit in the pixel's mask
+/// when the orientations agree, and the line as the pixel's nearest when
+/// it is within tolerance and nearer than the nearest so far.
+#[inline(always)]
+fn test_line_body(
+    points: Points<'_>,
+    line: &ModelLine,
+    tolerance: &LineTolerance,
+    k: usize,
+    delta: f64,
+    nearest: &mut Nearest,
+    masks: &mut [u64],
+) {
+    use std::f64::consts::PI;
+    let (low, high) = (-tolerance.extent, line.length + tolerance.extent);
+    let (phi, bit, index) = (line.orientation, 1u64 << k, k as u32);
+    let n = masks.len();
+    let (xs, ys, thetas) = (&points.x[..n], &points.y[..n], &points.theta[..n]);
+    let (best_line, best_distance, best_along) =
+        (&mut nearest.line[..n], &mut nearest.distance[..n], &mut nearest.along[..n]);
+    for i in 0..n {
+        // orientation_difference(θ, φ) for θ − φ in (−π, π]: rem_pi's term
+        // picked by selects.
+        let diff = thetas[i] - phi;
+        let term = if diff >= PI {
+            PI
+        } else if diff >= 0.0 {
+            0.0
+        } else {
+            -PI
+        };
+        let r = diff - term;
+        let compatible = !(r.min(PI - r) >= delta);
+        let d = line.line.distance([xs[i], ys[i]]);
+        let s = line.along([xs[i], ys[i]]);
+        let nearer = compatible & (d < tolerance.distance) & (s >= low) & (s <= high) & (d < best_distance[i]);
+        masks[i] |= if compatible { bit } else { 0 };
+        best_line[i] = if nearer { index } else { best_line[i] };
+        best_distance[i] = if nearer { d } else { best_distance[i] };
+        best_along[i] = if nearer { s } else { best_along[i] };
+    }
 }
 
 /// Step 3 (eq. 5–8): least-squares line per model line with at least
@@ -293,6 +418,62 @@ pub fn corner_deviation(corners: &[[f64; 2]], measured: &[bool], predicted: &[[f
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The line-by-line labelling equals the pixel-by-pixel one bit for
+    /// bit: random quadrilaterals (one line missing in some), pixels near
+    /// and on their lines at random orientations in [0, π] (π itself and 0
+    /// included), distances and foot positions at the tolerances' edges.
+    #[test]
+    fn labelling_line_by_line_equals_pixel_by_pixel() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for trial in 0..200 {
+            let corners: Vec<[f64; 2]> =
+                (0..4).map(|_| [rng.random_range(10.0..90.0), rng.random_range(10.0..70.0)]).collect();
+            let mut lines = model_lines(&corners, &[[0, 1], [1, 2], [2, 3], [3, 0]]);
+            if trial % 5 == 0 {
+                lines[trial % 4] = None;
+            }
+            let tolerances: Vec<LineTolerance> = (0..4)
+                .map(|_| LineTolerance {
+                    distance: rng.random_range(1.0..8.0),
+                    extent: rng.random_range(0.0..4.0),
+                    trim: rng.random_range(-3.0..3.0),
+                })
+                .collect();
+            let pixels: Vec<Feature> = (0..300)
+                .map(|i| {
+                    let line = lines[i % 4].or(lines[(i + 1) % 4]).expect("a line");
+                    let t = rng.random_range(-10.0..line.length + 10.0);
+                    let off = rng.random_range(-10.0..10.0);
+                    let (x, y) = (
+                        line.start[0] + t * line.direction[0] - off * line.direction[1],
+                        line.start[1] + t * line.direction[1] + off * line.direction[0],
+                    );
+                    let theta = match i % 7 {
+                        0 => std::f32::consts::PI,
+                        1 => 0.0,
+                        2 => line.orientation as f32,
+                        _ => rng.random_range(0.0..std::f32::consts::PI),
+                    };
+                    Feature { x: x.clamp(0.0, 200.0) as u32, y: y.clamp(0.0, 200.0) as u32, theta, magnitude: 50.0 }
+                })
+                .collect();
+            let kept: Vec<&Feature> = pixels.iter().collect();
+            let delta = rng.random_range(0.05..0.6);
+            let empty = || Labelling {
+                sums: lines.iter().map(|l| l.map_or_else(LineSums::new, |l| LineSums::with_origin(l.start))).collect(),
+                pixels: vec![Vec::new(); 4],
+                unexplained: vec![0; 4],
+                unexplained_total: 0,
+            };
+            let (mut by_lines, mut by_pixels) = (empty(), empty());
+            label_by_lines(&kept, &lines, &tolerances, delta, &mut by_lines);
+            label_pixel_by_pixel(&kept, &lines, &tolerances, delta, &mut by_pixels);
+            assert_eq!(by_lines, by_pixels, "trial {trial}");
+            assert!(trial > 0 || by_lines.pixels.iter().map(Vec::len).sum::<usize>() > 20);
+        }
+    }
 
     /// A 3-px band along the line y = 0.2·x + 10 for x in 0..60, and a short
     /// parallel edge 9 px below it (another object's pixels in the strip).
