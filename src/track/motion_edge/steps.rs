@@ -109,7 +109,7 @@ pub fn label_motion_pixels(
         unexplained_total: 0,
     };
     let kept: Vec<&Feature> = motion.iter().filter(|f| f.magnitude >= min_magnitude && f.theta.is_finite()).collect();
-    let in_range = kept.iter().all(|f| (0.0..=std::f32::consts::PI).contains(&f.theta));
+    let in_range = kept.iter().all(|f| (-std::f32::consts::PI..=std::f32::consts::PI).contains(&f.theta));
     if in_range && lines.len() <= MAX_LINE_MASK {
         label_by_lines(&kept, lines, tolerances, delta, &mut labelling);
     } else {
@@ -118,8 +118,8 @@ pub fn label_motion_pixels(
     labelling
 }
 
-/// [`label_motion_pixels`] of `pixels`, pixel by pixel (any orientations,
-/// any number of lines).
+/// [`label_motion_pixels`] of `pixels`, pixel by pixel (any angles, any
+/// number of lines).
 fn label_pixel_by_pixel(
     pixels: &[&Feature],
     lines: &[Option<ModelLine>],
@@ -176,7 +176,8 @@ fn label_pixel_by_pixel(
 /// Most lines [`label_by_lines`] takes: one bit per line of a pixel's mask.
 const MAX_LINE_MASK: usize = 64;
 
-/// [`label_motion_pixels`] of `pixels` (edge orientations in [0, π]), line
+/// [`label_motion_pixels`] of `pixels` (orientations or directions, in
+/// [−π, π]), line
 /// by line over all pixels instead of pixel by pixel: each line's tests run
 /// over arrays of the pixels' coordinates without branches, so they
 /// vectorise, keeping per pixel the nearest line within tolerance (the
@@ -261,15 +262,19 @@ fn test_line_body(
     let (best_line, best_distance, best_along) =
         (&mut nearest.line[..n], &mut nearest.distance[..n], &mut nearest.along[..n]);
     for i in 0..n {
-        // orientation_difference(θ, φ) for θ − φ in (−π, π]: rem_pi's term
-        // picked by selects.
+        // orientation_difference(θ, φ) for θ − φ in (−2π, 2π): the term of
+        // rem_pi (rem_euclid by π) picked by selects. Below −π, rem_euclid
+        // adds π twice to the exact x + π, one rounding of x + 2π; at −π
+        // it gives −0 where this gives +0, the same difference.
         let diff = thetas[i] - phi;
         let term = if diff >= PI {
             PI
         } else if diff >= 0.0 {
             0.0
-        } else {
+        } else if diff >= -PI {
             -PI
+        } else {
+            -2.0 * PI
         };
         let r = diff - term;
         let compatible = !(r.min(PI - r) >= delta);
@@ -421,8 +426,9 @@ mod tests {
 
     /// The line-by-line labelling equals the pixel-by-pixel one bit for
     /// bit: random quadrilaterals (one line missing in some), pixels near
-    /// and on their lines at random orientations in [0, π] (π itself and 0
-    /// included), distances and foot positions at the tolerances' edges.
+    /// and on their lines at random orientations and directions in [−π, π]
+    /// (±π, 0 and the lines' own included), distances and foot positions at
+    /// the tolerances' edges.
     #[test]
     fn labelling_line_by_line_equals_pixel_by_pixel() {
         use rand::{Rng, SeedableRng};
@@ -450,11 +456,15 @@ mod tests {
                         line.start[0] + t * line.direction[0] - off * line.direction[1],
                         line.start[1] + t * line.direction[1] + off * line.direction[0],
                     );
-                    let theta = match i % 7 {
-                        0 => std::f32::consts::PI,
+                    let pi = std::f32::consts::PI;
+                    let theta = match i % 9 {
+                        0 => pi,
                         1 => 0.0,
                         2 => line.orientation as f32,
-                        _ => rng.random_range(0.0..std::f32::consts::PI),
+                        3 => -pi,
+                        4 => line.orientation as f32 - pi,
+                        5 => rng.random_range(-pi..0.0),
+                        _ => rng.random_range(0.0..pi),
                     };
                     Feature { x: x.clamp(0.0, 200.0) as u32, y: y.clamp(0.0, 200.0) as u32, theta, magnitude: 50.0 }
                 })
