@@ -1,5 +1,13 @@
 //! The CPU backend: the CPU twins of every stage, with buffers reused from
 //! frame to frame so the per-frame loop does not allocate images.
+//!
+//! A stage whose outputs only windowed lists read runs on the part of the
+//! frame those windows need, when that is less than the frame: the LoG and
+//! its zero crossings ([`log_region`]), the smoothing, the motion step and
+//! the Sobel sets made from them ([`smoothing_region`]), a Sobel set's
+//! gradients and magnitude ([`dense_region`]). Inside the part every value
+//! is the whole frame's, bit for bit, so the lists are those of the GPU
+//! backend, which computes whole frames.
 
 use super::plan::{EdgelPart, FramePlan, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
 use super::{EarlyVision, FrameFeatures, FrameRequest, WindowRequest};
