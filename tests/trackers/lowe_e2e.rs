@@ -190,10 +190,17 @@ fn lowe_at_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
     }
 }
 
+/// Half the edges hidden at 30 px/frame, seed 1: frames 121–123 lost the
+/// lid as it opened behind the occluder; a search from the lid standing
+/// open found the box's outline better supported with the lid at its
+/// limit, where no match constrained it (σ = its prior), and replaced the
+/// fit: 20–35 px off. An unmeasured joint no longer wins that way.
+const HINGED_OCCLUDED_30: Case = Case { speed: 30.0, occlude: 0.5, seed: 1, min_tracked: 265, ..HINGED_25 };
+
 #[test]
-fn lowe_hinged_box_occluded_at_20_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
+fn lowe_hinged_box_occluded_at_20_and_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
     let seed_0 = Case { seed: 0, ..HINGED_OCCLUDED_FAST };
-    for case in [HINGED_OCCLUDED_FAST, seed_0] {
+    for case in [HINGED_OCCLUDED_FAST, seed_0, HINGED_OCCLUDED_30] {
         check(&case, &mut CpuBackend::new(), "cpu");
     }
 }

@@ -82,7 +82,10 @@
 //!    has the most zero crossings along it are searched from, and a
 //!    verified solution at least 0.2 rad away replaces the frame's when its
 //!    outline has 5 % + 10 % per radian moved more supported samples, at a
-//!    supported fraction no lower.
+//!    supported fraction no lower, and every joint it moved is measured
+//!    there (its σ below 0.9 of `prior_joint_sigma`): a lid hidden by an
+//!    occluder, searched from its limit, stays at the limit with no match
+//!    to move it, and the box's outline alone must not place it.
 //!
 //! Output per frame: status, `corners` (every model vertex projected),
 //! `pose`, `params` (joint values) and the covariance P of the correction
@@ -476,7 +479,15 @@ impl LoweTracker {
                 .zip(&found.solution.state.params)
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max);
+            // Each joint that moved is measured in the other solution: the
+            // image, not the prior alone, sets its value.
+            let limit = (UNMEASURED_SIGMA_RATIO * self.params.prior_joint_sigma).powi(2);
+            let measured = (0..self.limits.len()).all(|j| {
+                (other.solution.state.params[j] - found.solution.state.params[j]).abs() < JOINT_ALTERNATIVE_GAP
+                    || other.solution.covariance[6 + j][6 + j] < limit
+            });
             if moved >= JOINT_ALTERNATIVE_GAP
+                && measured
                 && better_supported(counts, own, moved)
                 && best.as_ref().is_none_or(|(c, _)| counts.0 > *c)
             {
@@ -525,6 +536,10 @@ const JOINT_ALTERNATIVES: usize = 9;
 const JOINT_REFITS: usize = 2;
 /// Least distance of a tried joint value from the solution's, radians.
 const JOINT_ALTERNATIVE_GAP: f64 = 0.2;
+/// A joint whose standard deviation in a solution is at least this part of
+/// its prior's (`prior_joint_sigma`) is not measured there: no match
+/// constrains it, and its value is where the search started.
+const UNMEASURED_SIGMA_RATIO: f64 = 0.9;
 
 /// Whether an outline with `(supported, samples)` = `other`, at joint
 /// values up to `moved` radians from those of an outline with `own`, is
