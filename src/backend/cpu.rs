@@ -128,9 +128,7 @@ impl Images {
         }
     }
 
-    /// Sobel of plane `input` into set `output` (disjoint fields of `self`):
-    /// all five planes, or without the angles unless `angles`.
-    /// The five Sobel planes of `input` into `output`.
+    /// The five Sobel planes of plane `input` into set `output`.
     fn sobel_into(&mut self, input: Plane, output: SobelPlanes) {
         let (src, dst) = self.sobel_source_and_set(input, output);
         sobel_cpu(src, dst);
@@ -142,6 +140,7 @@ impl Images {
         sobel_gradient_magnitude_region_cpu(src, region, dst);
     }
 
+    /// Plane `input` and set `output` (disjoint fields of `self`).
     fn sobel_source_and_set(&mut self, input: Plane, output: SobelPlanes) -> (&FloatImage, &mut SobelOutput) {
         let Self { luma, smoothed, previous, motion_mask, sum, log, sobel_of_sum, sobel_of_frame, .. } = self;
         let src = plane(luma, smoothed, previous, motion_mask, sum, log, input);
