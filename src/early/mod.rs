@@ -236,4 +236,19 @@ mod window_tests {
         assert_eq!(Window::around(&[[f64::NAN, 1.0]], 1.0, 64, 48), None);
         assert_eq!(Window::around(&[], 1.0, 64, 48), None);
     }
+
+    #[test]
+    fn union_contains_and_grown_treat_empty_windows_as_nothing() {
+        let a = Window { x0: 2, y0: 3, x1: 10, y1: 8 };
+        let b = Window { x0: 6, y0: 1, x1: 12, y1: 5 };
+        let empty = Window { x0: 50, y0: 50, x1: 50, y1: 60 };
+        assert_eq!(a.union(&b), Window { x0: 2, y0: 1, x1: 12, y1: 8 });
+        assert_eq!(a.union(&empty), a);
+        assert_eq!(empty.union(&b), b);
+        assert!(a.union(&b).contains(&a) && a.union(&b).contains(&b));
+        assert!(!a.contains(&b) && a.contains(&empty) && !empty.contains(&a));
+        assert_eq!(a.grown(2), Window { x0: 0, y0: 1, x1: 12, y1: 10 });
+        assert_eq!(empty.grown(3), empty);
+        assert_eq!(Window { x0: 0, y0: 0, x1: u32::MAX, y1: 1 }.grown(1).x1, u32::MAX);
+    }
 }
