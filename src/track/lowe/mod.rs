@@ -111,7 +111,7 @@ use self::evidence::CrossingMap;
 use self::matching::{Candidate, Endpoints, MatchContext, SegmentSpread, match_probability, search_bounds};
 use self::params::MAX_PARAMS;
 use self::projection::{Linearised, ModelSegment, Row, State};
-use self::search::{SearchFrame, SearchSettings, segments_needed};
+use self::search::{SearchFrame, SearchSettings, Support, segments_needed};
 use self::segments::{ImageSegment, SegmentExtractor, SegmentIndex};
 use super::{Diagnostics, FrameExtras, FrameOutcome, Observations, Phase, Tracker, support};
 use crate::backend::{FrameRequest, ListSpec, ZeroCrossingRequest};
@@ -350,11 +350,10 @@ impl LoweTracker {
             diag.branches += outcome.branches;
             let Some(solution) = outcome.solution else { continue };
             let segs = outcome.model_segments;
-            if !outcome.verified {
+            let Some(support) = outcome.support else {
                 accepted = Some(Found { solution, matches: outcome.matches, segs, support: None });
                 continue;
-            }
-            let support = view.support_counts(&segs);
+            };
             let found = Found { solution, matches: outcome.matches, segs, support: Some(support) };
             // A weakly supported solution does not end the search: a wider
             // range may hold a confident one (module doc, step 6).
@@ -467,6 +466,8 @@ impl LoweTracker {
             }
         }
         hypotheses.sort_by_key(|h| std::cmp::Reverse(h.0));
+        // A joint's variance from which on no match constrains it.
+        let unmeasured = (UNMEASURED_SIGMA_RATIO * self.params.prior_joint_sigma).powi(2);
         let mut best: Option<(usize, Found)> = None;
         for (_, hypothesis, segs) in hypotheses.iter().take(JOINT_REFITS) {
             let Some(other) = self.search_at(view, hypothesis, segs, 0, 0.0, diag) else { continue };
@@ -481,10 +482,9 @@ impl LoweTracker {
                 .fold(0.0, f64::max);
             // Each joint that moved is measured in the other solution: the
             // image, not the prior alone, sets its value.
-            let limit = (UNMEASURED_SIGMA_RATIO * self.params.prior_joint_sigma).powi(2);
             let measured = (0..self.limits.len()).all(|j| {
                 (other.solution.state.params[j] - found.solution.state.params[j]).abs() < JOINT_ALTERNATIVE_GAP
-                    || other.solution.covariance[6 + j][6 + j] < limit
+                    || other.solution.covariance[6 + j][6 + j] < unmeasured
             });
             if moved >= JOINT_ALTERNATIVE_GAP
                 && measured
@@ -548,7 +548,7 @@ const UNMEASURED_SIGMA_RATIO: f64 = 0.9;
 /// occluder loses to the lid shut) and at least 20 (px), at a supported
 /// fraction no lower (a part turned onto a clutter line gains samples
 /// there but leaves more of its outline bare).
-fn better_supported(other: (usize, usize), own: (usize, usize), moved: f64) -> bool {
+fn better_supported(other: Support, own: Support, moved: f64) -> bool {
     let margin = (own.0 as f64 * (0.05 + 0.1 * moved)).max(20.0);
     other.0 as f64 >= own.0 as f64 + margin && other.0 * own.1 >= own.0 * other.1
 }
@@ -559,9 +559,9 @@ struct Found {
     matches: Vec<estimation::Match>,
     /// The visible model segments at the solution.
     segs: Vec<ModelSegment>,
-    /// `(supported, samples)` of their outline when the solution passed the
-    /// verification, `None` when it did not.
-    support: Option<(usize, usize)>,
+    /// The outline support when the solution passed the verification,
+    /// `None` when it did not.
+    support: Option<Support>,
 }
 
 impl Found {
@@ -604,42 +604,43 @@ impl FrameView<'_> {
 }
 
 impl FrameView<'_> {
-    /// Fraction of `segs`' length with a zero crossing within 1 px across
-    /// it at an edge orientation within 20° of its own (a crossing's
-    /// `theta` is the gradient's direction, across the edge).
-    fn support(&self, segs: &[ModelSegment]) -> f64 {
-        support::fraction(self.support_counts(segs))
-    }
-
-    /// Why a solution with `matches`, residual σ `residual` and the model
-    /// segments `segs` at its state is not verified (module doc, step 7),
-    /// or `None` when it is; `support` gives its outline support, asked
-    /// for only when the other tests pass.
-    fn rejection(
+    /// The verification of a solution with `matches`, residual σ
+    /// `residual` and the model segments `segs` at its state (module doc,
+    /// step 7): its outline support when it passes, else the test it
+    /// failed; `support` counts the outline's support, asked for only when
+    /// the other tests pass.
+    fn verdict(
         &self,
         segs: &[ModelSegment],
         matches: &[estimation::Match],
         residual: Option<f64>,
-        support: impl FnOnce() -> f64,
-    ) -> Option<Rejection> {
+        support: impl FnOnce() -> Support,
+    ) -> Result<Support, Rejection> {
         let node = segments_needed(self.tracker.n());
         if matches.len() <= node {
-            return Some(Rejection::NodeOnly { matches: matches.len(), node });
+            return Err(Rejection::NodeOnly { matches: matches.len(), node });
         }
         if self.tracker.loose_fit(matches.len(), residual) {
-            return Some(Rejection::LooseFit { matches: matches.len(), residual: residual.unwrap_or(f64::NAN) });
+            return Err(Rejection::LooseFit { matches: matches.len(), residual: residual.unwrap_or(f64::NAN) });
         }
         let coverage = coverage(segs, matches);
         if coverage < self.min_coverage {
-            return Some(Rejection::Coverage { coverage, least: self.min_coverage });
+            return Err(Rejection::Coverage { coverage, least: self.min_coverage });
         }
-        let support = support();
-        (support < self.min_support).then_some(Rejection::Support { support, least: self.min_support })
+        let counts = support();
+        let support = support::fraction(counts);
+        if support < self.min_support {
+            return Err(Rejection::Support { support, least: self.min_support });
+        }
+        Ok(counts)
     }
 
-    /// `(supported, samples)` of `segs` (as [`Self::support`]), each part of
-    /// the outline counted once ([`distinct_outline`]).
-    fn support_counts(&self, segs: &[ModelSegment]) -> (usize, usize) {
+    /// `(supported, samples)` of `segs`: samples of their length with a
+    /// zero crossing within 1 px across at an edge orientation within 20°
+    /// of its own (a crossing's `theta` is the gradient's direction, across
+    /// the edge), each part of the outline counted once
+    /// ([`distinct_outline`]).
+    fn support_counts(&self, segs: &[ModelSegment]) -> Support {
         self.crossing_map.support(distinct_outline(segs).into_iter(), SUPPORT_ANGLE_DEG.to_radians())
     }
 }
@@ -766,8 +767,13 @@ impl SearchFrame for FrameView<'_> {
         [s.start, s.end]
     }
 
-    fn verify(&self, segs: &[ModelSegment], matches: &[estimation::Match], residual_sigma: Option<f64>) -> bool {
-        self.rejection(segs, matches, residual_sigma, || self.support(segs)).is_none()
+    fn verify(
+        &self,
+        segs: &[ModelSegment],
+        matches: &[estimation::Match],
+        residual_sigma: Option<f64>,
+    ) -> Option<Support> {
+        self.verdict(segs, matches, residual_sigma, || self.support_counts(segs)).ok()
     }
 
     fn covered_length(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
@@ -904,13 +910,14 @@ impl Tracker for LoweTracker {
                 diag.matches = matches.len();
                 diag.residual_sigma = solution.residual_sigma;
                 diag.coverage = coverage(segs, matches);
-                diag.support = support::fraction(support.unwrap_or_else(|| view.support_counts(segs)));
-                match view.rejection(segs, matches, solution.residual_sigma, || diag.support) {
-                    Some(rejection) => {
+                let counts = support.unwrap_or_else(|| view.support_counts(segs));
+                diag.support = support::fraction(counts);
+                match view.verdict(segs, matches, solution.residual_sigma, || counts) {
+                    Err(rejection) => {
                         lost_reason = Some(rejection.to_string());
                         None
                     }
-                    None => Some(solution.clone()),
+                    Ok(_) => Some(solution.clone()),
                 }
             }
         };

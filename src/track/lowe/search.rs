@@ -64,10 +64,11 @@ pub trait SearchFrame {
     fn candidates(&self, segs: &[ModelSegment], p: &Matrix, out: &mut Vec<Candidate>);
     /// Endpoints of image segment `image`.
     fn endpoints(&self, image: usize) -> Endpoints;
-    /// Whether a locked-on solution with these matches, the model segments
-    /// at its state and its residual σ (px) is verified: overdetermined
-    /// enough to end the search.
-    fn verify(&self, segs: &[ModelSegment], matches: &[Match], residual_sigma: Option<f64>) -> bool;
+    /// The outline support of a locked-on solution with these matches, the
+    /// model segments at its state and its residual σ (px) when it is
+    /// verified (overdetermined enough to end the search), `None` when it
+    /// is not.
+    fn verify(&self, segs: &[ModelSegment], matches: &[Match], residual_sigma: Option<f64>) -> Option<Support>;
     /// Length of `segs` covered by the matched image segments, px.
     fn covered_length(&self, segs: &[ModelSegment], matches: &[Match]) -> f64;
 }
@@ -108,10 +109,15 @@ pub struct SearchOutcome {
     pub lock_steps: usize,
     /// Model segments (at the final state, or the prediction without a solution).
     pub model_segments: Vec<ModelSegment>,
-    /// Whether the solution passed [`SearchFrame::verify`]; an unverified
-    /// solution is the branch that locked on to the most matches.
-    pub verified: bool,
+    /// The solution's outline support when it passed
+    /// [`SearchFrame::verify`], `None` for an unverified solution (the
+    /// branch that locked on to the most matches).
+    pub support: Option<Support>,
 }
+
+/// `(supported, samples)` of a verified solution's outline, as the frame
+/// counts it ([`SearchFrame::verify`]).
+pub type Support = (usize, usize);
 
 /// Segments needed for a node with n parameters: ⌊n/2⌋ + 1.
 #[must_use]
@@ -198,13 +204,14 @@ pub fn search(
         {
             let (solution, matches, final_segs, steps) = lock_on(frame, problem, solution, matches, settings, needed);
             outcome.lock_steps += steps;
-            if frame.verify(&final_segs, &matches, solution.residual_sigma) {
-                let (solution, matches, final_segs) =
-                    swap_parallel(frame, problem, solution, matches, final_segs, settings, needed);
+            if let Some(support) = frame.verify(&final_segs, &matches, solution.residual_sigma) {
+                let verified = Verified { solution, matches, segs: final_segs, support };
+                let Verified { solution, matches, segs, support } =
+                    swap_parallel(frame, problem, verified, settings, needed);
                 outcome.solution = Some(solution);
                 outcome.matches = matches;
-                outcome.model_segments = final_segs;
-                outcome.verified = true;
+                outcome.model_segments = segs;
+                outcome.support = Some(support);
                 return outcome;
             }
             if best_unverified.as_ref().is_none_or(|(_, m, _)| m.len() < matches.len()) {
@@ -260,30 +267,39 @@ fn lock_on(
     (solution, matches, segs_now, steps)
 }
 
-/// Step 6 of the module doc: the solution after the kept swaps, its
-/// matches and its model segments.
+/// A verified solution: its matches, the model segments at its state and
+/// its outline support.
+struct Verified {
+    solution: Solution,
+    matches: Vec<Match>,
+    segs: Vec<ModelSegment>,
+    support: Support,
+}
+
+/// Step 6 of the module doc: the verified solution after the kept swaps.
 fn swap_parallel(
     frame: &dyn SearchFrame,
     problem: &Problem<'_>,
-    mut solution: Solution,
-    mut matches: Vec<Match>,
-    mut segs: Vec<ModelSegment>,
+    mut verified: Verified,
     settings: &SearchSettings,
     needed: usize,
-) -> (Solution, Vec<Match>, Vec<ModelSegment>) {
+) -> Verified {
     if settings.swap_gap <= 0.0 {
-        return (solution, matches, segs);
+        return verified;
     }
     let mut tried: Vec<[usize; 2]> = Vec::new();
     let mut kept = 0;
     'swaps: while kept < MAX_SWAPS {
-        for [from, to] in parallel_neighbours(&segs, &matches, settings.swap_gap) {
+        let Verified { solution, matches, segs, .. } = &verified;
+        let before = frame.covered_length(segs, matches);
+        for [from, to] in parallel_neighbours(segs, matches, settings.swap_gap) {
             let (f, t) = (&segs[from], &segs[to]);
             if tried.contains(&[f.edge, t.edge]) {
                 continue;
             }
             tried.push([f.edge, t.edge]);
-            for moved in swap_choices(f, t, &matches) {
+            let gain = 0.25 * t.length();
+            for moved in swap_choices(f, t, matches) {
                 let swapped: Vec<Match> = matches
                     .iter()
                     .zip(&moved)
@@ -293,15 +309,10 @@ fn swap_parallel(
                 if !passes(&first, settings.residual_limit) {
                     continue;
                 }
-                let gain = 0.25 * t.length();
                 let (next, next_matches, next_segs, _) = lock_on(frame, problem, first, swapped, settings, needed);
-                if !frame.verify(&next_segs, &next_matches, next.residual_sigma) {
-                    continue;
-                }
-                let before = frame.covered_length(&segs, &matches);
-                let after = frame.covered_length(&next_segs, &next_matches);
-                if after >= before + gain {
-                    (solution, matches, segs) = (next, next_matches, next_segs);
+                let Some(support) = frame.verify(&next_segs, &next_matches, next.residual_sigma) else { continue };
+                if frame.covered_length(&next_segs, &next_matches) >= before + gain {
+                    verified = Verified { solution: next, matches: next_matches, segs: next_segs, support };
                     kept += 1;
                     continue 'swaps;
                 }
@@ -309,7 +320,7 @@ fn swap_parallel(
         }
         break;
     }
-    (solution, matches, segs)
+    verified
 }
 
 /// Which of `matches` a swap from model segment `from` to its unmatched
@@ -446,8 +457,8 @@ mod tests {
         fn endpoints(&self, image: usize) -> Endpoints {
             self.images[image]
         }
-        fn verify(&self, _segs: &[ModelSegment], matches: &[Match], _residual_sigma: Option<f64>) -> bool {
-            matches.len() >= 8
+        fn verify(&self, _segs: &[ModelSegment], matches: &[Match], _residual_sigma: Option<f64>) -> Option<Support> {
+            (matches.len() >= 8).then_some((matches.len(), matches.len()))
         }
         fn covered_length(&self, segs: &[ModelSegment], _matches: &[Match]) -> f64 {
             segs.iter().map(ModelSegment::length).sum()
