@@ -276,10 +276,7 @@ impl CpuBackend {
                         _ => {}
                     }
                     let (prev, cur, mask, sum) = (&img.previous, &img.smoothed, &mut img.motion_mask, &mut img.sum);
-                    match smoothing_part {
-                        Some(part) => temporal_diff::temporal_diff_and_sum_region_cpu(prev, cur, &p, part, mask, sum)?,
-                        None => temporal_diff::temporal_diff_and_sum_cpu(prev, cur, &p, mask, sum)?,
-                    }
+                    temporal_diff::temporal_diff_and_sum_cpu(prev, cur, &p, needed, mask, sum)?;
                 }
                 Step::Sobel { input, output } => {
                     let need = sobel_need(&plan, output);
@@ -650,6 +647,25 @@ fn recycled_list(spare: &mut Option<Vec<Feature>>) -> Vec<Feature> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A list's pixels and the bits of their values.
+    fn bits(list: &[Feature]) -> Vec<(u32, u32, u32, u32)> {
+        list.iter().map(|f| (f.x, f.y, f.theta.to_bits(), f.magnitude.to_bits())).collect()
+    }
+
+    /// Windows of a 97×61 frame at awkward places: inside, at the first and
+    /// the last corner, one row, one column, one pixel, empty, and reaching
+    /// beyond the frame.
+    const AWKWARD_WINDOWS: [Window; 8] = [
+        Window { x0: 20, y0: 15, x1: 61, y1: 40 },
+        Window { x0: 0, y0: 0, x1: 13, y1: 9 },
+        Window { x0: 80, y0: 50, x1: 97, y1: 61 },
+        Window { x0: 0, y0: 30, x1: 97, y1: 31 },
+        Window { x0: 45, y0: 0, x1: 46, y1: 61 },
+        Window { x0: 33, y0: 22, x1: 34, y1: 23 },
+        Window { x0: 50, y0: 20, x1: 50, y1: 40 },
+        Window { x0: 90, y0: 55, x1: 200, y1: 300 },
+    ];
     use crate::early::temporal_diff::TemporalDiffParams;
     use crate::testimage::natural;
 
@@ -673,13 +689,19 @@ mod tests {
         let smooth = |f: &GrayImage| gaussian(&f.to_f32(), &request.smoothing).unwrap();
         let (mut mask, mut sum) = (FloatImage::new(0, 0), FloatImage::new(0, 0));
         let (previous, current) = (smooth(&frames[0]), smooth(&frames[1]));
-        temporal_diff::temporal_diff_and_sum_cpu(&previous, &current, &motion.diff, &mut mask, &mut sum).unwrap();
+        temporal_diff::temporal_diff_and_sum_cpu(
+            &previous,
+            &current,
+            &motion.diff,
+            Window::full(w, h),
+            &mut mask,
+            &mut sum,
+        )
+        .unwrap();
         let planes = sobel(&sum);
         // The plan lists mask pixels above one half.
         let expected = compaction(&mask, &planes.theta, &planes.magnitude, &motion.list.compaction(0.5)).unwrap();
         assert!(!expected.is_empty());
-        let bits =
-            |l: &[Feature]| l.iter().map(|f| (f.x, f.y, f.theta.to_bits(), f.magnitude.to_bits())).collect::<Vec<_>>();
         assert_eq!(bits(&got), bits(&expected));
     }
 
@@ -712,9 +734,6 @@ mod tests {
             );
             let expected = compacted.unwrap();
             assert!(!expected.is_empty());
-            let bits = |l: &[Feature]| {
-                l.iter().map(|f| (f.x, f.y, f.theta.to_bits(), f.magnitude.to_bits())).collect::<Vec<_>>()
-            };
             assert_eq!(bits(&got), bits(&expected), "smoothed {smoothed}");
         }
     }
@@ -749,25 +768,19 @@ mod tests {
         let base = natural(w + 60, h + 4, 13);
         let frames: Vec<GrayImage> =
             (0..16).map(|k| GrayImage::from_fn(w, h, |x, y| base.get(x + 3 * k + (k % 3), y + k % 4))).collect();
-        let windows = [
-            Window { x0: 20, y0: 15, x1: 51, y1: 40 },
-            Window { x0: 0, y0: 0, x1: 13, y1: 9 },
-            Window { x0: 80, y0: 50, x1: 97, y1: 61 },
-            Window { x0: 30, y0: 10, x1: 60, y1: 35 },
-            Window { x0: 0, y0: 30, x1: 97, y1: 31 },
-            Window { x0: 45, y0: 0, x1: 46, y1: 61 },
-            Window { x0: 33, y0: 22, x1: 34, y1: 23 },
-            Window { x0: 50, y0: 20, x1: 50, y1: 40 },
-            Window { x0: 0, y0: 0, x1: 97, y1: 61 },
-            Window { x0: 25, y0: 12, x1: 58, y1: 44 },
-            Window { x0: 90, y0: 55, x1: 200, y1: 300 },
-        ];
+        // The awkward windows, the whole frame and two more of a third of it.
+        let windows: Vec<Window> = AWKWARD_WINDOWS
+            .into_iter()
+            .chain([
+                Window::full(w, h),
+                Window { x0: 30, y0: 10, x1: 60, y1: 35 },
+                Window { x0: 25, y0: 12, x1: 58, y1: 44 },
+            ])
+            .collect();
         let list = |window| ListSpec { window, cap: None, seed: 0 };
         let (mut parts, mut whole) = (CpuBackend::new(), CpuBackend::new());
         whole.windowed = false;
-        let bits = |l: &Option<Vec<Feature>>| {
-            l.iter().flatten().map(|f| (f.x, f.y, f.theta.to_bits(), f.magnitude.to_bits())).collect::<Vec<_>>()
-        };
+        let bits = |l: &Option<Vec<Feature>>| bits(l.as_deref().unwrap_or_default());
         let mut motion_pixels = 0;
         for (k, frame) in frames.iter().enumerate() {
             let request = FrameRequest {
@@ -813,19 +826,7 @@ mod tests {
         let mut backend = CpuBackend::new();
         let whole = backend.process(&frame, &request(Window::full(w, h))).unwrap().zero_crossings.unwrap();
         assert!(whole.len() > 200, "{} crossings", whole.len());
-        let bits =
-            |l: &[Feature]| l.iter().map(|f| (f.x, f.y, f.theta.to_bits(), f.magnitude.to_bits())).collect::<Vec<_>>();
-        let windows = [
-            Window { x0: 20, y0: 15, x1: 61, y1: 40 },
-            Window { x0: 0, y0: 0, x1: 13, y1: 9 },
-            Window { x0: 80, y0: 50, x1: 97, y1: 61 },
-            Window { x0: 0, y0: 30, x1: 97, y1: 31 },
-            Window { x0: 45, y0: 0, x1: 46, y1: 61 },
-            Window { x0: 33, y0: 22, x1: 34, y1: 23 },
-            Window { x0: 50, y0: 20, x1: 50, y1: 40 },
-            Window { x0: 90, y0: 55, x1: 200, y1: 300 },
-        ];
-        for window in windows {
+        for window in AWKWARD_WINDOWS {
             assert!(log_region(&FramePlan::new(&request(window), w, h, None), w, h).is_some() || window.is_empty());
             let got = backend.process(&frame, &request(window)).unwrap().zero_crossings.unwrap();
             let inside = |f: &&Feature| f.x >= window.x0 && f.x < window.x1 && f.y >= window.y0 && f.y < window.y1;

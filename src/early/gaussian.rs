@@ -194,15 +194,22 @@ simd_dispatch!(fn blur_col_row(src: &[f32], rows: RowStore, y: usize, dst: &mut 
 #[inline(always)]
 fn blur_col_row_body(src: &[f32], rows: RowStore, y: usize, dst: &mut [f32], half: &[f32]) {
     let row = |yy: isize| rows.row(src, yy);
-    let rows_at = |k: usize| (row(y as isize - k as isize), row(y as isize + k as isize));
+    blur_col_taps(dst, half, |k| (row(y as isize - k as isize), row(y as isize + k as isize)));
+}
+
+/// One output row of the vertical pass, `rows_at(k)` giving the rows k
+/// above and k below (clamped): the taps summed in registers for a half
+/// kernel of up to 5 taps, tap by tap along the row otherwise, in the
+/// order k = 0, 1, …, r either way.
+#[inline(always)]
+fn blur_col_taps<'a>(dst: &mut [f32], half: &[f32], rows_at: impl Fn(usize) -> (&'a [f32], &'a [f32])) {
     match half.len() {
         2 => blur_col_fixed::<2>(dst, half, rows_at),
         3 => blur_col_fixed::<3>(dst, half, rows_at),
         4 => blur_col_fixed::<4>(dst, half, rows_at),
         5 => blur_col_fixed::<5>(dst, half, rows_at),
         _ => {
-            let centre = row(y as isize);
-            for (d, &c) in dst.iter_mut().zip(centre) {
+            for (d, &c) in dst.iter_mut().zip(rows_at(0).0) {
                 *d = half[0] * c;
             }
             for (k, &w) in half.iter().enumerate().skip(1) {
@@ -421,24 +428,7 @@ fn blur_region_body(src: &[f32], span: &Span, half: &[f32], tmp: &mut [f32], pie
     };
     for y in span.output_rows.clone() {
         let out = &mut dst[y * w + x0..y * w + x1];
-        let rows_at = |k: usize| (row(y as isize - k as isize), row(y as isize + k as isize));
-        match half.len() {
-            2 => blur_col_fixed::<2>(out, half, rows_at),
-            3 => blur_col_fixed::<3>(out, half, rows_at),
-            4 => blur_col_fixed::<4>(out, half, rows_at),
-            5 => blur_col_fixed::<5>(out, half, rows_at),
-            _ => {
-                for (d, &c) in out.iter_mut().zip(row(y as isize)) {
-                    *d = half[0] * c;
-                }
-                for (k, &wk) in half.iter().enumerate().skip(1) {
-                    let (up, down) = rows_at(k);
-                    for ((d, &u), &v) in out.iter_mut().zip(up).zip(down) {
-                        *d += wk * (u + v);
-                    }
-                }
-            }
-        }
+        blur_col_taps(out, half, |k| (row(y as isize - k as isize), row(y as isize + k as isize)));
     }
 }
 

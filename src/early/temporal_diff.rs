@@ -108,36 +108,11 @@ const BAND_PIXELS: usize = 1 << 14;
 /// The motion mask of `prev → cur` into `mask` and the frame sum `prev + cur`
 /// (000 eq. 2's input, see [`super::frame_sum`]) into `sum`, in one pass over
 /// the two frames: the CPU backend's fusion of the two stages, each output
-/// equal to its stage's own twin.
-pub fn temporal_diff_and_sum_cpu(
-    prev: &FloatImage,
-    cur: &FloatImage,
-    params: &TemporalDiffParams,
-    mask: &mut FloatImage,
-    sum: &mut FloatImage,
-) -> Result<()> {
-    params.validate()?;
-    prev.check_same_size(cur, "temporal difference prev/cur")?;
-    let (w, h) = prev.size();
-    mask.resize(w, h);
-    sum.resize(w, h);
-    if w == 0 || h == 0 {
-        return Ok(());
-    }
-    let t = params.threshold;
-    let band = band_rows(w) * w;
-    let planes = (prev.data().par_chunks(band).zip(cur.data().par_chunks(band)))
-        .zip(mask.data_mut().par_chunks_mut(band).zip(sum.data_mut().par_chunks_mut(band)));
-    for_each_row(w * h, planes, |((p, c), (m, s))| diff_and_sum_row(p, c, m, s, t));
-    Ok(())
-}
-
-/// [`temporal_diff_and_sum_cpu`] inside `region` only (clipped): `mask` and
-/// `sum` are resized to the frames' size, their values inside the region
+/// equal to its stage's own twin. Only `region` (clipped) is computed: the
+/// outputs are resized to the frames' size, their values inside the region
 /// are those of the whole frames, and outside it they are whatever the
-/// images held before. `prev` and `cur` need only be valid inside the
-/// region.
-pub fn temporal_diff_and_sum_region_cpu(
+/// images held before; `prev` and `cur` need only be valid inside it.
+pub fn temporal_diff_and_sum_cpu(
     prev: &FloatImage,
     cur: &FloatImage,
     params: &TemporalDiffParams,
@@ -154,12 +129,21 @@ pub fn temporal_diff_and_sum_region_cpu(
     if region.is_empty() {
         return Ok(());
     }
-    let (x0, x1) = (region.x0 as usize, region.x1 as usize);
-    for y in region.y0 as usize..region.y1 as usize {
-        let run = y * w + x0..y * w + x1;
-        let (p, c) = (&prev.data()[run.clone()], &cur.data()[run.clone()]);
-        diff_and_sum_row(p, c, &mut mask.data_mut()[run.clone()], &mut sum.data_mut()[run], params.threshold);
+    let t = params.threshold;
+    let (x0, x1, y0, y1) = (region.x0 as usize, region.x1 as usize, region.y0 as usize, region.y1 as usize);
+    if x1 - x0 < w {
+        for y in y0..y1 {
+            let run = y * w + x0..y * w + x1;
+            let (p, c) = (&prev.data()[run.clone()], &cur.data()[run.clone()]);
+            diff_and_sum_row(p, c, &mut mask.data_mut()[run.clone()], &mut sum.data_mut()[run], t);
+        }
+        return Ok(());
     }
+    // Whole rows are one run of pixels, cut into bands.
+    let (rows, band) = (y0 * w..y1 * w, band_rows(w) * w);
+    let planes = (prev.data()[rows.clone()].par_chunks(band).zip(cur.data()[rows.clone()].par_chunks(band)))
+        .zip(mask.data_mut()[rows.clone()].par_chunks_mut(band).zip(sum.data_mut()[rows].par_chunks_mut(band)));
+    for_each_row(w * (y1 - y0), planes, |((p, c), (m, s))| diff_and_sum_row(p, c, m, s, t));
     Ok(())
 }
 
@@ -232,7 +216,8 @@ mod tests {
         FloatImage::from_vec(w, h, v.to_vec()).unwrap()
     }
 
-    /// The fused pass equals the two stages' own twins, small and threaded sizes.
+    /// The fused pass equals the two stages' own twins, small and threaded
+    /// sizes, on the whole frame and on regions.
     #[test]
     fn fused_diff_and_sum_equal_the_separate_twins() {
         for (w, h) in [(1, 1), (7, 5), (1, 9), (16_385, 2), (320, 240)] {
@@ -240,11 +225,29 @@ mod tests {
             let b = crate::testimage::natural(w, h, 2).to_f32();
             let p = TemporalDiffParams::default();
             let (mut mask, mut sum) = (FloatImage::new(0, 0), FloatImage::new(0, 0));
-            temporal_diff_and_sum_cpu(&a, &b, &p, &mut mask, &mut sum).unwrap();
+            temporal_diff_and_sum_cpu(&a, &b, &p, Window::full(w, h), &mut mask, &mut sum).unwrap();
             let mut expected = FloatImage::new(0, 0);
             temporal_diff_cpu(&a, &b, &p, &mut expected).unwrap();
             assert_eq!(mask, expected);
-            assert_eq!(sum, crate::early::frame_sum::frame_sum(&a, &b).unwrap());
+            let expected_sum = crate::early::frame_sum::frame_sum(&a, &b).unwrap();
+            assert_eq!(sum, expected_sum);
+            // A region, part of the rows or all of them: its pixels as the
+            // whole frame's, nothing else written.
+            let (wu, hu) = (w as u32, h as u32);
+            for region in
+                [Window { x0: wu / 3, y0: hu / 4, x1: wu - wu / 3, y1: hu }, Window { x0: 0, y0: 1, x1: wu, y1: hu }]
+            {
+                let (mut part_mask, mut part_sum) = (FloatImage::from_fn(w, h, |_, _| -1.0), FloatImage::new(w, h));
+                temporal_diff_and_sum_cpu(&a, &b, &p, region, &mut part_mask, &mut part_sum).unwrap();
+                for y in 0..h {
+                    for x in 0..w {
+                        let inside = (region.x0 as usize..region.x1 as usize).contains(&x)
+                            && (region.y0 as usize..region.y1 as usize).contains(&y);
+                        let want = if inside { (expected.get(x, y), expected_sum.get(x, y)) } else { (-1.0, 0.0) };
+                        assert_eq!((part_mask.get(x, y), part_sum.get(x, y)), want, "{w}x{h} {region:?} ({x}, {y})");
+                    }
+                }
+            }
         }
     }
 

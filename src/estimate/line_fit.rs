@@ -123,12 +123,35 @@ pub fn orientation_difference(a: f64, b: f64) -> f64 {
     d.min(std::f64::consts::PI - d)
 }
 
+/// Difference of two undirected orientations as
+/// [`orientation_difference`] gives it, for `a − b` in (−2π, 2π) (two
+/// orientations in [0, π], or an edge direction in [−π, π] and an
+/// orientation), without a branch, so that a loop over many pixels
+/// vectorises. The same value (at `a − b` = −π it is +0 where that is −0).
+#[inline(always)]
+pub(crate) fn orientation_difference_near(a: f64, b: f64) -> f64 {
+    let x = a - b;
+    let d = x - pi_multiple(x);
+    d.min(std::f64::consts::PI - d)
+}
+
+/// The multiple of π (−2π, −π, 0 or π) that `x.rem_euclid(π)` takes from x
+/// for −2π < x < 2π, from comparisons alone, which vectorise (the term of
+/// [`rem_pi`]'s table where their ranges meet). For −π < x < 2π, x minus it
+/// is `rem_euclid` bit for bit; below −π, `rem_euclid` adds π to the exact
+/// x + π, one rounding of x + 2π as here; at −π it gives −0 and this +0.
+#[inline(always)]
+fn pi_multiple(x: f64) -> f64 {
+    use std::f64::consts::PI;
+    PI * f64::from(i32::from(x >= PI) - i32::from(x < 0.0) - i32::from(x < -PI))
+}
+
 /// `x.rem_euclid(π)`, bit for bit, without the division for −π < x < 2π
 /// (the difference of two orientations, an edge direction turned by π/2):
 /// for |x| < π the remainder is `x` itself, and `rem_euclid` adds π to a
 /// negative one; for π ≤ x < 2π it is x − π, which is exact there
-/// (Sterbenz). The term is taken from a table rather than picked by
-/// branches: a frame's orientations fall into the three cases at random.
+/// (Sterbenz). The term is taken from a table: one scalar at a time it
+/// costs less than the comparisons of [`pi_multiple`] (blue 2 % per frame).
 /// Subtracting 0 keeps −0 as `rem_euclid` does.
 #[inline]
 pub(crate) fn rem_pi(x: f64) -> f64 {
@@ -537,6 +560,11 @@ mod tests {
         values.extend(thetas.into_iter().map(|t| f64::from(t) + std::f64::consts::FRAC_PI_2));
         for x in values {
             assert_eq!(rem_pi(x).to_bits(), x.rem_euclid(PI).to_bits(), "x = {x:e}");
+            // The branch-free remainder below −π as well, in value.
+            if x.abs() < 2.0 * PI {
+                assert_eq!(x - pi_multiple(x), x.rem_euclid(PI), "x = {x:e}");
+                assert_eq!(orientation_difference_near(x, 0.0), orientation_difference(x, 0.0), "x = {x:e}");
+            }
         }
     }
 

@@ -6,6 +6,7 @@ use super::params::LineFitMethod;
 use crate::early::{Feature, simd_dispatch};
 use crate::estimate::line_fit::{
     Line, LineFit, LineSums, fit_band_across, fit_line, fit_line_orthogonal, orientation_difference,
+    orientation_difference_near,
 };
 
 /// A band of labelled pixels whose perpendicular standard deviation about
@@ -254,7 +255,6 @@ fn test_line_body(
     nearest: &mut Nearest,
     masks: &mut [u64],
 ) {
-    use std::f64::consts::PI;
     let (low, high) = (-tolerance.extent, line.length + tolerance.extent);
     let (phi, bit, index) = (line.orientation, 1u64 << k, k as u32);
     let n = masks.len();
@@ -262,22 +262,8 @@ fn test_line_body(
     let (best_line, best_distance, best_along) =
         (&mut nearest.line[..n], &mut nearest.distance[..n], &mut nearest.along[..n]);
     for i in 0..n {
-        // orientation_difference(θ, φ) for θ − φ in (−2π, 2π): the term of
-        // rem_pi (rem_euclid by π) picked by selects. Below −π, rem_euclid
-        // adds π twice to the exact x + π, one rounding of x + 2π; at −π
-        // it gives −0 where this gives +0, the same difference.
-        let diff = thetas[i] - phi;
-        let term = if diff >= PI {
-            PI
-        } else if diff >= 0.0 {
-            0.0
-        } else if diff >= -PI {
-            -PI
-        } else {
-            -2.0 * PI
-        };
-        let r = diff - term;
-        let compatible = !(r.min(PI - r) >= delta);
+        // Eq. 3, θ − φ in (−2π, 2π) by the orientations' range.
+        let compatible = !(orientation_difference_near(thetas[i], phi) >= delta);
         let d = line.line.distance([xs[i], ys[i]]);
         let s = line.along([xs[i], ys[i]]);
         let nearer = compatible & (d < tolerance.distance) & (s >= low) & (s <= high) & (d < best_distance[i]);
