@@ -263,17 +263,9 @@ impl CpuBackend {
                 Step::DiffAndSum(p) => {
                     // The previous frame smoothed where this frame needs it.
                     let needed = smoothing_part.unwrap_or(full);
-                    match self.previous_part {
-                        Some(had) if !had.contains(&needed) => {
-                            let (src, tmp, piece) = (&img.previous_luma, &mut self.tmp, &mut self.piece);
-                            match smoothing_part {
-                                Some(part) => {
-                                    gaussian_region_cpu(src, &request.smoothing, part, tmp, piece, &mut img.previous)?
-                                }
-                                None => gaussian_cpu(src, &request.smoothing, tmp, &mut img.previous)?,
-                            }
-                        }
-                        _ => {}
+                    if self.previous_part.is_some_and(|had| !had.contains(&needed)) {
+                        let (src, tmp, piece) = (&img.previous_luma, &mut self.tmp, &mut self.piece);
+                        gaussian_region_cpu(src, &request.smoothing, needed, tmp, piece, &mut img.previous)?;
                     }
                     let (prev, cur, mask, sum) = (&img.previous, &img.smoothed, &mut img.motion_mask, &mut img.sum);
                     temporal_diff::temporal_diff_and_sum_cpu(prev, cur, &p, needed, mask, sum)?;

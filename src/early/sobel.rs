@@ -582,6 +582,49 @@ mod tests {
         assert!(close(s.theta.get(2, 2), FRAC_PI_4));
     }
 
+    /// Gradients and magnitude of a region are the whole image's, bit for
+    /// bit, and nothing outside the region is written: regions inside, at
+    /// each border, one row, one column, one pixel, empty, beyond the image;
+    /// images one and two pixels wide.
+    #[test]
+    fn region_gradients_equal_the_whole_images_inside_it_bitwise() {
+        for (w, h) in [(37, 29), (2, 9), (1, 5), (9, 1)] {
+            let src = crate::testimage::natural(w, h, 3).to_f32();
+            let whole = sobel(&src);
+            let (wu, hu) = (w as u32, h as u32);
+            let regions = [
+                Window { x0: 5, y0: 4, x1: 20, y1: 17 },
+                Window { x0: 0, y0: 0, x1: 3, y1: 2 },
+                Window { x0: wu.saturating_sub(2), y0: hu.saturating_sub(3), x1: wu, y1: hu },
+                Window { x0: 0, y0: hu / 2, x1: wu, y1: hu / 2 + 1 },
+                Window { x0: wu / 2, y0: 0, x1: wu / 2 + 1, y1: hu },
+                Window { x0: 1, y0: 1, x1: 2, y1: 2 },
+                Window { x0: 4, y0: 4, x1: 4, y1: 8 },
+                Window { x0: 1, y0: 0, x1: 400, y1: 400 },
+            ];
+            for region in regions {
+                let mut out = SobelOutput::new(w, h);
+                for plane in [&mut out.gx, &mut out.gy, &mut out.magnitude] {
+                    plane.data_mut().fill(-5.0);
+                }
+                sobel_gradient_magnitude_region_cpu(&src, region, &mut out);
+                let r = region.clipped(w, h);
+                for y in 0..h {
+                    for x in 0..w {
+                        let inside =
+                            (r.x0 as usize..r.x1 as usize).contains(&x) && (r.y0 as usize..r.y1 as usize).contains(&y);
+                        for (got, all) in
+                            [(&out.gx, &whole.gx), (&out.gy, &whole.gy), (&out.magnitude, &whole.magnitude)]
+                        {
+                            let want = if inside { all.get(x, y) } else { -5.0 };
+                            assert_eq!(got.get(x, y).to_bits(), want.to_bits(), "{w}x{h} {region:?} at ({x}, {y})");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn one_pixel_image_is_all_zero_gradient_with_clamp() {
         // Every neighbour clamps to the one pixel: gx = gy = 0, so the

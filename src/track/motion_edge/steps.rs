@@ -178,13 +178,13 @@ fn label_pixel_by_pixel(
 const MAX_LINE_MASK: usize = 64;
 
 /// [`label_motion_pixels`] of `pixels` (orientations or directions, in
-/// [−π, π]), line
-/// by line over all pixels instead of pixel by pixel: each line's tests run
-/// over arrays of the pixels' coordinates without branches, so they
-/// vectorise, keeping per pixel the nearest line within tolerance (the
-/// first of equals, as in pixel order) and a mask of the lines of its
-/// orientation; the pixels are then labelled in their order. The same
-/// arithmetic as [`orientation_difference`], [`Line::distance`] and
+/// [−π, π]), line by line over all pixels instead of pixel by pixel: each
+/// line's tests run over arrays of the pixels' coordinates without
+/// branches, so they vectorise, keeping per pixel the nearest line within
+/// tolerance (the first of equals, as in pixel order) and a mask of the
+/// lines of its orientation; the pixels are then labelled in their order.
+/// The same values as [`orientation_difference`] (through
+/// [`orientation_difference_near`]), [`Line::distance`] and
 /// [`ModelLine::along`], so the same labelling bit for bit.
 fn label_by_lines(
     pixels: &[&Feature],
@@ -199,9 +199,9 @@ fn label_by_lines(
     let theta: Vec<f64> = pixels.iter().map(|f| f64::from(f.theta)).collect();
     let mut nearest = Nearest { line: vec![u32::MAX; n], distance: vec![f64::INFINITY; n], along: vec![0.0; n] };
     let mut masks = vec![0u64; n];
+    let points = Points { x: &x, y: &y, theta: &theta };
     for (k, (line, tolerance)) in lines.iter().zip(tolerances).enumerate() {
         let Some(line) = line else { continue };
-        let points = Points { x: &x, y: &y, theta: &theta };
         test_line(points, line, tolerance, k, delta, &mut nearest, &mut masks);
     }
     for (i, feature) in pixels.iter().enumerate() {
