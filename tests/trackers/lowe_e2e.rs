@@ -26,6 +26,9 @@ struct Case {
     kind: BoxKind,
     speed: f64,
     occlude: f64,
+    /// Standard deviation of the added pixel noise, grey levels (`synth`'s
+    /// default is 2).
+    noise: f64,
     /// Seed of the scene's textures, clutter and noise.
     seed: u64,
     /// Fewest frames of the 300 reported tracking.
@@ -44,6 +47,7 @@ const BOX_SLOW: Case = Case {
     kind: BoxKind::Rigid,
     speed: 4.0,
     occlude: 0.0,
+    noise: 2.0,
     seed: 0,
     min_tracked: 300,
     max_false: 0,
@@ -90,6 +94,7 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<
         kind: case.kind,
         speed: case.speed,
         occlude: case.occlude,
+        noise_sigma: case.noise,
         seed: case.seed,
         ..BoxOptions::default()
     };
@@ -117,10 +122,11 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<
         .map(|&(f, e)| format!("{f}: {e:.1}° (σ {:.1}°)", lid_sigma(f)))
         .collect();
     let label = format!(
-        "{backend_name}, {}, {} px/frame, occlude {}, seed {}",
+        "{backend_name}, {}, {} px/frame, occlude {}, noise {}, seed {}",
         case.kind.name(),
         case.speed,
         case.occlude,
+        case.noise,
         case.seed
     );
     eprintln!(
@@ -203,6 +209,19 @@ fn lowe_hinged_box_occluded_at_20_and_30_px_per_frame_has_no_more_than_1_percent
     for case in [HINGED_OCCLUDED_FAST, seed_0, HINGED_OCCLUDED_30] {
         check(&case, &mut CpuBackend::new(), "cpu");
     }
+}
+
+/// Noise σ 8 at 20 px/frame, seed 0: at frames 26 and 276 the lid,
+/// closing and seen nearly edge on, was fitted 2° off with 28 matches; a
+/// search from the lid standing open matched 18 segments, some on clutter,
+/// with more of its outline supported, and replaced the fit; the velocity
+/// of that jump carried the lid to its limit, 14–37 px off for 15 frames
+/// while tracking. Another joint value now needs more matches as well.
+const HINGED_NOISY: Case = Case { speed: 20.0, noise: 8.0, min_tracked: 295, ..HINGED_25 };
+
+#[test]
+fn lowe_hinged_box_with_noise_has_no_more_than_1_percent_false_tracking_cpu() {
+    check(&HINGED_NOISY, &mut CpuBackend::new(), "cpu");
 }
 
 /// The GPU backend holds all six scenes as the CPU backend does, with the
