@@ -202,11 +202,17 @@ fn lowe_at_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
 /// limit, where no match constrained it (σ = its prior), and replaced the
 /// fit: 20–35 px off. An unmeasured joint no longer wins that way.
 const HINGED_OCCLUDED_30: Case = Case { speed: 30.0, occlude: 0.5, seed: 1, min_tracked: 265, ..HINGED_25 };
+/// Seed 0: at frame 247 the lid, opening again behind the occluder, folded
+/// onto the box's rim, 14° from its prediction; the search from the lid
+/// open, 6° from the prediction, was held to the margin of a 20° jump
+/// from the fold, and the fold stayed for five frames, 7–22 px off. The
+/// margin now counts from the prediction when that is nearer.
+const HINGED_OCCLUDED_30_SEED_0: Case = Case { seed: 0, min_tracked: 280, ..HINGED_OCCLUDED_30 };
 
 #[test]
 fn lowe_hinged_box_occluded_at_20_and_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
     let seed_0 = Case { seed: 0, ..HINGED_OCCLUDED_FAST };
-    for case in [HINGED_OCCLUDED_FAST, seed_0, HINGED_OCCLUDED_30] {
+    for case in [HINGED_OCCLUDED_FAST, seed_0, HINGED_OCCLUDED_30, HINGED_OCCLUDED_30_SEED_0] {
         check(&case, &mut CpuBackend::new(), "cpu");
     }
 }

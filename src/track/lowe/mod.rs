@@ -81,7 +81,10 @@
 //!    its range (the pose and the other joints held), the two whose outline
 //!    has the most zero crossings along it are searched from, and a
 //!    verified solution at least 0.2 rad away replaces the frame's when its
-//!    outline has 5 % + 10 % per radian moved more supported samples, at a
+//!    outline has 5 % + 10 % per radian moved more supported samples (the
+//!    radians counted from the frame's fit or from the prediction,
+//!    whichever is nearer: a part that folded onto another, away from
+//!    where its motion was taking it, earns no margin from the fold), at a
 //!    supported fraction no lower, and every joint it moved is measured
 //!    there (its σ below 0.9 of `prior_joint_sigma`): a lid hidden by an
 //!    occluder, searched from its limit, stays at the limit with no match
@@ -450,7 +453,8 @@ impl LoweTracker {
     /// the most zero crossings along them are searched from; the best
     /// supported verified solution at least [`JOINT_ALTERNATIVE_GAP`] from
     /// `found`'s joint values replaces `found` when its outline has more
-    /// supported samples by the margin of [`better_supported`], every joint
+    /// supported samples by the margin of [`better_supported`] (for its
+    /// distance from `found` or from the prediction, the nearer), every joint
     /// it moved is measured, and it has more matches than `found`.
     fn joint_alternatives(&self, view: &FrameView<'_>, found: Found, diag: &mut LoweDiagnostics) -> Found {
         // Only a verified solution has its outline's support counted.
@@ -479,14 +483,11 @@ impl LoweTracker {
         for (_, hypothesis, segs) in hypotheses.iter().take(JOINT_REFITS) {
             let Some(other) = self.search_at(view, hypothesis, segs, 0, 0.0, diag) else { continue };
             let Some(counts) = other.support else { continue };
-            let moved = other
-                .solution
-                .state
-                .params
-                .iter()
-                .zip(&found.solution.state.params)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let params = &other.solution.state.params;
+            let moved = largest_difference(params, &found.solution.state.params);
+            // The jump that needs evidence: from the frame's fit or from the
+            // prediction, whichever is nearer.
+            let jump = moved.min(largest_difference(params, &self.prediction.params));
             // Each joint that moved is measured in the other solution: the
             // image, not the prior alone, sets its value.
             let measured = (0..self.limits.len()).all(|j| {
@@ -496,7 +497,7 @@ impl LoweTracker {
             if moved >= JOINT_ALTERNATIVE_GAP
                 && measured
                 && other.matches.len() > found.matches.len()
-                && better_supported(counts, own, moved)
+                && better_supported(counts, own, jump)
                 && best.as_ref().is_none_or(|(c, _)| counts.0 > *c)
             {
                 best = Some((counts.0, other));
@@ -548,6 +549,11 @@ const JOINT_ALTERNATIVE_GAP: f64 = 0.2;
 /// its prior's (`prior_joint_sigma`) is not measured there: no match
 /// constrains it, and its value is where the search started.
 const UNMEASURED_SIGMA_RATIO: f64 = 0.9;
+
+/// The largest absolute difference of two joint-value lists, radians.
+fn largest_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
 
 /// Whether an outline with `(supported, samples)` = `other`, at joint
 /// values up to `moved` radians from those of an outline with `own`, is
