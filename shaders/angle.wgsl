@@ -7,11 +7,17 @@
 const PI: f32 = 3.14159265358979;
 const HALF_PI: f32 = 1.57079632679490;
 
-// atan(a) for a in [0, 1]: Horner, highest power first.
+// atan(a) for a in [0, 1]: the polynomial in s = a² by Estrin's scheme,
+// pairs of coefficients first, then the pairs in s², then the halves in s⁴.
 fn atan_unit(a: f32) -> f32 {
     let s = a * a;
-    let p = ((((((-0.004054058 * s + 0.021861229) * s - 0.055909886) * s + 0.096420044) * s - 0.13908534) * s
-        + 0.19946536) * s - 0.33329856) * s + 0.99999933;
+    let s2 = s * s;
+    let s4 = s2 * s2;
+    let q0 = -0.33329856 * s + 0.99999933;
+    let q1 = -0.13908534 * s + 0.19946536;
+    let q2 = -0.055909886 * s + 0.096420044;
+    let q3 = -0.004054058 * s + 0.021861229;
+    let p = (q1 * s2 + q0) + (q3 * s2 + q2) * s4;
     return p * a;
 }
 

@@ -138,18 +138,22 @@ const BORDER_PIECE: usize = 12;
 #[inline(always)]
 fn blur_row_fixed<const N: usize>(src: &[f32], dst: &mut [f32], half: &[f32]) {
     let (n, r) = (src.len(), N - 1);
-    let last = n as isize - 1;
-    let mut piece = [0.0f32; BORDER_PIECE];
-    let mut border = |first: isize, out: &mut [f32]| {
-        for (j, v) in piece[..3 * r].iter_mut().enumerate() {
-            *v = src[(first + j as isize).clamp(0, last) as usize];
-        }
-        blur_interior::<N>(&piece[..3 * r], out, half);
-    };
     // Output pixel x reads piece index x − first, i.e. r + (x − first − r).
-    border(-(r as isize), &mut dst[..r]);
+    blur_border::<N>(src, -(r as isize), &mut dst[..r], half);
     blur_interior::<N>(src, &mut dst[r..n - r], half);
-    border((n - 2 * r) as isize, &mut dst[n - r..]);
+    blur_border::<N>(src, (n - 2 * r) as isize, &mut dst[n - r..], half);
+}
+
+/// The `r` border pixels `out` of [`blur_row_fixed`]: the interior of the
+/// piece of `3r` values of `src` from index `first`, clamped to the edge.
+#[inline(always)]
+fn blur_border<const N: usize>(src: &[f32], first: isize, out: &mut [f32], half: &[f32]) {
+    let (r, last) = (N - 1, src.len() as isize - 1);
+    let mut piece = [0.0f32; BORDER_PIECE];
+    for (j, v) in piece[..3 * r].iter_mut().enumerate() {
+        *v = src[(first + j as isize).clamp(0, last) as usize];
+    }
+    blur_interior::<N>(&piece[..3 * r], out, half);
 }
 
 /// The interior `dst = src[r..n − r]` blurred, for a half kernel of `N`
