@@ -36,7 +36,7 @@ const C: [f32; 8] = [
 /// scheme — pairs of coefficients first, then the pairs in `s²`, then the
 /// halves in `s⁴` (the shader uses the same order) — whose chain of
 /// dependent operations is half as long as Horner's, so a vectorised loop
-/// keeps more of them in flight (Sobel and zero crossings 12–15 % faster).
+/// keeps more of them in flight.
 #[inline]
 fn atan_unit(a: f32) -> f32 {
     let s = a * a;
