@@ -441,7 +441,7 @@ fn reads_log(source: Source) -> bool {
 /// only where they are the frame's own.
 fn log_region(plan: &FramePlan, width: usize, height: usize) -> Option<Window> {
     let mut radius = None;
-    let mut union: Option<Window> = None;
+    let mut union = Window::default();
     for step in plan.steps() {
         match *step {
             Step::Log(p) => radius = Some(log_kernels(p.sigma).ok()?.radius() as u32),
@@ -454,29 +454,16 @@ fn log_region(plan: &FramePlan, width: usize, height: usize) -> Option<Window> {
                 if reading.iter().any(|&r| !r) || params.cap.is_some() {
                     return None;
                 }
-                let w = params.window.clipped(width, height);
-                if w.is_empty() {
-                    continue;
-                }
-                union = Some(union.map_or(w, |u| Window {
-                    x0: u.x0.min(w.x0),
-                    y0: u.y0.min(w.y0),
-                    x1: u.x1.max(w.x1),
-                    y1: u.y1.max(w.y1),
-                }));
+                union = union.union(&params.window.clipped(width, height));
             }
             _ => {}
         }
     }
     let margin = radius? + 1;
-    let u = union?;
-    let part = Window {
-        x0: u.x0.saturating_sub(margin),
-        y0: u.y0.saturating_sub(margin),
-        x1: u.x1.saturating_add(margin),
-        y1: u.y1.saturating_add(margin),
+    if union.is_empty() {
+        return None;
     }
-    .clipped(width, height);
+    let part = union.grown(margin).clipped(width, height);
     (part.area() < width * height).then_some(part)
 }
 

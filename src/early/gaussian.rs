@@ -148,12 +148,20 @@ fn blur_row_fixed<const N: usize>(src: &[f32], dst: &mut [f32], half: &[f32]) {
 /// piece of `3r` values of `src` from index `first`, clamped to the edge.
 #[inline(always)]
 fn blur_border<const N: usize>(src: &[f32], first: isize, out: &mut [f32], half: &[f32]) {
-    let (r, last) = (N - 1, src.len() as isize - 1);
+    let r = N - 1;
     let mut piece = [0.0f32; BORDER_PIECE];
-    for (j, v) in piece[..3 * r].iter_mut().enumerate() {
+    fill_clamped(src, first, &mut piece[..3 * r]);
+    blur_interior::<N>(&piece[..3 * r], out, half);
+}
+
+/// `out` filled with the values of `src` from index `first` on, each index
+/// clamped to `src` (borders clamp to the edge).
+#[inline(always)]
+fn fill_clamped(src: &[f32], first: isize, out: &mut [f32]) {
+    let last = src.len() as isize - 1;
+    for (j, v) in out.iter_mut().enumerate() {
         *v = src[(first + j as isize).clamp(0, last) as usize];
     }
-    blur_interior::<N>(&piece[..3 * r], out, half);
 }
 
 /// The interior `dst = src[r..n − r]` blurred, for a half kernel of `N`
@@ -410,9 +418,8 @@ fn blur_region_body(src: &[f32], span: &Span, half: &[f32], tmp: &mut [f32], pie
         let values = if x0 >= r && x1 + r <= w {
             &row[x0 - r..x1 + r]
         } else {
-            let last = w as isize - 1;
-            piece.clear();
-            piece.extend((0..n + 2 * r).map(|j| row[(x0 as isize - r as isize + j as isize).clamp(0, last) as usize]));
+            piece.resize(n + 2 * r, 0.0);
+            fill_clamped(row, x0 as isize - r as isize, piece);
             &piece[..]
         };
         match half.len() {
