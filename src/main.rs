@@ -188,6 +188,11 @@ enum Command {
         /// sample windows (comma-separated), e.g. 200,1000,5000.
         #[arg(long, value_delimiter = ',')]
         windows: Vec<usize>,
+        /// Instead of the stages: the whole chain with these numbers of
+        /// sequences in flight (comma-separated, 1 to 64), as `batch` runs
+        /// them: one submission per step carries a frame of each.
+        #[arg(long, value_delimiter = ',', conflicts_with = "windows")]
+        lanes: Vec<usize>,
     },
 }
 
@@ -442,8 +447,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench { windows, json, seconds, cpu_only, .. } if !windows.is_empty() => {
             bench_windows(&windows, json, seconds, !cpu_only)
         }
-        Command::Bench { sizes, json, stages, seconds, cpu_only, .. } => {
-            bench(&sizes.0, json, &stages, seconds, !cpu_only)
+        Command::Bench { sizes, json, stages, seconds, cpu_only, lanes, .. } => {
+            bench(&sizes.0, json, &stages, &lanes, seconds, !cpu_only)
         }
     }
 }
@@ -484,7 +489,26 @@ fn bench_windows(counts: &[usize], json: bool, seconds: f64, gpu: bool) -> anyho
     Ok(())
 }
 
-fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64, gpu: bool) -> anyhow::Result<()> {
+fn bench(
+    sizes: &[(usize, usize)],
+    json: bool,
+    stages: &[String],
+    lanes: &[usize],
+    seconds: f64,
+    gpu: bool,
+) -> anyhow::Result<()> {
+    if !lanes.is_empty() && !stages.is_empty() {
+        return Err(
+            pipetrack::Error::Parameter("--lanes times the whole chain: give it without --stages".into()).into()
+        );
+    }
+    if let Some(&k) = lanes.iter().find(|&&k| k == 0 || k > pipetrack::backend::MAX_LANES) {
+        return Err(pipetrack::Error::Parameter(format!(
+            "--lanes {k} must be in 1..={}",
+            pipetrack::backend::MAX_LANES
+        ))
+        .into());
+    }
     let all = pipetrack::cli::bench::stages();
     let chosen: Vec<&str> = if stages.is_empty() {
         all.to_vec()
@@ -509,7 +533,7 @@ fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64, 
         ))?;
     }
     let mut write_error = None;
-    let report = pipetrack::cli::bench::compare(sizes, &chosen, budget, gpu, |row| {
+    let print_row = |row: &pipetrack::cli::bench::BenchRow| {
         if !json && write_error.is_none() {
             let gpu = row.gpu_fps.map_or("-".to_string(), |g| format!("{g:.1}"));
             let ratio = row.gpu_over_cpu.map_or("-".to_string(), |r| format!("{r:.2}"));
@@ -524,7 +548,12 @@ fn bench(sizes: &[(usize, usize)], json: bool, stages: &[String], seconds: f64, 
             ))
             .err();
         }
-    })
+    };
+    let report = if lanes.is_empty() {
+        pipetrack::cli::bench::compare(sizes, &chosen, budget, gpu, print_row)
+    } else {
+        pipetrack::cli::bench::compare_lanes(sizes, lanes, budget, gpu, print_row)
+    }
     .context("benchmark failed")?;
     if let Some(e) = write_error {
         return Err(e);

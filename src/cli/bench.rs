@@ -7,7 +7,11 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use crate::backend::plan::PreviousFrame;
-use crate::backend::{CpuBackend, EarlyVision, FramePlan, FrameRequest, FrameStats, GpuBackend};
+use rayon::prelude::*;
+
+use crate::backend::{
+    CpuBackend, EarlyVision, FramePlan, FrameRequest, FrameStats, GpuBackend, LaneFrame, MAX_LANES, Ticket,
+};
 use crate::early::compaction::{self, CompactionGpu, CompactionParams};
 use crate::early::cpf::{self, CpfGpu, CpfPyramids};
 use crate::early::edge_pyramid::{self, EdgePyramidGpu, EdgePyramids};
@@ -225,6 +229,87 @@ fn record_stage(
     }
 }
 
+/// The row name of the whole chain timed with `lanes` sequences in flight.
+#[must_use]
+pub fn lanes_stage(lanes: usize) -> String {
+    format!("chain x{lanes}")
+}
+
+/// The whole chain on `lanes` independent sequences at once, as `batch`
+/// runs them on the GPU: each step records the next frame of every lane of
+/// one group into one submission, and two groups take turns so one is on
+/// the device while the other's features are read back. One call is
+/// [`CHAIN_FRAMES`] steps, `CHAIN_FRAMES × lanes` frames.
+pub fn gpu_lanes_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
+    check_lanes(lanes)?;
+    let (w, h) = inp.luma.size();
+    let mut backend = GpuBackend::new(ctx.clone());
+    let request = FrameRequest::full_chain(w, h);
+    let groups: Vec<Vec<usize>> =
+        if lanes == 1 { vec![vec![0]] } else { vec![(0..lanes).step_by(2).collect(), (1..lanes).step_by(2).collect()] };
+    Ok(Box::new(move || {
+        let n = inp.frames.len();
+        let mut pending: Vec<Vec<Ticket>> = groups.iter().map(|_| Vec::new()).collect();
+        for step in 0..CHAIN_FRAMES {
+            for (group, tickets) in groups.iter().zip(&mut pending) {
+                for ticket in tickets.drain(..) {
+                    let features = backend.finish(ticket)?;
+                    backend.recycle(features);
+                }
+                let frames: Vec<LaneFrame<'_>> = group
+                    .iter()
+                    .map(|&lane| LaneFrame {
+                        lane,
+                        frame: &inp.frames[(step + lane) % n],
+                        colour: None,
+                        request: &request,
+                    })
+                    .collect();
+                *tickets = backend.submit_lanes(&frames)?;
+            }
+        }
+        for ticket in pending.into_iter().flatten() {
+            let features = backend.finish(ticket)?;
+            backend.recycle(features);
+        }
+        Ok(())
+    }))
+}
+
+/// The CPU counterpart of [`gpu_lanes_body`]: `lanes` CPU backends, each
+/// step processing one frame of every lane in parallel on the thread pool.
+pub fn cpu_lanes_body<'a>(inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
+    check_lanes(lanes)?;
+    let (w, h) = inp.luma.size();
+    let mut backends: Vec<CpuBackend> = (0..lanes).map(|_| CpuBackend::new()).collect();
+    let request = FrameRequest::full_chain(w, h);
+    Ok(Box::new(move || {
+        let n = inp.frames.len();
+        for step in 0..CHAIN_FRAMES {
+            backends.par_iter_mut().enumerate().try_for_each(|(lane, backend)| {
+                let features = backend.process(&inp.frames[(step + lane) % n], &request)?;
+                backend.recycle(features);
+                Ok::<(), Error>(())
+            })?;
+        }
+        Ok(())
+    }))
+}
+
+fn check_lanes(lanes: usize) -> Result<()> {
+    if (1..=MAX_LANES).contains(&lanes) {
+        Ok(())
+    } else {
+        Err(Error::Parameter(format!("{lanes} sequences in flight: give 1 to {MAX_LANES}")))
+    }
+}
+
+/// Frames' worth of work one call of a lanes body does.
+#[must_use]
+pub fn lanes_frames_per_call(lanes: usize) -> usize {
+    CHAIN_FRAMES * lanes
+}
+
 /// Frames' worth of work one call of a GPU body does.
 #[must_use]
 pub fn gpu_frames_per_call(stage: &str) -> usize {
@@ -388,6 +473,54 @@ pub fn compare(
     Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows, gpu_chain })
 }
 
+/// The whole chain at every size with each number of sequences in flight
+/// ([`gpu_lanes_body`], [`cpu_lanes_body`]), CPU and, with `gpu`, GPU.
+pub fn compare_lanes(
+    sizes: &[(usize, usize)],
+    lanes: &[usize],
+    budget: Duration,
+    gpu: bool,
+    mut progress: impl FnMut(&BenchRow),
+) -> Result<BenchReport> {
+    for &k in lanes {
+        check_lanes(k)?;
+    }
+    let gpu = gpu.then(GpuContext::new);
+    let adapter = match &gpu {
+        None => "not used (CPU only)".to_string(),
+        Some(Ok(ctx)) => ctx.adapter_name().to_string(),
+        Some(Err(e)) => format!("none ({e})"),
+    };
+    let gpu = gpu.and_then(|g| g.ok());
+    let mut rows = Vec::new();
+    for &(w, h) in sizes {
+        let inp = Inputs::new(w, h)?;
+        for &k in lanes {
+            let mut cpu = cpu_lanes_body(&inp, k)?;
+            let cpu_rate = frames_per_second(&mut cpu, lanes_frames_per_call(k), budget)?;
+            drop(cpu);
+            let gpu_fps = match &gpu {
+                Some(ctx) => {
+                    let mut body = gpu_lanes_body(ctx, &inp, k)?;
+                    Some(frames_per_second(&mut body, lanes_frames_per_call(k), budget)?.median_fps)
+                }
+                None => None,
+            };
+            let row = BenchRow {
+                stage: lanes_stage(k),
+                size: format!("{w}x{h}"),
+                cpu_fps: cpu_rate.median_fps,
+                cpu_best_fps: cpu_rate.best_fps,
+                gpu_fps,
+                gpu_over_cpu: gpu_fps.map(|g| g / cpu_rate.median_fps),
+            };
+            progress(&row);
+            rows.push(row);
+        }
+    }
+    Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows, gpu_chain: Vec::new() })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -404,5 +537,25 @@ mod tests {
             let mut body = cpu_body(stage, &inputs).unwrap();
             body().unwrap();
         }
+    }
+
+    /// The lanes bodies run, and a number of lanes outside 1..=MAX_LANES is
+    /// refused with the range.
+    #[test]
+    fn lanes_bodies_run_and_refuse_out_of_range_counts() {
+        let inputs = Inputs::new(13, 9).unwrap();
+        for k in [1, 3] {
+            let mut body = cpu_lanes_body(&inputs, k).unwrap();
+            body().unwrap();
+        }
+        for k in [0, MAX_LANES + 1] {
+            let message = cpu_lanes_body(&inputs, k).err().unwrap().to_string();
+            assert!(message.contains(&format!("1 to {MAX_LANES}")), "{message}");
+            assert!(compare_lanes(&[(13, 9)], &[k], Duration::from_millis(1), false, |_| {}).is_err());
+        }
+        let report = compare_lanes(&[(13, 9)], &[2], Duration::from_millis(1), false, |_| {}).unwrap();
+        assert_eq!(report.rows.len(), 1);
+        assert_eq!(report.rows[0].stage, "chain x2");
+        assert!(report.rows[0].cpu_fps > 0.0 && report.rows[0].gpu_fps.is_none());
     }
 }
