@@ -10,12 +10,16 @@
 # Needs a Vulkan loader (libvulkan1) and the vendor's Vulkan driver; the
 # adapter `bench` reports is printed first, so a run on llvmpipe is seen at
 # once. SCALE=small runs everything on a few sequences (a check of the
-# script itself, e.g. on lavapipe). Results go to $OUT (default gpu_results):
-# device.txt, bench.json, lanes.json, windows.json, batch.txt, track.txt and
-# log.txt; a short summary is printed last.
+# script itself, e.g. on lavapipe). BASELINE=path/to/another/pipetrack
+# times that build too, in the same run, for the chain with sequences in
+# flight and the GPU batches (lanes_baseline.json, lines marked "baseline"
+# in batch.txt). Results go to $OUT (default gpu_results): device.txt,
+# bench.json, lanes.json, windows.json, batch.txt, track.txt and log.txt; a
+# short summary is printed last.
 set -uo pipefail
 
 BIN=$(realpath "${1:-target/release/pipetrack}")
+BASE=${BASELINE:+$(realpath "$BASELINE")}
 OUT=$(realpath -m "${OUT:-gpu_results}")
 SCALE=${SCALE:-full}
 mkdir -p "$OUT"
@@ -58,6 +62,10 @@ grep -m1 '"adapter"' "$OUT/bench.json" | tee -a "$LOG"
 
 say "bench: chain with $LANES sequences in flight at $LANE_SIZES"
 timeout 240 "$BIN" bench --json --lanes "$LANES" --sizes "$LANE_SIZES" --seconds "$SECONDS_PER" >"$OUT/lanes.json" 2>>"$LOG"
+if [ -n "$BASE" ]; then
+    say "baseline bench: chain with $LANES sequences in flight"
+    timeout 240 "$BASE" bench --json --lanes "$LANES" --sizes "$LANE_SIZES" --seconds "$SECONDS_PER" >"$OUT/lanes_baseline.json" 2>>"$LOG"
+fi
 
 say "bench: window energy"
 timeout 60 "$BIN" bench --json --windows 200,1000,5000 --seconds "$SECONDS_PER" >"$OUT/windows.json" 2>>"$LOG"
@@ -68,11 +76,11 @@ seq 0 $((PENDULA - 1)) | xargs -P "$(nproc)" -I{} "$BIN" synth pendulum "$WORK/p
 seq 0 $((TARGETS - 1)) | xargs -P "$(nproc)" -I{} "$BIN" synth target3dof "$WORK/t/s{}" --frames 15 --seed {} >/dev/null 2>>"$LOG"
 
 # One batch run: its last stderr line carries sequences/s and frames/s.
-run_batch() { # name manifest tracker backend jobs
+run_batch() { # name manifest tracker backend jobs [binary]
     rm -rf "$WORK/out"
     local line
-    line=$(timeout 120 "$BIN" batch "$2" --out "$WORK/out" --tracker "$3" --backend "$4" --jobs "$5" 2>&1 >/dev/null | tail -n 1)
-    echo "$1 $3 backend=$4 jobs=$5: $line" | tee -a "$OUT/batch.txt"
+    line=$(timeout 120 "${6:-$BIN}" batch "$2" --out "$WORK/out" --tracker "$3" --backend "$4" --jobs "$5" 2>&1 >/dev/null | tail -n 1)
+    echo "${6:+baseline }$1 $3 backend=$4 jobs=$5: $line" | tee -a "$OUT/batch.txt"
 }
 : >"$OUT/batch.txt"
 for round in 1 2; do
@@ -80,6 +88,10 @@ for round in 1 2; do
     for k in $JOBS; do
         run_batch pendulum "$WORK/p" motion-edge gpu "$k"
         run_batch target3dof "$WORK/t" blue gpu "$k"
+        if [ -n "$BASE" ]; then
+            run_batch pendulum "$WORK/p" motion-edge gpu "$k" "$BASE"
+            run_batch target3dof "$WORK/t" blue gpu "$k" "$BASE"
+        fi
     done
     run_batch pendulum "$WORK/p" motion-edge cpu "$(nproc)"
     run_batch target3dof "$WORK/t" blue cpu "$(nproc)"
@@ -99,5 +111,8 @@ for backend in gpu cpu; do
 done
 
 say "summary"
-grep -o '"stage": "chain[^"]*",\|"size": "[^"]*",\|"cpu_fps": [0-9.]*\|"gpu_fps": [0-9.a-z]*' "$OUT/lanes.json" | paste -sd' ' | sed 's/"stage"/\n"stage"/g' | tee -a "$LOG"
+for f in "$OUT"/lanes*.json; do
+    echo "$(basename "$f"):"
+    grep -o '"stage": "chain[^"]*",\|"size": "[^"]*",\|"cpu_fps": [0-9.]*\|"gpu_fps": [0-9.a-z]*\|"host_ms": [0-9.]*' "$f" | paste -sd' ' | sed 's/"stage"/\n"stage"/g'
+done | tee -a "$LOG"
 cat "$OUT/batch.txt"

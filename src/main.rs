@@ -568,6 +568,9 @@ fn bench(
                 c.size, f.dispatches, f.bytes_uploaded, f.bytes_read_back, c.host_ms, c.host_best_ms
             ))?;
         }
+        for c in &report.gpu_lanes {
+            say(format_args!("gpu chain {:>10}, {} in flight: host {:.3} ms per frame", c.size, c.lanes, c.host_ms))?;
+        }
         say(format_args!("adapter: {}\ncpu threads: {}", report.adapter, report.cpu_threads))?;
     }
     Ok(())

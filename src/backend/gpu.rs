@@ -22,12 +22,16 @@ use crate::gpu::{FrameArena, GpuContext, GpuImage, Recorder};
 use crate::image::{GrayImage, RgbImage};
 use crate::{Error, Result};
 
+use rayon::prelude::*;
+
 /// Frame slots in the ring: up to `SLOTS` frames may be submitted and not yet
 /// finished; [`GpuBackend::process_stream`] keeps `SLOTS − 1` in flight while
 /// it reads one back.
 const SLOTS: usize = 3;
-/// Features copied back in the frame's own submission when a list has no cap;
-/// longer lists cost one more small copy.
+/// Features copied back in the frame's own submission at least (at most a
+/// list's cap); a list longer than what was copied costs one more
+/// submission and wait, which on a queue shared by several lanes waits for
+/// all work submitted before it.
 const DEFAULT_PREFETCH: u32 = 4096;
 
 /// Counts of the last frame's GPU work: dispatches and bytes across the bus.
@@ -92,11 +96,13 @@ struct Lane {
     slots: Vec<Option<Slot>>,
     next_slot: usize,
     previous: Option<(usize, PreviousFrame)>,
+    /// Length of each list in the lane's last finished frame, by [`list_index`].
+    listed: [u32; 3],
 }
 
 impl Lane {
     fn new() -> Self {
-        Self { slots: (0..SLOTS).map(|_| None).collect(), next_slot: 0, previous: None }
+        Self { slots: (0..SLOTS).map(|_| None).collect(), next_slot: 0, previous: None, listed: [0; 3] }
     }
 
     fn slot(&self, slot: usize) -> Result<&Slot> {
@@ -296,8 +302,20 @@ impl std::fmt::Debug for GpuBackend {
     }
 }
 
-fn readback_prefetch(cap: Option<u32>, capacity: usize) -> u32 {
-    cap.unwrap_or(DEFAULT_PREFETCH).min(capacity as u32)
+/// Features to copy back with the frame: what the list held on the lane's
+/// last frame and a quarter more (consecutive frames list similar numbers),
+/// at least [`DEFAULT_PREFETCH`], never more than the cap or the capacity.
+fn readback_prefetch(cap: Option<u32>, capacity: usize, last_listed: u32) -> u32 {
+    let expected = last_listed.saturating_add(last_listed / 4).max(DEFAULT_PREFETCH);
+    cap.map_or(expected, |c| c.min(expected)).min(u32::try_from(capacity).unwrap_or(u32::MAX))
+}
+
+fn list_index(list: List) -> usize {
+    match list {
+        List::Motion => 0,
+        List::Edges => 1,
+        List::ZeroCrossings => 2,
+    }
 }
 
 impl GpuBackend {
@@ -424,17 +442,33 @@ impl GpuBackend {
             }
         }
         let mut recorded = Vec::with_capacity(frames.len());
-        let mut commands = Vec::with_capacity(frames.len());
         for &(lane, input, request) in frames {
             while self.lanes.len() <= lane {
                 self.lanes.push(Lane::new());
             }
             let (w, h) = input.size();
             let (slot, plan) = self.prepare_slot(lane, w, h, request)?;
-            commands.push(self.record(lane, slot, &plan, input, request.windows.as_ref())?);
             recorded.push((lane, slot, plan));
         }
-        let submitted = self.ctx.queue.submit(commands);
+        // Each frame records into its own command buffer, frames in parallel.
+        let (ctx, lanes) = (&self.ctx, &self.lanes);
+        let commands: Vec<(wgpu::CommandBuffer, FrameStats)> = recorded
+            .par_iter()
+            .zip(frames.par_iter())
+            .map(|((lane, slot, plan), &(_, input, request))| {
+                record(ctx, &lanes[*lane], *slot, plan, input, request.windows.as_ref())
+            })
+            .collect::<Result<_>>()?;
+        for (lane, slot, plan) in &recorded {
+            let l = &mut self.lanes[*lane];
+            l.previous = plan.next_previous().map(|kept| (*slot, kept));
+            l.next_slot = (slot + 1) % SLOTS;
+        }
+        if let Some((_, stats)) = commands.last() {
+            self.stats.dispatches = stats.dispatches;
+            self.stats.bytes_uploaded = stats.bytes_uploaded;
+        }
+        let submitted = self.ctx.queue.submit(commands.into_iter().map(|(c, _)| c));
         let mut tickets = Vec::with_capacity(recorded.len());
         for (lane, slot, plan) in recorded {
             self.lanes[lane].slot_mut(slot)?.pending = Some((plan, submitted.clone()));
@@ -460,152 +494,184 @@ impl GpuBackend {
         Ok((slot, plan))
     }
 
-    /// Upload `input` (bytes, and for sample windows its colour or the grey
-    /// frame as colour) and record its ingest and every step of `plan` into
-    /// one command buffer; the lane's previous frame becomes this one.
-    fn record(
-        &mut self,
-        lane: usize,
-        slot: usize,
-        plan: &FramePlan,
-        input: Input<'_>,
-        windows: Option<&WindowRequest>,
-    ) -> Result<wgpu::CommandBuffer> {
-        let l = &self.lanes[lane];
-        let previous_slot = l.previous.map(|(p, _)| p).filter(|&p| p != slot && plan.reads_previous());
-        let s = l.slot(slot)?;
-        let previous = previous_slot.and_then(|p| l.slots[p].as_ref()).map(|o| &o.smoothed);
-        let images = FrameImages { slot: s, previous };
-        let area = s.width * s.height;
-
-        let mut rec = Recorder::new(&self.ctx, &s.arena);
-        match input {
-            Input::Bytes(frame, colour) => {
-                let packed = ingest::pack_bytes(frame.data());
-                if !packed.is_empty() {
-                    self.ctx.queue.write_buffer(&s.packed, 0, bytemuck::cast_slice(&packed));
-                }
-                let mut uploaded = packed.len() * 4;
-                if let Some(buffers) = &s.windows
-                    && windows.is_some()
-                {
-                    let rgb = match colour {
-                        Some(c) => window_energy::pack_rgb(c),
-                        None => window_energy::pack_gray(frame),
-                    };
-                    buffers.write_frame(&self.ctx, &rgb);
-                    uploaded += rgb.len() * 4;
-                }
-                self.stats.bytes_uploaded = uploaded as u64;
-                ingest::encode(&mut rec, &s.packed, &s.luma)?;
-            }
-            Input::Texture(texture) => {
-                self.stats.bytes_uploaded = 0;
-                ingest::encode_texture(&mut rec, texture, &s.luma)?;
-            }
-        }
-        for step in plan.steps() {
-            match *step {
-                Step::Smooth(p) => gaussian::encode(&mut rec, &s.luma, &s.tmp, &s.smoothed, &p)?,
-                Step::DiffAndSum(p) => {
-                    // 000 eq. 1 and the sum of eq. 2, as in the CPU backend.
-                    let (prev, cur) = (images.plane(Plane::Previous)?, &s.smoothed);
-                    temporal_diff::encode(&mut rec, prev, cur, images.plane(Plane::MotionMask)?, &p)?;
-                    frame_sum::encode(&mut rec, prev, cur, images.plane(Plane::Sum)?)?;
-                }
-                Step::Sobel { input, output } => sobel::encode(&mut rec, images.plane(input)?, s.sobel_set(output)?)?,
-                Step::Log(p) => log::encode(&mut rec, &s.luma, &s.tmp, &s.tmp2, images.plane(Plane::Log)?, &p)?,
-                Step::ZeroCrossings(p) => {
-                    zero_crossing::encode(&mut rec, images.plane(Plane::Log)?, opt(&s.edgels)?, &p)?;
-                }
-                Step::Compact { list, select, theta, magnitude, params } => {
-                    let scratch = s.list(list)?;
-                    let (sel, th, mag) = (images.source(select)?, images.source(theta)?, images.source(magnitude)?);
-                    compaction::encode(&mut rec, sel, th, mag, &params, scratch)?;
-                    scratch.encode_readback(&mut rec, readback_prefetch(params.cap, area));
-                }
-                Step::EmptyList(_) => {}
-                Step::Pyramids { gradient, .. } => {
-                    let (c, e) = opt(&s.cpf)?;
-                    let g = s.sobel_set(gradient)?;
-                    cpf::encode(&mut rec, &s.luma, c)?;
-                    edge_pyramid::encode(&mut rec, &g.gx, &g.gy, e)?;
-                }
-                Step::Windows { count, .. } => {
-                    let buffers = opt(&s.windows)?;
-                    let size = (s.width, s.height);
-                    match windows {
-                        _ if count == 0 => {}
-                        Some(WindowRequest::Features { params, windows }) => {
-                            buffers.encode_features(&mut rec, &self.ctx, size, params, windows)?;
-                        }
-                        Some(WindowRequest::Energies { windows, template }) => {
-                            buffers.encode_energies(&mut rec, &self.ctx, size, windows, template)?;
-                        }
-                        None => return Err(Error::Gpu("plan has sample windows the request has not".into())),
-                    }
-                }
-            }
-        }
-        self.stats.dispatches = rec.dispatch_count();
-        let commands = rec.finish();
-
-        let l = &mut self.lanes[lane];
-        l.previous = plan.next_previous().map(|kept| (slot, kept));
-        l.next_slot = (slot + 1) % SLOTS;
-        Ok(commands)
-    }
-
     /// Wait for a submitted frame (its own submission only, not other work
     /// on the device) and read back its lists.
     pub fn finish(&mut self, ticket: Ticket) -> Result<FrameFeatures> {
         let lane = self.lanes.get_mut(ticket.lane).ok_or_else(|| Error::Gpu("lane vanished".into()))?;
-        let s = lane.slot_mut(ticket.slot)?;
-        let (plan, submitted) = s.pending.take().ok_or_else(|| Error::Gpu("ticket already finished".into()))?;
-        self.ctx.wait_for(submitted)?;
-        let mut out = FrameFeatures::default();
-        let mut bytes = 0u64;
-        for step in plan.steps() {
-            match *step {
-                Step::Compact { list, .. } => {
-                    let v = s.list(list)?.read(&self.ctx)?;
-                    bytes += 4 + 16 * v.len() as u64;
-                    *out.list_mut(list) = Some(v);
-                }
-                Step::EmptyList(list) => *out.list_mut(list) = Some(Vec::new()),
-                Step::Pyramids { returned: true, .. } => {
-                    let (c, e) = opt(&s.cpf)?;
-                    let pyr = c.download(&self.ctx)?;
-                    let edges = e.download(&self.ctx)?;
-                    bytes += 4
-                        * (pyr.hierarchies.iter().flatten().map(|l| l.data().len()).sum::<usize>()
-                            + edges.horizontal.iter().chain(&edges.vertical).map(|l| l.data().len()).sum::<usize>())
-                            as u64;
-                    out.pyramids = Some((pyr, edges));
-                }
-                Step::Windows { count, params, energies } => {
-                    let buffers = opt(&s.windows)?;
-                    if energies {
-                        let e = if count == 0 {
-                            window_energy::normalise_cpu(&[])
-                        } else {
-                            buffers.read_energies(&self.ctx, count)?
-                        };
-                        bytes += 4 * (count as u64 + 2);
-                        out.window_energies = Some(e);
+        let (features, bytes) = finish_in_lane(&self.ctx, lane, ticket.slot)?;
+        self.stats.bytes_read_back = bytes;
+        Ok(features)
+    }
+
+    /// [`GpuBackend::finish`] for several tickets at once, as `submit_lanes`
+    /// returns them: tickets of different lanes are read back in parallel.
+    /// Features come in ticket order.
+    pub fn finish_lanes(&mut self, tickets: Vec<Ticket>) -> Result<Vec<FrameFeatures>> {
+        let distinct = tickets.iter().enumerate().all(|(i, t)| tickets[..i].iter().all(|o| o.lane != t.lane));
+        if !distinct {
+            return tickets.into_iter().map(|t| self.finish(t)).collect();
+        }
+        let mut lanes: Vec<Option<&mut Lane>> = self.lanes.iter_mut().map(Some).collect();
+        let work: Vec<(&mut Lane, usize)> = tickets
+            .iter()
+            .map(|t| {
+                let lane = lanes.get_mut(t.lane).and_then(Option::take);
+                lane.map(|l| (l, t.slot)).ok_or_else(|| Error::Gpu("lane vanished".into()))
+            })
+            .collect::<Result<_>>()?;
+        let ctx = &self.ctx;
+        let read: Vec<(FrameFeatures, u64)> =
+            work.into_par_iter().map(|(lane, slot)| finish_in_lane(ctx, lane, slot)).collect::<Result<_>>()?;
+        if let Some(&(_, bytes)) = read.last() {
+            self.stats.bytes_read_back = bytes;
+        }
+        Ok(read.into_iter().map(|(features, _)| features).collect())
+    }
+}
+
+/// Wait for the frame submitted in `lane`'s `slot` (its own submission
+/// only) and read back its lists: the features and the bytes that crossed
+/// the bus.
+fn finish_in_lane(ctx: &GpuContext, lane: &mut Lane, slot: usize) -> Result<(FrameFeatures, u64)> {
+    let Lane { slots, listed, .. } = lane;
+    let s = slots[slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
+    let (plan, submitted) = s.pending.take().ok_or_else(|| Error::Gpu("ticket already finished".into()))?;
+    ctx.wait_for(submitted)?;
+    let mut out = FrameFeatures::default();
+    let mut bytes = 0u64;
+    for step in plan.steps() {
+        match *step {
+            Step::Compact { list, .. } => {
+                let scratch = s.list(list)?;
+                let v = scratch.read(&ctx)?;
+                bytes += scratch.bytes_read_back(v.len());
+                listed[list_index(list)] = u32::try_from(v.len()).unwrap_or(u32::MAX);
+                *out.list_mut(list) = Some(v);
+            }
+            Step::EmptyList(list) => *out.list_mut(list) = Some(Vec::new()),
+            Step::Pyramids { returned: true, .. } => {
+                let (c, e) = opt(&s.cpf)?;
+                let pyr = c.download(&ctx)?;
+                let edges = e.download(&ctx)?;
+                bytes += 4
+                    * (pyr.hierarchies.iter().flatten().map(|l| l.data().len()).sum::<usize>()
+                        + edges.horizontal.iter().chain(&edges.vertical).map(|l| l.data().len()).sum::<usize>())
+                        as u64;
+                out.pyramids = Some((pyr, edges));
+            }
+            Step::Windows { count, params, energies } => {
+                let buffers = opt(&s.windows)?;
+                if energies {
+                    let e = if count == 0 {
+                        window_energy::normalise_cpu(&[])
                     } else {
-                        let f =
-                            if count == 0 { Vec::new() } else { buffers.read_features(&self.ctx, &params, count)? };
-                        bytes += 4 * (count * params.window_len()) as u64;
-                        out.window_features = Some(f);
-                    }
+                        buffers.read_energies(&ctx, count)?
+                    };
+                    bytes += 4 * (count as u64 + 2);
+                    out.window_energies = Some(e);
+                } else {
+                    let f = if count == 0 { Vec::new() } else { buffers.read_features(&ctx, &params, count)? };
+                    bytes += 4 * (count * params.window_len()) as u64;
+                    out.window_features = Some(f);
                 }
-                _ => {}
+            }
+            _ => {}
+        }
+    }
+    Ok((out, bytes))
+}
+
+/// Upload `input` (bytes, and for sample windows its colour or the grey
+/// frame as colour) and record its ingest and every step of `plan` into
+/// one command buffer, with its dispatches and bytes uploaded (the caller
+/// makes it the lane's previous frame).
+fn record(
+    ctx: &GpuContext,
+    l: &Lane,
+    slot: usize,
+    plan: &FramePlan,
+    input: Input<'_>,
+    windows: Option<&WindowRequest>,
+) -> Result<(wgpu::CommandBuffer, FrameStats)> {
+    let mut stats = FrameStats::default();
+    let previous_slot = l.previous.map(|(p, _)| p).filter(|&p| p != slot && plan.reads_previous());
+    let s = l.slot(slot)?;
+    let previous = previous_slot.and_then(|p| l.slots[p].as_ref()).map(|o| &o.smoothed);
+    let images = FrameImages { slot: s, previous };
+    let area = s.width * s.height;
+
+    let mut rec = Recorder::new(&ctx, &s.arena);
+    match input {
+        Input::Bytes(frame, colour) => {
+            let packed = ingest::pack_bytes(frame.data());
+            if !packed.is_empty() {
+                ctx.queue.write_buffer(&s.packed, 0, bytemuck::cast_slice(&packed));
+            }
+            let mut uploaded = packed.len() * 4;
+            if let Some(buffers) = &s.windows
+                && windows.is_some()
+            {
+                let rgb = match colour {
+                    Some(c) => window_energy::pack_rgb(c),
+                    None => window_energy::pack_gray(frame),
+                };
+                buffers.write_frame(&ctx, &rgb);
+                uploaded += rgb.len() * 4;
+            }
+            stats.bytes_uploaded = uploaded as u64;
+            ingest::encode(&mut rec, &s.packed, &s.luma)?;
+        }
+        Input::Texture(texture) => {
+            stats.bytes_uploaded = 0;
+            ingest::encode_texture(&mut rec, texture, &s.luma)?;
+        }
+    }
+    for step in plan.steps() {
+        match *step {
+            Step::Smooth(p) => gaussian::encode(&mut rec, &s.luma, &s.tmp, &s.smoothed, &p)?,
+            Step::DiffAndSum(p) => {
+                // 000 eq. 1 and the sum of eq. 2, as in the CPU backend.
+                let (prev, cur) = (images.plane(Plane::Previous)?, &s.smoothed);
+                temporal_diff::encode(&mut rec, prev, cur, images.plane(Plane::MotionMask)?, &p)?;
+                frame_sum::encode(&mut rec, prev, cur, images.plane(Plane::Sum)?)?;
+            }
+            Step::Sobel { input, output } => sobel::encode(&mut rec, images.plane(input)?, s.sobel_set(output)?)?,
+            Step::Log(p) => log::encode(&mut rec, &s.luma, &s.tmp, &s.tmp2, images.plane(Plane::Log)?, &p)?,
+            Step::ZeroCrossings(p) => {
+                zero_crossing::encode(&mut rec, images.plane(Plane::Log)?, opt(&s.edgels)?, &p)?;
+            }
+            Step::Compact { list, select, theta, magnitude, params } => {
+                let scratch = s.list(list)?;
+                let (sel, th, mag) = (images.source(select)?, images.source(theta)?, images.source(magnitude)?);
+                compaction::encode(&mut rec, sel, th, mag, &params, scratch)?;
+                let last = l.listed[list_index(list)];
+                scratch.encode_readback(&mut rec, readback_prefetch(params.cap, area, last));
+            }
+            Step::EmptyList(_) => {}
+            Step::Pyramids { gradient, .. } => {
+                let (c, e) = opt(&s.cpf)?;
+                let g = s.sobel_set(gradient)?;
+                cpf::encode(&mut rec, &s.luma, c)?;
+                edge_pyramid::encode(&mut rec, &g.gx, &g.gy, e)?;
+            }
+            Step::Windows { count, .. } => {
+                let buffers = opt(&s.windows)?;
+                let size = (s.width, s.height);
+                match windows {
+                    _ if count == 0 => {}
+                    Some(WindowRequest::Features { params, windows }) => {
+                        buffers.encode_features(&mut rec, &ctx, size, params, windows)?;
+                    }
+                    Some(WindowRequest::Energies { windows, template }) => {
+                        buffers.encode_energies(&mut rec, &ctx, size, windows, template)?;
+                    }
+                    None => return Err(Error::Gpu("plan has sample windows the request has not".into())),
+                }
             }
         }
-        self.stats.bytes_read_back = bytes;
-        Ok(out)
     }
+    stats.dispatches = rec.dispatch_count();
+    Ok((rec.finish(), stats))
 }
 
 fn first_ticket(mut tickets: Vec<Ticket>) -> Result<Ticket> {

@@ -252,8 +252,7 @@ pub fn gpu_lanes_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) ->
         let mut pending: Vec<Vec<Ticket>> = groups.iter().map(|_| Vec::new()).collect();
         for step in 0..CHAIN_FRAMES {
             for (group, tickets) in groups.iter().zip(&mut pending) {
-                for ticket in tickets.drain(..) {
-                    let features = backend.finish(ticket)?;
+                for features in backend.finish_lanes(std::mem::take(tickets))? {
                     backend.recycle(features);
                 }
                 let frames: Vec<LaneFrame<'_>> = group
@@ -268,9 +267,10 @@ pub fn gpu_lanes_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) ->
                 *tickets = backend.submit_lanes(&frames)?;
             }
         }
-        for ticket in pending.into_iter().flatten() {
-            let features = backend.finish(ticket)?;
-            backend.recycle(features);
+        for tickets in pending {
+            for features in backend.finish_lanes(tickets)? {
+                backend.recycle(features);
+            }
         }
         Ok(())
     }))
@@ -294,6 +294,38 @@ pub fn cpu_lanes_body<'a>(inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
         }
         Ok(())
     }))
+}
+
+/// Host time per frame with `lanes` sequences in flight, in milliseconds
+/// (median of [`HOST_FRAMES`] steps): recording and submitting a step's
+/// frames, then reading their lists back once the device is done, without
+/// the wait for the device.
+pub fn lanes_host_ms(ctx: &GpuContext, inp: &Inputs, lanes: usize) -> Result<f64> {
+    check_lanes(lanes)?;
+    let (w, h) = inp.luma.size();
+    let mut backend = GpuBackend::new(ctx.clone());
+    let request = FrameRequest::full_chain(w, h);
+    let n = inp.frames.len();
+    let mut per_frame = Vec::with_capacity(HOST_FRAMES);
+    // Two untimed steps first: buffers are allocated and lists sized.
+    for step in 0..HOST_FRAMES + 2 {
+        let frames: Vec<LaneFrame<'_>> = (0..lanes)
+            .map(|lane| LaneFrame { lane, frame: &inp.frames[(step + lane) % n], colour: None, request: &request })
+            .collect();
+        let record = Instant::now();
+        let tickets = backend.submit_lanes(&frames)?;
+        let recorded = record.elapsed();
+        ctx.wait()?;
+        let readback = Instant::now();
+        for features in backend.finish_lanes(tickets)? {
+            backend.recycle(features);
+        }
+        if step >= 2 {
+            per_frame.push((recorded + readback.elapsed()).as_secs_f64() * 1e3 / lanes as f64);
+        }
+    }
+    per_frame.sort_by(f64::total_cmp);
+    Ok(per_frame[per_frame.len() / 2])
 }
 
 fn check_lanes(lanes: usize) -> Result<()> {
@@ -395,6 +427,21 @@ pub struct BenchReport {
     pub rows: Vec<BenchRow>,
     /// Per-frame GPU cost of the chain at each size (empty without a GPU).
     pub gpu_chain: Vec<ChainCost>,
+    /// Host time per frame of the chain with several sequences in flight
+    /// (`bench --lanes`; empty otherwise or without a GPU).
+    pub gpu_lanes: Vec<LanesCost>,
+}
+
+/// Host time per frame of the whole chain with `lanes` sequences in flight
+/// ([`lanes_host_ms`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct LanesCost {
+    /// `WxH`.
+    pub size: String,
+    /// Sequences in flight.
+    pub lanes: usize,
+    /// Host milliseconds per frame, median step.
+    pub host_ms: f64,
 }
 
 /// Dispatches and bytes moved for one frame of the full chain on the GPU,
@@ -470,7 +517,7 @@ pub fn compare(
             rows.push(row);
         }
     }
-    Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows, gpu_chain })
+    Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows, gpu_chain, gpu_lanes: Vec::new() })
 }
 
 /// The whole chain at every size with each number of sequences in flight
@@ -493,9 +540,13 @@ pub fn compare_lanes(
     };
     let gpu = gpu.and_then(|g| g.ok());
     let mut rows = Vec::new();
+    let mut gpu_lanes = Vec::new();
     for &(w, h) in sizes {
         let inp = Inputs::new(w, h)?;
         for &k in lanes {
+            if let Some(ctx) = &gpu {
+                gpu_lanes.push(LanesCost { size: format!("{w}x{h}"), lanes: k, host_ms: lanes_host_ms(ctx, &inp, k)? });
+            }
             let mut cpu = cpu_lanes_body(&inp, k)?;
             let cpu_rate = frames_per_second(&mut cpu, lanes_frames_per_call(k), budget)?;
             drop(cpu);
@@ -518,7 +569,7 @@ pub fn compare_lanes(
             rows.push(row);
         }
     }
-    Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows, gpu_chain: Vec::new() })
+    Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows, gpu_chain: Vec::new(), gpu_lanes })
 }
 
 #[cfg(test)]

@@ -396,6 +396,15 @@ impl CompactionGpu {
         self.prefetched.store(count as u32, Ordering::Relaxed);
     }
 
+    /// Bytes that crossed the bus for a list of `listed` features read by
+    /// [`CompactionGpu::read`]: the header, the prefetched features, and
+    /// the remainder's copy when the list was longer.
+    #[must_use]
+    pub fn bytes_read_back(&self, listed: usize) -> u64 {
+        let prefetched = u64::from(self.prefetched.load(Ordering::Relaxed));
+        HEADER_BYTES + FEATURE_BYTES * prefetched.max(listed as u64)
+    }
+
     /// After the submission holding `CompactionGpu::encode_readback` is
     /// done: map the staging buffer and return the list. When it is longer
     /// than what was prefetched, one more copy of the remainder is submitted

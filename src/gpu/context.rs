@@ -212,8 +212,9 @@ impl GpuContext {
     ///
     /// Call it after [`GpuContext::wait_for`] on the submission that last
     /// wrote `buffer`: the mapping then completes on a non-blocking poll and
-    /// nothing else is waited for. If that submission is still running, this
-    /// falls back to waiting for all submitted work.
+    /// nothing else is waited for. If it does not (that submission is still
+    /// running, or another thread's poll is delivering the mapping), this
+    /// polls again until it does, never waiting for unrelated work.
     pub(crate) fn read_buffer(&self, buffer: &wgpu::Buffer, range: std::ops::Range<u64>) -> Result<Vec<u8>> {
         self.read_mapped(buffer, range, <[u8]>::to_vec)
     }
@@ -235,14 +236,19 @@ impl GpuContext {
             let _ = tx.send(r);
         });
         self.device.poll(wgpu::PollType::Poll)?;
-        let mapped = match rx.try_recv() {
-            Ok(mapped) => mapped,
-            Err(std::sync::mpsc::TryRecvError::Empty) => {
-                self.wait()?;
-                rx.recv().map_err(|_| Error::Gpu("map callback dropped".into()))?
-            }
-            Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                return Err(Error::Gpu("map callback dropped".into()));
+        let started = std::time::Instant::now();
+        let mapped = loop {
+            match rx.recv_timeout(std::time::Duration::from_micros(50)) {
+                Ok(mapped) => break mapped,
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) if started.elapsed() < super::POLL_TIMEOUT => {
+                    self.device.poll(wgpu::PollType::Poll)?;
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                    return Err(Error::Gpu(format!("buffer not mapped within {:?}", super::POLL_TIMEOUT)));
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                    return Err(Error::Gpu("map callback dropped".into()));
+                }
             }
         };
         mapped?;

@@ -249,10 +249,8 @@ impl<'j> Lanes<'j, '_> {
     /// Collect a group's submission and run its trackers in parallel, one
     /// sequence per thread; a sequence whose output cannot be written fails.
     fn track_submitted(&mut self, backend: &mut GpuBackend, submitted: Vec<(usize, Ticket)>) -> Result<()> {
-        let mut features = Vec::with_capacity(submitted.len());
-        for (lane, ticket) in submitted {
-            features.push((lane, backend.finish(ticket)?));
-        }
+        let (lanes_of, tickets): (Vec<usize>, Vec<Ticket>) = submitted.into_iter().unzip();
+        let features: Vec<(usize, FrameFeatures)> = lanes_of.into_iter().zip(backend.finish_lanes(tickets)?).collect();
         let mut lanes: Vec<Option<&mut Running<'j>>> = self.running.iter_mut().map(Option::as_mut).collect();
         let work: Vec<(usize, &mut Running<'j>, FrameFeatures)> =
             features.into_iter().filter_map(|(lane, f)| Some((lane, lanes[lane].take()?, f))).collect();
