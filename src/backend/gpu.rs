@@ -543,7 +543,7 @@ fn finish_in_lane(ctx: &GpuContext, lane: &mut Lane, slot: usize) -> Result<(Fra
         match *step {
             Step::Compact { list, .. } => {
                 let scratch = s.list(list)?;
-                let v = scratch.read(&ctx)?;
+                let v = scratch.read(ctx)?;
                 bytes += scratch.bytes_read_back(v.len());
                 listed[list_index(list)] = u32::try_from(v.len()).unwrap_or(u32::MAX);
                 *out.list_mut(list) = Some(v);
@@ -551,8 +551,8 @@ fn finish_in_lane(ctx: &GpuContext, lane: &mut Lane, slot: usize) -> Result<(Fra
             Step::EmptyList(list) => *out.list_mut(list) = Some(Vec::new()),
             Step::Pyramids { returned: true, .. } => {
                 let (c, e) = opt(&s.cpf)?;
-                let pyr = c.download(&ctx)?;
-                let edges = e.download(&ctx)?;
+                let pyr = c.download(ctx)?;
+                let edges = e.download(ctx)?;
                 bytes += 4
                     * (pyr.hierarchies.iter().flatten().map(|l| l.data().len()).sum::<usize>()
                         + edges.horizontal.iter().chain(&edges.vertical).map(|l| l.data().len()).sum::<usize>())
@@ -565,12 +565,12 @@ fn finish_in_lane(ctx: &GpuContext, lane: &mut Lane, slot: usize) -> Result<(Fra
                     let e = if count == 0 {
                         window_energy::normalise_cpu(&[])
                     } else {
-                        buffers.read_energies(&ctx, count)?
+                        buffers.read_energies(ctx, count)?
                     };
                     bytes += 4 * (count as u64 + 2);
                     out.window_energies = Some(e);
                 } else {
-                    let f = if count == 0 { Vec::new() } else { buffers.read_features(&ctx, &params, count)? };
+                    let f = if count == 0 { Vec::new() } else { buffers.read_features(ctx, &params, count)? };
                     bytes += 4 * (count * params.window_len()) as u64;
                     out.window_features = Some(f);
                 }
@@ -600,7 +600,7 @@ fn record(
     let images = FrameImages { slot: s, previous };
     let area = s.width * s.height;
 
-    let mut rec = Recorder::new(&ctx, &s.arena);
+    let mut rec = Recorder::new(ctx, &s.arena);
     match input {
         Input::Bytes(frame, colour) => {
             let packed = ingest::pack_bytes(frame.data());
@@ -615,7 +615,7 @@ fn record(
                     Some(c) => window_energy::pack_rgb(c),
                     None => window_energy::pack_gray(frame),
                 };
-                buffers.write_frame(&ctx, &rgb);
+                buffers.write_frame(ctx, &rgb);
                 uploaded += rgb.len() * 4;
             }
             stats.bytes_uploaded = uploaded as u64;
