@@ -660,10 +660,10 @@ fn record(
                 match windows {
                     _ if count == 0 => {}
                     Some(WindowRequest::Features { params, windows }) => {
-                        buffers.encode_features(&mut rec, &ctx, size, params, windows)?;
+                        buffers.encode_features(&mut rec, ctx, size, params, windows)?;
                     }
                     Some(WindowRequest::Energies { windows, template }) => {
-                        buffers.encode_energies(&mut rec, &ctx, size, windows, template)?;
+                        buffers.encode_energies(&mut rec, ctx, size, windows, template)?;
                     }
                     None => return Err(Error::Gpu("plan has sample windows the request has not".into())),
                 }
