@@ -450,15 +450,18 @@ impl GpuBackend {
             let (slot, plan) = self.prepare_slot(lane, w, h, request)?;
             recorded.push((lane, slot, plan));
         }
-        // Each frame records into its own command buffer, frames in parallel.
+        // Each frame records into its own command buffer; several frames in
+        // parallel (a single frame stays on the calling thread).
         let (ctx, lanes) = (&self.ctx, &self.lanes);
-        let commands: Vec<(wgpu::CommandBuffer, FrameStats)> = recorded
-            .par_iter()
-            .zip(frames.par_iter())
-            .map(|((lane, slot, plan), &(_, input, request))| {
-                record(ctx, &lanes[*lane], *slot, plan, input, request.windows.as_ref())
-            })
-            .collect::<Result<_>>()?;
+        let record_one = |((lane, slot, plan), &(_, input, request)): (
+            &(usize, usize, FramePlan),
+            &(usize, Input<'_>, &FrameRequest),
+        )| { record(ctx, &lanes[*lane], *slot, plan, input, request.windows.as_ref()) };
+        let commands: Vec<(wgpu::CommandBuffer, FrameStats)> = if recorded.len() == 1 {
+            recorded.iter().zip(frames).map(record_one).collect::<Result<_>>()?
+        } else {
+            recorded.par_iter().zip(frames.par_iter()).map(record_one).collect::<Result<_>>()?
+        };
         for (lane, slot, plan) in &recorded {
             let l = &mut self.lanes[*lane];
             l.previous = plan.next_previous().map(|kept| (*slot, kept));
@@ -508,7 +511,7 @@ impl GpuBackend {
     /// Features come in ticket order.
     pub fn finish_lanes(&mut self, tickets: Vec<Ticket>) -> Result<Vec<FrameFeatures>> {
         let distinct = tickets.iter().enumerate().all(|(i, t)| tickets[..i].iter().all(|o| o.lane != t.lane));
-        if !distinct {
+        if !distinct || tickets.len() == 1 {
             return tickets.into_iter().map(|t| self.finish(t)).collect();
         }
         let mut lanes: Vec<Option<&mut Lane>> = self.lanes.iter_mut().map(Some).collect();
