@@ -715,3 +715,22 @@ impl EarlyVision for GpuBackend {
         GpuBackend::process_texture(self, texture, request)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The readback follows the lane's last list with a quarter to spare,
+    /// never below the default, never above the cap or the list's capacity.
+    #[test]
+    fn readback_prefetch_follows_the_last_frame_within_cap_and_capacity() {
+        assert_eq!(readback_prefetch(None, 1_000_000, 0), DEFAULT_PREFETCH);
+        assert_eq!(readback_prefetch(None, 1_000_000, 100), DEFAULT_PREFETCH);
+        assert_eq!(readback_prefetch(None, 1_000_000, 40_000), 50_000);
+        assert_eq!(readback_prefetch(None, 45_000, 40_000), 45_000);
+        assert_eq!(readback_prefetch(Some(1500), 1_000_000, 40_000), 1500);
+        assert_eq!(readback_prefetch(Some(100_000), 1_000_000, 40_000), 50_000);
+        assert_eq!(readback_prefetch(None, 10, 0), 10);
+        assert_eq!(readback_prefetch(None, usize::MAX, u32::MAX), u32::MAX);
+    }
+}

@@ -378,8 +378,13 @@ fn lanes_in_one_submission_equal_cpu_per_sequence() {
             .map(|(&lane, frame)| LaneFrame { lane, frame, colour: None, request: &requests[lane] })
             .collect();
         let tickets = gpu.submit_lanes(&batch).unwrap();
-        for ((&lane, f), ticket) in lanes.iter().zip(&frames).zip(tickets) {
-            let g = gpu.finish(ticket).unwrap();
+        // Odd steps read the lanes back together, even steps one by one.
+        let read: Vec<FrameFeatures> = if step % 2 == 1 {
+            gpu.finish_lanes(tickets).unwrap()
+        } else {
+            tickets.into_iter().map(|t| gpu.finish(t).unwrap()).collect()
+        };
+        for ((&lane, f), g) in lanes.iter().zip(&frames).zip(read) {
             let c = cpu[lane].process(f, &requests[lane]).unwrap();
             same_features(&format!("lane{lane}/step{step}"), &c, &g);
             let motion = g.motion.as_ref().unwrap();
@@ -391,4 +396,36 @@ fn lanes_in_one_submission_equal_cpu_per_sequence() {
     let again = frame(1, 0);
     let one = [LaneFrame { lane: 1, frame: &again, colour: None, request: &requests[1] }; 2];
     assert!(gpu.submit_lanes(&one).is_err(), "a lane twice in one submission");
+}
+
+/// A list far longer than the lane's last frame listed (a flat frame, then
+/// a textured one, then flat again) is read back whole, and a short one
+/// after a long one is not padded: the GPU lists equal the CPU's on every
+/// frame, through `finish` and through `finish_lanes`.
+#[test]
+fn lists_longer_or_shorter_than_the_last_frame_are_read_back_whole() {
+    use pipetrack::backend::LaneFrame;
+    let Some((ctx, _g)) = common::gpu("lists_longer_or_shorter_than_the_last_frame_are_read_back_whole") else {
+        return;
+    };
+    let (w, h) = (257, 243);
+    let textured = sequence(w, h, 4);
+    let flat = GrayImage::from_fn(w, h, |_, _| 90);
+    let frames = [&flat, &textured[0], &textured[1], &flat, &textured[2], &textured[3]];
+    let request = FrameRequest::full_chain(w, h);
+    let mut cpu = CpuBackend::new();
+    let mut gpu = GpuBackend::new(ctx.clone());
+    let mut longest = 0;
+    for (i, f) in frames.into_iter().enumerate() {
+        let c = cpu.process(f, &request).unwrap();
+        let g = if i % 2 == 0 {
+            gpu.process(f, &request).unwrap()
+        } else {
+            let ticket = gpu.submit_lanes(&[LaneFrame { lane: 0, frame: f, colour: None, request: &request }]).unwrap();
+            gpu.finish_lanes(ticket).unwrap().remove(0)
+        };
+        same_features(&format!("frame{i}"), &c, &g);
+        longest = longest.max(c.zero_crossings.as_ref().map_or(0, Vec::len));
+    }
+    assert!(longest > 4096, "the textured frames list more than one readback's default ({longest})");
 }
