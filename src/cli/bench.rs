@@ -238,8 +238,8 @@ pub fn lanes_stage(lanes: usize) -> String {
 /// The whole chain on `lanes` independent sequences at once, as `batch`
 /// runs them on the GPU: each step records the next frame of every lane of
 /// one group into one submission, and two groups take turns so one is on
-/// the device while the other's features are read back. One call is
-/// [`CHAIN_FRAMES`] steps, `CHAIN_FRAMES × lanes` frames.
+/// the device while the other's features are read back. One call is a
+/// fixed number of steps, [`lanes_frames_per_call`] frames in all.
 pub fn gpu_lanes_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
     check_lanes(lanes)?;
     let (w, h) = inp.luma.size();
