@@ -47,6 +47,9 @@ pub fn stages() -> Vec<&'static str> {
 const CHAIN_FRAMES: usize = 8;
 /// Stage dispatches recorded per GPU submission when timing one stage.
 const GPU_REPEATS: usize = 8;
+/// Submissions queued before each wait when timing one stage, so a fast
+/// device is timed on its work more than on the wait's round trip.
+const GPU_SUBMISSIONS: usize = 8;
 
 /// A prepared benchmark body: one call = one frame's worth of that stage.
 pub type Body<'a> = Box<dyn FnMut() -> Result<()> + 'a>;
@@ -143,8 +146,9 @@ fn compaction_params(w: usize, h: usize) -> CompactionParams {
 }
 
 /// The GPU body of `stage`: inputs resident on the device, the stage recorded
-/// `GPU_REPEATS` times into one submission, then a wait. One call = `GPU_REPEATS`
-/// frames' worth; see [`gpu_frames_per_call`]. The chain streams whole frames
+/// `GPU_REPEATS` times into each of `GPU_SUBMISSIONS` submissions, then one
+/// wait. One call = `GPU_REPEATS × GPU_SUBMISSIONS` frames' worth; see
+/// [`gpu_frames_per_call`]. The chain streams whole frames
 /// (upload, compute, readback) through [`GpuBackend::process_stream`].
 pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result<Body<'a>> {
     let (w, h) = inp.luma.size();
@@ -176,24 +180,28 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
         log::encode(rec, &luma, &t1, &t2, &t3, &LogParams::default())
     })?;
     Ok(Box::new(move || {
-        let mut rec = Recorder::new(ctx, &arena);
-        for _ in 0..GPU_REPEATS {
-            record_stage(
-                &mut rec,
-                stage,
-                &luma,
-                &s0,
-                &s1,
-                [&t1, &t2, &t3],
-                &sob,
-                &edg,
-                (&pyr, &edge_pyr),
-                &list,
-                w,
-                h,
-            )?;
+        let mut last = None;
+        for _ in 0..GPU_SUBMISSIONS {
+            let mut rec = Recorder::new(ctx, &arena);
+            for _ in 0..GPU_REPEATS {
+                record_stage(
+                    &mut rec,
+                    stage,
+                    &luma,
+                    &s0,
+                    &s1,
+                    [&t1, &t2, &t3],
+                    &sob,
+                    &edg,
+                    (&pyr, &edge_pyr),
+                    &list,
+                    w,
+                    h,
+                )?;
+            }
+            last = Some(rec.submit());
         }
-        ctx.wait_for(rec.submit())
+        last.map_or(Ok(()), |index| ctx.wait_for(index))
     }))
 }
 
@@ -345,7 +353,7 @@ pub fn lanes_frames_per_call(lanes: usize) -> usize {
 /// Frames' worth of work one call of a GPU body does.
 #[must_use]
 pub fn gpu_frames_per_call(stage: &str) -> usize {
-    if stage == CHAIN { CHAIN_FRAMES } else { GPU_REPEATS }
+    if stage == CHAIN { CHAIN_FRAMES } else { GPU_REPEATS * GPU_SUBMISSIONS }
 }
 
 /// Frames' worth of work one call of a CPU body does.
