@@ -138,6 +138,9 @@ pub(crate) fn workgroups_2d(width: usize, height: usize) -> [u32; 3] {
 
 /// Records stage dispatches into one encoder; [`Recorder::submit`] writes all
 /// their uniform blocks at once and submits a single command buffer.
+/// Consecutive dispatches share one compute pass (a copy ends it); WebGPU
+/// makes each dispatch its own usage scope, so a dispatch sees the writes of
+/// the dispatches before it in the pass as it would across passes.
 ///
 /// Binding convention shared by every shader: `@binding(0)` is the stage's
 /// uniform `Params`, `@binding(1..)` are the resources in the order the
@@ -145,6 +148,8 @@ pub(crate) fn workgroups_2d(width: usize, height: usize) -> [u32; 3] {
 pub(crate) struct Recorder<'a> {
     ctx: &'a GpuContext,
     encoder: wgpu::CommandEncoder,
+    /// The open compute pass of the dispatches since the last copy.
+    pass: Option<wgpu::ComputePass<'static>>,
     arena: &'a FrameArena,
     uniforms: Vec<u8>,
     dispatches: u32,
@@ -183,7 +188,7 @@ impl<'a> Recorder<'a> {
     pub(crate) fn new(ctx: &'a GpuContext, arena: &'a FrameArena) -> Self {
         let encoder =
             ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pipetrack.frame") });
-        Self { ctx, encoder, arena, uniforms: Vec::new(), dispatches: 0 }
+        Self { ctx, encoder, pass: None, arena, uniforms: Vec::new(), dispatches: 0 }
     }
 
     /// Number of compute dispatches recorded so far.
@@ -299,19 +304,28 @@ impl<'a> Recorder<'a> {
         bind_group: &wgpu::BindGroup,
         groups: [u32; 3],
     ) {
-        let mut pass = self
-            .encoder
-            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(shader.name), timestamp_writes: None });
+        let encoder = &mut self.encoder;
+        let pass = self.pass.get_or_insert_with(|| {
+            encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("pipetrack.stages"),
+                    timestamp_writes: None,
+                })
+                .forget_lifetime()
+        });
+        pass.push_debug_group(shader.name);
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, bind_group, &[]);
         pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
-        drop(pass);
+        pass.pop_debug_group();
         self.dispatches += 1;
     }
 
     /// Record a buffer-to-buffer copy.
     pub(crate) fn copy(&mut self, src: &wgpu::Buffer, src_offset: u64, dst: &wgpu::Buffer, dst_offset: u64, size: u64) {
         if size > 0 {
+            // The open pass ends before the copy, so the copy follows its dispatches.
+            self.pass = None;
             self.encoder.copy_buffer_to_buffer(src, src_offset, dst, dst_offset, size);
         }
     }
@@ -326,7 +340,8 @@ impl<'a> Recorder<'a> {
     /// Queue the write of the uniform blocks and end recording: the command
     /// buffer, for a `queue.submit` that may carry other recorders' buffers
     /// too (each recorder has its own arena, so their uniforms do not mix).
-    pub(crate) fn finish(self) -> wgpu::CommandBuffer {
+    pub(crate) fn finish(mut self) -> wgpu::CommandBuffer {
+        self.pass = None;
         if !self.uniforms.is_empty() {
             self.ctx.queue.write_buffer(&self.arena.uniforms, 0, &self.uniforms);
         }
