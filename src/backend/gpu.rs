@@ -606,11 +606,7 @@ fn record(
     let mut rec = Recorder::new(ctx, &s.arena);
     match input {
         Input::Bytes(frame, colour) => {
-            let packed = ingest::pack_bytes(frame.data());
-            if !packed.is_empty() {
-                ctx.queue.write_buffer(&s.packed, 0, bytemuck::cast_slice(&packed));
-            }
-            let mut uploaded = packed.len() * 4;
+            let mut uploaded = ingest::write_bytes(ctx, &s.packed, frame.data());
             if let Some(buffers) = &s.windows
                 && windows.is_some()
             {

@@ -142,20 +142,21 @@ pub fn ingest_texture_cpu(
     Ok(ingest(&gray_from_texels(texels, width, height, format)?))
 }
 
-/// Bytes of `frame` packed four to a u32 word (zero-padded), as `from_bytes` reads them.
-#[must_use]
-pub(crate) fn pack_bytes(bytes: &[u8]) -> Vec<u32> {
-    let words = bytes.chunks_exact(4);
-    let tail = words.remainder();
-    let mut packed = Vec::with_capacity(bytes.len().div_ceil(4));
-    // Whole words in a loop without per-word length checks (it vectorises).
-    packed.extend(words.map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])));
-    if !tail.is_empty() {
-        let mut w = [0u8; 4];
-        w[..tail.len()].copy_from_slice(tail);
-        packed.push(u32::from_le_bytes(w));
+/// Queue the write of `bytes` into `buffer` as `from_bytes` reads them:
+/// four to a u32 word, the first in the low byte (so the bytes go as they
+/// are), the last word zero-padded. Returns the bytes written.
+pub(crate) fn write_bytes(ctx: &GpuContext, buffer: &wgpu::Buffer, bytes: &[u8]) -> usize {
+    let whole = bytes.len() / 4 * 4;
+    if whole > 0 {
+        ctx.queue.write_buffer(buffer, 0, &bytes[..whole]);
     }
-    packed
+    let tail = &bytes[whole..];
+    if !tail.is_empty() {
+        let mut word = [0u8; 4];
+        word[..tail.len()].copy_from_slice(tail);
+        ctx.queue.write_buffer(buffer, whole as u64, &word);
+    }
+    bytes.len().div_ceil(4) * 4
 }
 
 /// Record `from_bytes`: `packed` (a storage buffer of packed bytes) into `dst`.
@@ -210,14 +211,13 @@ pub(crate) fn encode_texture(rec: &mut Recorder<'_>, texture: &wgpu::Texture, ds
 
 /// GPU: ingest grey bytes and read the f32 image back (tests and benches).
 pub fn ingest_gpu(ctx: &GpuContext, frame: &GrayImage) -> Result<FloatImage> {
-    use wgpu::util::DeviceExt;
-    let packed = pack_bytes(frame.data());
-    let words = if packed.is_empty() { vec![0u32] } else { packed };
-    let buf = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+    let buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("ingest.packed"),
-        contents: bytemuck::cast_slice(&words),
-        usage: wgpu::BufferUsages::STORAGE,
+        size: frame.data().len().div_ceil(4).max(1) as u64 * 4,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
     });
+    write_bytes(ctx, &buf, frame.data());
     let dst = GpuImage::new(ctx, frame.width(), frame.height(), "ingest.dst");
     run_once(ctx, |rec| encode(rec, &buf, &dst))?;
     dst.download(ctx)
@@ -233,11 +233,6 @@ pub fn ingest_texture_gpu(ctx: &GpuContext, texture: &wgpu::Texture) -> Result<F
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn bytes_pack_little_endian_with_zero_padding() {
-        assert_eq!(pack_bytes(&[1, 2, 3, 4, 5]), vec![0x0403_0201, 5]);
-    }
 
     #[test]
     fn rgba_luma_uses_bt601_weights_rounded() {
