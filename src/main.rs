@@ -191,8 +191,9 @@ enum Command {
         /// Instead of the stages: the whole chain with these numbers of
         /// sequences in flight (comma-separated, 1 to 64), as `batch` runs
         /// them: one submission per step carries a frame of each.
-        #[arg(long, value_delimiter = ',', conflicts_with = "windows")]
-        lanes: Vec<usize>,
+        #[arg(long, value_delimiter = ',', conflicts_with_all = ["windows", "stages"],
+              value_parser = clap::value_parser!(u16).range(1..=pipetrack::backend::MAX_LANES as i64))]
+        lanes: Vec<u16>,
     },
 }
 
@@ -448,6 +449,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             bench_windows(&windows, json, seconds, !cpu_only)
         }
         Command::Bench { sizes, json, stages, seconds, cpu_only, lanes, .. } => {
+            let lanes: Vec<usize> = lanes.into_iter().map(usize::from).collect();
             bench(&sizes.0, json, &stages, &lanes, seconds, !cpu_only)
         }
     }
@@ -497,18 +499,6 @@ fn bench(
     seconds: f64,
     gpu: bool,
 ) -> anyhow::Result<()> {
-    if !lanes.is_empty() && !stages.is_empty() {
-        return Err(
-            pipetrack::Error::Parameter("--lanes times the whole chain: give it without --stages".into()).into()
-        );
-    }
-    if let Some(&k) = lanes.iter().find(|&&k| k == 0 || k > pipetrack::backend::MAX_LANES) {
-        return Err(pipetrack::Error::Parameter(format!(
-            "--lanes {k} must be in 1..={}",
-            pipetrack::backend::MAX_LANES
-        ))
-        .into());
-    }
     let all = pipetrack::cli::bench::stages();
     let chosen: Vec<&str> = if stages.is_empty() {
         all.to_vec()

@@ -48,6 +48,23 @@ pub struct FrameStats {
 /// Most lanes (independent sequences) one backend keeps.
 pub const MAX_LANES: usize = 64;
 
+/// Error unless `lanes` sequences in flight is 1 to [`MAX_LANES`].
+pub fn check_lane_count(lanes: usize) -> Result<()> {
+    if (1..=MAX_LANES).contains(&lanes) {
+        Ok(())
+    } else {
+        Err(Error::Parameter(format!("{lanes} sequences in flight: give 1 to {MAX_LANES}")))
+    }
+}
+
+/// The lanes `0..lanes` in the groups that take turns on the device: even
+/// and odd lanes, so one group's frames are on the device while the other's
+/// are read back and tracked (one group when there is a single lane).
+#[must_use]
+pub fn lane_groups(lanes: usize) -> Vec<Vec<usize>> {
+    if lanes == 1 { vec![vec![0]] } else { vec![(0..lanes).step_by(2).collect(), (1..lanes).step_by(2).collect()] }
+}
+
 /// A frame submitted to the GPU whose results are not yet collected; pass it
 /// to [`GpuBackend::finish`].
 #[derive(Debug)]
@@ -448,21 +465,21 @@ impl GpuBackend {
             }
             let (w, h) = input.size();
             let (slot, plan) = self.prepare_slot(lane, w, h, request)?;
-            recorded.push((lane, slot, plan));
+            recorded.push((lane, slot, plan, input, request.windows.as_ref()));
         }
         // Each frame records into its own command buffer; several frames in
         // parallel (a single frame stays on the calling thread).
         let (ctx, lanes) = (&self.ctx, &self.lanes);
-        let record_one = |((lane, slot, plan), &(_, input, request)): (
-            &(usize, usize, FramePlan),
-            &(usize, Input<'_>, &FrameRequest),
-        )| { record(ctx, &lanes[*lane], *slot, plan, input, request.windows.as_ref()) };
+        let record_one =
+            |(lane, slot, plan, input, windows): &(usize, usize, FramePlan, Input<'_>, Option<&WindowRequest>)| {
+                record(ctx, &lanes[*lane], *slot, plan, *input, *windows)
+            };
         let commands: Vec<(wgpu::CommandBuffer, FrameStats)> = if recorded.len() == 1 {
-            recorded.iter().zip(frames).map(record_one).collect::<Result<_>>()?
+            recorded.iter().map(record_one).collect::<Result<_>>()?
         } else {
-            recorded.par_iter().zip(frames.par_iter()).map(record_one).collect::<Result<_>>()?
+            recorded.par_iter().map(record_one).collect::<Result<_>>()?
         };
-        for (lane, slot, plan) in &recorded {
+        for (lane, slot, plan, ..) in &recorded {
             let l = &mut self.lanes[*lane];
             l.previous = plan.next_previous().map(|kept| (*slot, kept));
             l.next_slot = (slot + 1) % SLOTS;
@@ -473,7 +490,7 @@ impl GpuBackend {
         }
         let submitted = self.ctx.queue.submit(commands.into_iter().map(|(c, _)| c));
         let mut tickets = Vec::with_capacity(recorded.len());
-        for (lane, slot, plan) in recorded {
+        for (lane, slot, plan, ..) in recorded {
             self.lanes[lane].slot_mut(slot)?.pending = Some((plan, submitted.clone()));
             tickets.push(Ticket { lane, slot });
         }

@@ -10,7 +10,8 @@ use crate::backend::plan::PreviousFrame;
 use rayon::prelude::*;
 
 use crate::backend::{
-    CpuBackend, EarlyVision, FramePlan, FrameRequest, FrameStats, GpuBackend, LaneFrame, MAX_LANES, Ticket,
+    CpuBackend, EarlyVision, FramePlan, FrameRequest, FrameStats, GpuBackend, LaneFrame, Ticket, check_lane_count,
+    lane_groups,
 };
 use crate::early::compaction::{self, CompactionGpu, CompactionParams};
 use crate::early::cpf::{self, CpfGpu, CpfPyramids};
@@ -249,12 +250,11 @@ pub fn lanes_stage(lanes: usize) -> String {
 /// the device while the other's features are read back. One call is a
 /// fixed number of steps, [`lanes_frames_per_call`] frames in all.
 pub fn gpu_lanes_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
-    check_lanes(lanes)?;
+    check_lane_count(lanes)?;
     let (w, h) = inp.luma.size();
     let mut backend = GpuBackend::new(ctx.clone());
     let request = FrameRequest::full_chain(w, h);
-    let groups: Vec<Vec<usize>> =
-        if lanes == 1 { vec![vec![0]] } else { vec![(0..lanes).step_by(2).collect(), (1..lanes).step_by(2).collect()] };
+    let groups = lane_groups(lanes);
     Ok(Box::new(move || {
         let n = inp.frames.len();
         let mut pending: Vec<Vec<Ticket>> = groups.iter().map(|_| Vec::new()).collect();
@@ -287,7 +287,7 @@ pub fn gpu_lanes_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) ->
 /// The CPU counterpart of [`gpu_lanes_body`]: `lanes` CPU backends, each
 /// step processing one frame of every lane in parallel on the thread pool.
 pub fn cpu_lanes_body<'a>(inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
-    check_lanes(lanes)?;
+    check_lane_count(lanes)?;
     let (w, h) = inp.luma.size();
     let mut backends: Vec<CpuBackend> = (0..lanes).map(|_| CpuBackend::new()).collect();
     let request = FrameRequest::full_chain(w, h);
@@ -304,25 +304,42 @@ pub fn cpu_lanes_body<'a>(inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
     }))
 }
 
-/// Host time per frame with `lanes` sequences in flight, in milliseconds
-/// (median of [`HOST_FRAMES`] steps): recording and submitting a step's
-/// frames, then reading their lists back once the device is done, without
-/// the wait for the device.
-pub fn lanes_host_ms(ctx: &GpuContext, inp: &Inputs, lanes: usize) -> Result<f64> {
-    check_lanes(lanes)?;
+/// Host time per frame with `lanes` sequences in flight, in milliseconds:
+/// recording and submitting a step's frames, then reading their lists back
+/// once the device is done, without the wait for the device; the median and
+/// the fastest of [`HOST_FRAMES`] steps, and the GPU work of the last frame.
+pub fn host_time(ctx: &GpuContext, inp: &Inputs, lanes: usize) -> Result<(FrameStats, f64, f64)> {
+    check_lane_count(lanes)?;
     let (w, h) = inp.luma.size();
     let mut backend = GpuBackend::new(ctx.clone());
     let request = FrameRequest::full_chain(w, h);
     let n = inp.frames.len();
     let mut per_frame = Vec::with_capacity(HOST_FRAMES);
-    // Two untimed steps first: buffers are allocated and lists sized.
+    // Frames go back and forth through the sequence, so each differs from
+    // its previous one by one shift. Two untimed steps first: buffers are
+    // allocated, lists sized, and the timed frames all have a previous one
+    // (so the motion stages run).
+    let back_and_forth = |i: usize| {
+        if n < 2 {
+            return 0;
+        }
+        let period = 2 * (n - 1);
+        let k = i % period;
+        if k < n { k } else { period - k }
+    };
     for step in 0..HOST_FRAMES + 2 {
         let frames: Vec<LaneFrame<'_>> = (0..lanes)
-            .map(|lane| LaneFrame { lane, frame: &inp.frames[(step + lane) % n], colour: None, request: &request })
+            .map(|lane| LaneFrame {
+                lane,
+                frame: &inp.frames[back_and_forth(step + lane)],
+                colour: None,
+                request: &request,
+            })
             .collect();
         let record = Instant::now();
         let tickets = backend.submit_lanes(&frames)?;
         let recorded = record.elapsed();
+        // Not timed: the device's own work.
         ctx.wait()?;
         let readback = Instant::now();
         for features in backend.finish_lanes(tickets)? {
@@ -333,15 +350,7 @@ pub fn lanes_host_ms(ctx: &GpuContext, inp: &Inputs, lanes: usize) -> Result<f64
         }
     }
     per_frame.sort_by(f64::total_cmp);
-    Ok(per_frame[per_frame.len() / 2])
-}
-
-fn check_lanes(lanes: usize) -> Result<()> {
-    if (1..=MAX_LANES).contains(&lanes) {
-        Ok(())
-    } else {
-        Err(Error::Parameter(format!("{lanes} sequences in flight: give 1 to {MAX_LANES}")))
-    }
+    Ok((backend.last_frame_stats(), per_frame[per_frame.len() / 2], per_frame[0]))
 }
 
 /// Frames' worth of work one call of a lanes body does.
@@ -441,7 +450,7 @@ pub struct BenchReport {
 }
 
 /// Host time per frame of the whole chain with `lanes` sequences in flight
-/// ([`lanes_host_ms`]).
+/// ([`host_time`]).
 #[derive(Clone, Debug, Serialize)]
 pub struct LanesCost {
     /// `WxH`.
@@ -452,30 +461,41 @@ pub struct LanesCost {
     pub host_ms: f64,
 }
 
-/// Dispatches and bytes moved for one frame of the full chain on the GPU,
-/// and the host's time per frame (see [`ChainCost::host_ms`]).
-pub fn chain_cost(ctx: &GpuContext, inp: &Inputs) -> Result<(FrameStats, f64, f64)> {
-    let (w, h) = inp.luma.size();
-    let mut backend = GpuBackend::new(ctx.clone());
-    let request = FrameRequest::full_chain(w, h);
-    // The second frame has a previous one, so the motion stages run too.
-    for f in &inp.frames[..2] {
-        backend.process(f, &request)?;
+/// The GPU context for a comparison (`gpu` asks for one) and the adapter's
+/// name, or why there is none.
+fn open_gpu(gpu: bool) -> (String, Option<GpuContext>) {
+    match gpu.then(GpuContext::new) {
+        None => ("not used (CPU only)".to_string(), None),
+        Some(Ok(ctx)) => (ctx.adapter_name().to_string(), Some(ctx)),
+        Some(Err(e)) => (format!("none ({e})"), None),
     }
-    let stats = backend.last_frame_stats();
-    let mut host = Vec::with_capacity(HOST_FRAMES);
-    for f in inp.frames.iter().cycle().take(HOST_FRAMES) {
-        let record = Instant::now();
-        let ticket = backend.submit(f, &request)?;
-        let recorded = record.elapsed();
-        // Not timed: the device's own work.
-        ctx.wait()?;
-        let readback = Instant::now();
-        backend.finish(ticket)?;
-        host.push((recorded + readback.elapsed()).as_secs_f64() * 1e3);
-    }
-    host.sort_by(f64::total_cmp);
-    Ok((stats, host[host.len() / 2], host[0]))
+}
+
+/// Time a CPU body (with its frames per call), then, on `gpu` (with its
+/// frames per call), the body `make_gpu` builds once the CPU body is gone,
+/// into a row named `stage` at `w`×`h`.
+fn timed_row<'a>(
+    stage: String,
+    (w, h): (usize, usize),
+    budget: Duration,
+    (mut cpu, cpu_frames): (Body<'a>, usize),
+    gpu: Option<(&'a GpuContext, usize)>,
+    make_gpu: impl FnOnce(&'a GpuContext) -> Result<Body<'a>>,
+) -> Result<BenchRow> {
+    let cpu_rate = frames_per_second(&mut cpu, cpu_frames, budget)?;
+    drop(cpu);
+    let gpu_fps = match gpu {
+        Some((ctx, frames)) => Some(frames_per_second(&mut make_gpu(ctx)?, frames, budget)?.median_fps),
+        None => None,
+    };
+    Ok(BenchRow {
+        stage,
+        size: format!("{w}x{h}"),
+        cpu_fps: cpu_rate.median_fps,
+        cpu_best_fps: cpu_rate.best_fps,
+        gpu_fps,
+        gpu_over_cpu: gpu_fps.map(|g| g / cpu_rate.median_fps),
+    })
 }
 
 /// Run every stage at every size on the CPU and, with `gpu`, on the GPU too.
@@ -486,41 +506,24 @@ pub fn compare(
     gpu: bool,
     mut progress: impl FnMut(&BenchRow),
 ) -> Result<BenchReport> {
-    let gpu = gpu.then(GpuContext::new);
-    let adapter = match &gpu {
-        None => "not used (CPU only)".to_string(),
-        Some(Ok(ctx)) => ctx.adapter_name().to_string(),
-        Some(Err(e)) => format!("none ({e})"),
-    };
-    let gpu = gpu.and_then(|g| g.ok());
+    let (adapter, gpu) = open_gpu(gpu);
     let mut rows = Vec::new();
     let mut gpu_chain = Vec::new();
     for &(w, h) in sizes {
         let inp = Inputs::new(w, h)?;
         if let Some(ctx) = &gpu {
-            let (per_frame, host_ms, host_best_ms) = chain_cost(ctx, &inp)?;
+            let (per_frame, host_ms, host_best_ms) = host_time(ctx, &inp, 1)?;
             gpu_chain.push(ChainCost { size: format!("{w}x{h}"), per_frame, host_ms, host_best_ms });
         }
         for &stage in stages {
-            let mut cpu = cpu_body(stage, &inp)?;
-            let cpu_rate = frames_per_second(&mut cpu, cpu_frames_per_call(stage), budget)?;
-            drop(cpu);
-            let gpu_fps = match &gpu {
-                Some(ctx) => {
-                    let mut body = gpu_body(stage, ctx, &inp)?;
-                    Some(frames_per_second(&mut body, gpu_frames_per_call(stage), budget)?.median_fps)
-                }
-                None => None,
-            };
-            let cpu_fps = cpu_rate.median_fps;
-            let row = BenchRow {
-                stage: stage.to_string(),
-                size: format!("{w}x{h}"),
-                cpu_fps,
-                cpu_best_fps: cpu_rate.best_fps,
-                gpu_fps,
-                gpu_over_cpu: gpu_fps.map(|g| g / cpu_fps),
-            };
+            let row = timed_row(
+                stage.to_string(),
+                (w, h),
+                budget,
+                (cpu_body(stage, &inp)?, cpu_frames_per_call(stage)),
+                gpu.as_ref().map(|ctx| (ctx, gpu_frames_per_call(stage))),
+                |ctx| gpu_body(stage, ctx, &inp),
+            )?;
             progress(&row);
             rows.push(row);
         }
@@ -538,41 +541,26 @@ pub fn compare_lanes(
     mut progress: impl FnMut(&BenchRow),
 ) -> Result<BenchReport> {
     for &k in lanes {
-        check_lanes(k)?;
+        check_lane_count(k)?;
     }
-    let gpu = gpu.then(GpuContext::new);
-    let adapter = match &gpu {
-        None => "not used (CPU only)".to_string(),
-        Some(Ok(ctx)) => ctx.adapter_name().to_string(),
-        Some(Err(e)) => format!("none ({e})"),
-    };
-    let gpu = gpu.and_then(|g| g.ok());
+    let (adapter, gpu) = open_gpu(gpu);
     let mut rows = Vec::new();
     let mut gpu_lanes = Vec::new();
     for &(w, h) in sizes {
         let inp = Inputs::new(w, h)?;
         for &k in lanes {
             if let Some(ctx) = &gpu {
-                gpu_lanes.push(LanesCost { size: format!("{w}x{h}"), lanes: k, host_ms: lanes_host_ms(ctx, &inp, k)? });
+                let (_, host_ms, _) = host_time(ctx, &inp, k)?;
+                gpu_lanes.push(LanesCost { size: format!("{w}x{h}"), lanes: k, host_ms });
             }
-            let mut cpu = cpu_lanes_body(&inp, k)?;
-            let cpu_rate = frames_per_second(&mut cpu, lanes_frames_per_call(k), budget)?;
-            drop(cpu);
-            let gpu_fps = match &gpu {
-                Some(ctx) => {
-                    let mut body = gpu_lanes_body(ctx, &inp, k)?;
-                    Some(frames_per_second(&mut body, lanes_frames_per_call(k), budget)?.median_fps)
-                }
-                None => None,
-            };
-            let row = BenchRow {
-                stage: lanes_stage(k),
-                size: format!("{w}x{h}"),
-                cpu_fps: cpu_rate.median_fps,
-                cpu_best_fps: cpu_rate.best_fps,
-                gpu_fps,
-                gpu_over_cpu: gpu_fps.map(|g| g / cpu_rate.median_fps),
-            };
+            let row = timed_row(
+                lanes_stage(k),
+                (w, h),
+                budget,
+                (cpu_lanes_body(&inp, k)?, lanes_frames_per_call(k)),
+                gpu.as_ref().map(|ctx| (ctx, lanes_frames_per_call(k))),
+                |ctx| gpu_lanes_body(ctx, &inp, k),
+            )?;
             progress(&row);
             rows.push(row);
         }
@@ -583,6 +571,7 @@ pub fn compare_lanes(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::backend::MAX_LANES;
 
     /// Every stage the full chain's plan runs has a benchmark body, and the
     /// list ends with the whole chain.

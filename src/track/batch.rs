@@ -28,7 +28,9 @@ use rayon::prelude::*;
 
 use super::Tracker;
 use super::run::{self, RunSummary, TrackOptions, make_tracker, track_features, write_result_line};
-use crate::backend::{BackendKind, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, LaneFrame, MAX_LANES, Ticket};
+use crate::backend::{
+    BackendKind, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, LaneFrame, Ticket, check_lane_count, lane_groups,
+};
 use crate::image::{GrayImage, RgbImage};
 use crate::io::formats::Status;
 use crate::io::frames::ColourFrames;
@@ -57,7 +59,7 @@ pub enum BatchProgress {
     Sequence,
 }
 
-/// Track every job with up to `lanes` sequences in flight (1 ..= [`MAX_LANES`])
+/// Track every job with up to `lanes` sequences in flight (1 ..= [`MAX_LANES`](crate::backend::MAX_LANES))
 /// on `backend`; results in job order. Asking for the GPU without an adapter
 /// says so once on stderr and runs the CPU path. An error is returned only
 /// when the device fails; a job's own failure is its result.
@@ -67,9 +69,7 @@ pub fn run_batch(
     lanes: usize,
     progress: &(dyn Fn(BatchProgress) + Sync),
 ) -> Result<Vec<Result<RunSummary>>> {
-    if !(1..=MAX_LANES).contains(&lanes) {
-        return Err(Error::Parameter(format!("{lanes} sequences in flight: give 1 to {MAX_LANES}")));
-    }
+    check_lane_count(lanes)?;
     match backend {
         BackendKind::Cpu => Ok(run_on_cpu(jobs, lanes, progress)),
         BackendKind::Gpu => match GpuContext::new() {
@@ -196,16 +196,14 @@ impl<'j> Running<'j> {
 }
 
 /// The lockstep loop of the module doc on `backend` (for a caller that has
-/// its own device), with up to `lanes` sequences in flight (1 ..= [`MAX_LANES`]).
+/// its own device), with up to `lanes` sequences in flight (1 ..= [`MAX_LANES`](crate::backend::MAX_LANES)).
 pub fn run_batch_on_gpu(
     jobs: &[BatchJob],
     backend: &mut GpuBackend,
     lanes: usize,
     progress: &(dyn Fn(BatchProgress) + Sync),
 ) -> Result<Vec<Result<RunSummary>>> {
-    if !(1..=MAX_LANES).contains(&lanes) {
-        return Err(Error::Parameter(format!("{lanes} sequences in flight: give 1 to {MAX_LANES}")));
-    }
+    check_lane_count(lanes)?;
     let lanes = lanes.min(jobs.len()).max(1);
     let mut batch = Lanes {
         jobs,
@@ -215,9 +213,7 @@ pub fn run_batch_on_gpu(
         backend_name: backend.name(),
         progress,
     };
-    // Two groups taking turns (one group when there is a single lane).
-    let groups: Vec<Vec<usize>> =
-        if lanes == 1 { vec![vec![0]] } else { vec![(0..lanes).step_by(2).collect(), (1..lanes).step_by(2).collect()] };
+    let groups = lane_groups(lanes);
     let mut pending: Vec<Vec<(usize, Ticket)>> = groups.iter().map(|_| Vec::new()).collect();
     loop {
         let mut busy = false;
