@@ -66,7 +66,7 @@ pub const SHADER: ShaderDef = ShaderDef {
     name: "cpf",
     source: include_str!("../../shaders/cpf.wgsl"),
     includes: &[],
-    entry_points: &[EntryPoint::tiled("cpf_level", &[Uniform, Storage, Storage, Storage, Storage])],
+    entry_points: &[EntryPoint::pyramid_levels("cpf_levels", &[Uniform, Storage, Storage, Storage, Storage])],
 };
 
 /// Number of CPF hierarchies (m = 0..3: minimum, two saddles, maximum).
@@ -333,19 +333,22 @@ pub fn cpf_to_level(src: &FloatImage, levels_down: usize) -> Result<[FloatImage;
 
 // ---------------------------------------------------------------- GPU
 
+/// Most levels one dispatch of `cpf.wgsl` or `edge_pyramid.wgsl` builds:
+/// a 16×16 tile of the first, halved in workgroup memory down to 1×1.
+pub(super) const LEVELS_PER_DISPATCH: usize = 5;
+
 /// Uniform block of `cpf.wgsl` and `edge_pyramid.wgsl`; kept in sync with
-/// their `Params`. Sizes and offsets (in f32 elements) of the level read
-/// (`src_*`) and the level written (`dst_*`) in the concatenated buffers.
+/// their `Params`. Size and offset (in f32 elements) of the level read, and
+/// of each level the dispatch builds, in the concatenated buffers.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub(super) struct LevelUniform {
+pub(super) struct LevelsUniform {
     src_width: u32,
     src_height: u32,
-    dst_width: u32,
-    dst_height: u32,
     src_offset: u32,
-    dst_offset: u32,
-    _pad: [u32; 2],
+    levels: u32,
+    /// (width, height, offset, unused) of each level built.
+    dst: [[u32; 4]; LEVELS_PER_DISPATCH],
 }
 
 /// Level sizes and offsets of a pyramid stored as one concatenated buffer.
@@ -376,21 +379,34 @@ impl LevelLayout {
         self.offsets[self.sizes.len()]
     }
 
-    /// Uniform for building level `k ≥ 1` from level `k − 1`.
-    pub(super) fn uniform(&self, k: usize) -> Result<LevelUniform> {
+    /// The dispatches that build levels 1.. of the pyramid: for each, the
+    /// uniform and the size of its first level (what its grid covers).
+    /// Each builds up to [`LEVELS_PER_DISPATCH`] levels from the last level
+    /// the one before it built.
+    pub(super) fn dispatches(&self) -> Result<Vec<(LevelsUniform, (usize, usize))>> {
         let too_big = || Error::Size(format!("pyramid of {} values exceeds u32 indexing", self.total()));
         let to_u32 = |v: usize| u32::try_from(v).map_err(|_| too_big());
         u32::try_from(self.total()).map_err(|_| too_big())?;
-        let ((sw, sh), (dw, dh)) = (self.sizes[k - 1], self.sizes[k]);
-        Ok(LevelUniform {
-            src_width: to_u32(sw)?,
-            src_height: to_u32(sh)?,
-            dst_width: to_u32(dw)?,
-            dst_height: to_u32(dh)?,
-            src_offset: to_u32(self.offsets[k - 1])?,
-            dst_offset: to_u32(self.offsets[k])?,
-            _pad: [0; 2],
-        })
+        let mut out = Vec::new();
+        let mut src = 0;
+        while src + 1 < self.sizes.len() {
+            let built = (self.sizes.len() - 1 - src).min(LEVELS_PER_DISPATCH);
+            let (sw, sh) = self.sizes[src];
+            let mut u = LevelsUniform {
+                src_width: to_u32(sw)?,
+                src_height: to_u32(sh)?,
+                src_offset: to_u32(self.offsets[src])?,
+                levels: to_u32(built)?,
+                dst: [[0; 4]; LEVELS_PER_DISPATCH],
+            };
+            for (slot, k) in u.dst.iter_mut().zip(src + 1..=src + built) {
+                let (w, h) = self.sizes[k];
+                *slot = [to_u32(w)?, to_u32(h)?, to_u32(self.offsets[k])?, 0];
+            }
+            out.push((u, self.sizes[src + 1]));
+            src += built;
+        }
+        Ok(out)
     }
 
     /// Split a downloaded concatenated buffer (a 1-row image) into its levels.
@@ -470,10 +486,11 @@ impl CpfGpu {
 }
 
 /// Record the CPF hierarchies of `src` into `out`: four buffer copies put
-/// the input at level 0 of each hierarchy, then ONE dispatch per coarser
-/// level builds that level of all four hierarchies (level 1 reads the
-/// copies of the input, deeper levels their own hierarchy's previous level),
-/// i.e. `levels − 1 = ceil(log2(max(w, h)))` dispatches (10 for 640×480).
+/// the input at level 0 of each hierarchy, then each dispatch builds up to
+/// [`LEVELS_PER_DISPATCH`] coarser levels of all four hierarchies (level 1
+/// reads the copies of the input, deeper levels their own hierarchy's
+/// previous level): `⌈(levels − 1) / 5⌉` dispatches (2 for the 10 coarser
+/// levels of 640×480).
 pub(crate) fn encode(rec: &mut Recorder<'_>, src: &GpuImage, out: &CpfGpu) -> Result<()> {
     let layout = &out.layout;
     layout.check_input(src, "CPF input")?;
@@ -481,10 +498,14 @@ pub(crate) fn encode(rec: &mut Recorder<'_>, src: &GpuImage, out: &CpfGpu) -> Re
         rec.copy(&src.buffer, 0, &h.buffer, 0, layout.base_bytes());
     }
     let [h0, h1, h2, h3] = &out.hierarchies;
-    for k in 1..layout.sizes.len() {
-        let (w, h) = layout.sizes[k];
-        let u = layout.uniform(k)?;
-        rec.dispatch(&SHADER, "cpf_level", &u, &[&h0.buffer, &h1.buffer, &h2.buffer, &h3.buffer], workgroups_2d(w, h))?;
+    for (u, (w, h)) in layout.dispatches()? {
+        rec.dispatch(
+            &SHADER,
+            "cpf_levels",
+            &u,
+            &[&h0.buffer, &h1.buffer, &h2.buffer, &h3.buffer],
+            workgroups_2d(w, h),
+        )?;
     }
     Ok(())
 }
@@ -508,6 +529,40 @@ mod tests {
     /// Level `k` of the four hierarchies, as `[m][pixel]` vectors.
     fn level(p: &CpfPyramids, k: usize) -> Vec<Vec<f32>> {
         p.hierarchies.iter().map(|levels| levels[k].data().to_vec()).collect()
+    }
+
+    /// The dispatches build every coarser level exactly once, in order, at
+    /// most five each, each reading the last level the one before built,
+    /// with its grid over its first level.
+    #[test]
+    fn dispatches_build_each_level_once_five_at_most() {
+        for (w, h, count) in [(1, 1, 0), (2, 1, 1), (640, 480, 2), (33, 65, 2), (1500, 7, 3), (2049, 1, 3)] {
+            let layout = LevelLayout::new(w, h);
+            let dispatches = layout.dispatches().unwrap();
+            assert_eq!(dispatches.len(), count, "{w}x{h}");
+            let mut next = 1;
+            for (u, grid) in &dispatches {
+                let src = next - 1;
+                let built = u.levels as usize;
+                assert!((1..=LEVELS_PER_DISPATCH).contains(&built), "{w}x{h}: {built} levels");
+                let (sw, sh) = layout.sizes[src];
+                assert_eq!(
+                    (u.src_width, u.src_height, u.src_offset),
+                    (sw as u32, sh as u32, layout.offsets[src] as u32)
+                );
+                assert_eq!(*grid, layout.sizes[next], "{w}x{h}");
+                for (j, dst) in u.dst.iter().enumerate() {
+                    if j < built {
+                        let (dw, dh) = layout.sizes[next + j];
+                        assert_eq!(*dst, [dw as u32, dh as u32, layout.offsets[next + j] as u32, 0], "{w}x{h}");
+                    } else {
+                        assert_eq!(*dst, [0; 4], "{w}x{h}");
+                    }
+                }
+                next += built;
+            }
+            assert_eq!(next, layout.sizes.len(), "{w}x{h}: every level built");
+        }
     }
 
     #[test]

@@ -13,7 +13,7 @@
 //!
 //! GPU layout: each hierarchy lives in one storage buffer with its levels
 //! concatenated (level 0 first, offsets from [`EdgePyramidGpu::level_offsets`]),
-//! like the CPF hierarchies; one dispatch per level builds both.
+//! like the CPF hierarchies; one dispatch builds up to five levels of both.
 
 use super::cpf::{LevelLayout, level_sizes, reduce_level, reduce_row, shape_levels};
 use crate::Result;
@@ -28,7 +28,7 @@ pub const SHADER: ShaderDef = ShaderDef {
     name: "edge_pyramid",
     source: include_str!("../../shaders/edge_pyramid.wgsl"),
     includes: &[],
-    entry_points: &[EntryPoint::tiled("edge_level", &[Uniform, Storage, Storage])],
+    entry_points: &[EntryPoint::pyramid_levels("edge_levels", &[Uniform, Storage, Storage])],
 };
 
 /// The averaged horizontal and vertical edge hierarchies of one image.
@@ -150,18 +150,17 @@ impl EdgePyramidGpu {
 }
 
 /// Record the edge hierarchies of the Sobel images `gx` (horizontal) and
-/// `gy` (vertical) into `out`: two buffer copies for level 0, then ONE
-/// dispatch per coarser level for both hierarchies (`levels − 1` dispatches).
+/// `gy` (vertical) into `out`: two buffer copies for level 0, then
+/// dispatches of up to [`super::cpf::LEVELS_PER_DISPATCH`] coarser levels of both
+/// hierarchies, as [`super::cpf`] records them.
 pub(crate) fn encode(rec: &mut Recorder<'_>, gx: &GpuImage, gy: &GpuImage, out: &EdgePyramidGpu) -> Result<()> {
     let layout = &out.layout;
     layout.check_input(gx, "edge pyramid horizontal input")?;
     layout.check_input(gy, "edge pyramid vertical input")?;
     rec.copy(&gx.buffer, 0, &out.horizontal.buffer, 0, layout.base_bytes());
     rec.copy(&gy.buffer, 0, &out.vertical.buffer, 0, layout.base_bytes());
-    for k in 1..layout.sizes.len() {
-        let (w, h) = layout.sizes[k];
-        let u = layout.uniform(k)?;
-        rec.dispatch(&SHADER, "edge_level", &u, &[&out.horizontal.buffer, &out.vertical.buffer], workgroups_2d(w, h))?;
+    for (u, (w, h)) in layout.dispatches()? {
+        rec.dispatch(&SHADER, "edge_levels", &u, &[&out.horizontal.buffer, &out.vertical.buffer], workgroups_2d(w, h))?;
     }
     Ok(())
 }

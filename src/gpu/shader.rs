@@ -72,6 +72,15 @@ impl EntryPoint {
         Self { name, workgroup_size: [TILE, TILE, 1], bindings }
     }
 
+    /// An entry point of 8×8 invocations per [`TILE`]×[`TILE`] tile of the
+    /// first level it builds (each invocation builds a 2×2 block of it),
+    /// dispatched over `workgroups_2d` of that level's size: the pyramid
+    /// shaders, which then reduce the tile in workgroup memory.
+    #[must_use]
+    pub const fn pyramid_levels(name: &'static str, bindings: &'static [Binding]) -> Self {
+        Self { name, workgroup_size: [TILE / 2, TILE / 2, 1], bindings }
+    }
+
     /// An entry point over 1-D workgroups of `size` invocations.
     #[must_use]
     pub const fn linear(name: &'static str, size: u32, bindings: &'static [Binding]) -> Self {
