@@ -17,7 +17,7 @@ use crate::early::edge_pyramid::{self, EdgePyramidGpu};
 use crate::early::sobel::{self, SobelGpu};
 use crate::early::window_energy::{self, WindowEnergyGpu};
 use crate::early::zero_crossing::{self, EdgelsGpu};
-use crate::early::{frame_sum, gaussian, ingest, log, temporal_diff};
+use crate::early::{gaussian, ingest, log, temporal_diff};
 use crate::gpu::{FrameArena, GpuContext, GpuImage, Recorder};
 use crate::image::{GrayImage, RgbImage};
 use crate::{Error, Result};
@@ -648,8 +648,8 @@ fn record(
             Step::DiffAndSum(p) => {
                 // 000 eq. 1 and the sum of eq. 2, as in the CPU backend.
                 let (prev, cur) = (images.plane(Plane::Previous)?, &s.smoothed);
-                temporal_diff::encode(&mut rec, prev, cur, images.plane(Plane::MotionMask)?, &p)?;
-                frame_sum::encode(&mut rec, prev, cur, images.plane(Plane::Sum)?)?;
+                let (mask, sum) = (images.plane(Plane::MotionMask)?, images.plane(Plane::Sum)?);
+                temporal_diff::encode_with_sum(&mut rec, prev, cur, mask, sum, &p)?;
             }
             Step::Sobel { input, output } => sobel::encode(&mut rec, images.plane(input)?, s.sobel_set(output)?)?,
             Step::Log(p) => log::encode(&mut rec, &s.luma, &s.tmp, &s.tmp2, images.plane(Plane::Log)?, &p)?,

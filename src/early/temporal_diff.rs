@@ -23,7 +23,10 @@ pub const SHADER: ShaderDef = ShaderDef {
     name: "temporal_diff",
     source: include_str!("../../shaders/temporal_diff.wgsl"),
     includes: &[],
-    entry_points: &[EntryPoint::tiled("temporal_diff", &[Uniform, ReadOnly, ReadOnly, Storage])],
+    entry_points: &[
+        EntryPoint::tiled("temporal_diff", &[Uniform, ReadOnly, ReadOnly, Storage]),
+        EntryPoint::tiled("temporal_diff_and_sum", &[Uniform, ReadOnly, ReadOnly, Storage, Storage]),
+    ],
 };
 
 /// Mask value of a moving pixel.
@@ -190,6 +193,45 @@ pub(crate) fn encode(
     prev.check_same_size(out, "temporal difference prev/out")?;
     let u = TemporalDiffUniform { width: w as u32, height: h as u32, threshold: params.threshold, _pad: 0 };
     rec.dispatch(&SHADER, "temporal_diff", &u, &[&prev.buffer, &cur.buffer, &out.buffer], workgroups_2d(w, h))
+}
+
+/// Record the mask `mask = |prev − cur| > threshold` and the frame sum
+/// `sum = prev + cur` in one dispatch (all four the same size): the GPU
+/// twin of [`temporal_diff_and_sum_cpu`] over the whole frame.
+pub(crate) fn encode_with_sum(
+    rec: &mut Recorder<'_>,
+    prev: &GpuImage,
+    cur: &GpuImage,
+    mask: &GpuImage,
+    sum: &GpuImage,
+    params: &TemporalDiffParams,
+) -> Result<()> {
+    params.validate()?;
+    let (w, h) = (prev.width(), prev.height());
+    prev.check_same_size(cur, "temporal difference prev/cur")?;
+    prev.check_same_size(mask, "temporal difference prev/out")?;
+    prev.check_same_size(sum, "temporal difference prev/sum")?;
+    let u = TemporalDiffUniform { width: w as u32, height: h as u32, threshold: params.threshold, _pad: 0 };
+    let buffers = [&prev.buffer, &cur.buffer, &mask.buffer, &sum.buffer];
+    rec.dispatch(&SHADER, "temporal_diff_and_sum", &u, &buffers, workgroups_2d(w, h))
+}
+
+/// GPU: the motion mask and the frame sum of two CPU images in one
+/// dispatch, read back as `(mask, sum)` (tests and benches).
+pub fn temporal_diff_and_sum_gpu(
+    ctx: &GpuContext,
+    prev: &FloatImage,
+    cur: &FloatImage,
+    params: &TemporalDiffParams,
+) -> Result<(FloatImage, FloatImage)> {
+    prev.check_same_size(cur, "temporal difference prev/cur")?;
+    let (w, h) = prev.size();
+    let p = GpuImage::from_image(ctx, prev, "temporal_diff.prev");
+    let c = GpuImage::from_image(ctx, cur, "temporal_diff.cur");
+    let mask = GpuImage::new(ctx, w, h, "temporal_diff.mask");
+    let sum = GpuImage::new(ctx, w, h, "temporal_diff.sum");
+    run_once(ctx, |rec| encode_with_sum(rec, &p, &c, &mask, &sum, params))?;
+    Ok((mask.download(ctx)?, sum.download(ctx)?))
 }
 
 /// GPU: the motion mask of two CPU images, read back (tests and benches).

@@ -94,3 +94,32 @@ fn parity_temporal_diff_integer_differences_on_the_threshold(w: usize, h: usize)
     common::assert_equal(&format!("temporal_diff_integer/{w}x{h}"), &cpu, &gpu);
 }
 per_size!(parity_temporal_diff_integer_differences_on_the_threshold);
+
+/// The fused entry point (mask and frame sum in one dispatch, as the GPU
+/// backend runs them) against the CPU backend's fused twin: the mask equal
+/// (integer differences on and one level above the threshold, and smoothed
+/// frames), the sum equal, bit for bit.
+fn parity_temporal_diff_and_sum_exact(w: usize, h: usize) {
+    let Some((ctx, _g)) = common::gpu(&format!("parity_temporal_diff_and_sum_exact/{w}x{h}")) else {
+        return;
+    };
+    let integer = natural(w, h, 5).to_f32();
+    let shifted = FloatImage::from_fn(w, h, |x, y| integer.get(x, y) + ((x + 3 * y) % 5) as f32 + 6.0);
+    for (what, prev, cur) in [
+        ("integer", integer.clone(), shifted),
+        ("smoothed", moving_pair(w, h, 21, 3, 2).0, moving_pair(w, h, 21, 3, 2).1),
+    ] {
+        let p = TemporalDiffParams::default();
+        let (mut mask, mut sum) = (FloatImage::new(0, 0), FloatImage::new(0, 0));
+        let full = pipetrack::early::Window::full(w, h);
+        temporal_diff::temporal_diff_and_sum_cpu(&prev, &cur, &p, full, &mut mask, &mut sum).unwrap();
+        let (gpu_mask, gpu_sum) = temporal_diff::temporal_diff_and_sum_gpu(ctx, &prev, &cur, &p).unwrap();
+        common::assert_equal(&format!("temporal_diff_and_sum/{what}/{w}x{h}/mask"), &mask, &gpu_mask);
+        common::assert_equal(&format!("temporal_diff_and_sum/{what}/{w}x{h}/sum"), &sum, &gpu_sum);
+        if w * h > 1000 {
+            let moving = mask.data().iter().filter(|&&v| v == MOVING).count();
+            assert!(moving > 0 && moving < w * h, "{what}/{w}x{h}: degenerate mask ({moving} moving)");
+        }
+    }
+}
+per_size!(parity_temporal_diff_and_sum_exact);
