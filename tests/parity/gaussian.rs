@@ -11,7 +11,7 @@ const GAUSSIAN_ATOL: f32 = 2e-4;
 fn parity_gaussian_sigmas(w: usize, h: usize) {
     let Some((ctx, _g)) = common::gpu(&format!("parity_gaussian_sigmas/{w}x{h}")) else { return };
     let src = natural(w, h, 11).to_f32();
-    for sigma in [0.8f32, 1.0, 1.2, 2.5] {
+    for sigma in [0.8f32, 1.0, 1.2, 2.5, gaussian::MAX_SIGMA] {
         let p = gaussian::GaussianParams { sigma };
         let cpu = gaussian::gaussian(&src, &p).unwrap();
         let gpu = gaussian::gaussian_gpu(ctx, &src, &p).unwrap();
