@@ -40,9 +40,9 @@ fn parity_cpf_all_levels_exact(w: usize, h: usize) {
 }
 // One dispatch builds up to five levels from 16×16 tiles: 33×65 and 1500×7
 // need two and three dispatches with odd sizes inside and across tiles,
-// 2049×1 three from a one-row image.
+// 2049×1 and 1×2049 three from a one-row and a one-column image.
 per_size!(parity_cpf_all_levels_exact; w256_h256 = (256, 256); w1_h7 = (1, 7); w7_h1 = (7, 1);
-    w33_h65 = (33, 65); w1500_h7 = (1500, 7); w2049_h1 = (2049, 1));
+    w33_h65 = (33, 65); w1500_h7 = (1500, 7); w2049_h1 = (2049, 1); w1_h2049 = (1, 2049));
 
 /// Saddle hierarchies depend on which child pairs the inner min/max takes;
 /// an image with a strong row/column asymmetry makes a swapped pairing fail.
@@ -77,7 +77,7 @@ fn parity_edge_pyramid_all_levels(w: usize, h: usize) {
     }
 }
 per_size!(parity_edge_pyramid_all_levels; w256_h256 = (256, 256); w1_h7 = (1, 7); w7_h1 = (7, 1);
-    w33_h65 = (33, 65); w1500_h7 = (1500, 7); w2049_h1 = (2049, 1));
+    w33_h65 = (33, 65); w1500_h7 = (1500, 7); w2049_h1 = (2049, 1); w1_h2049 = (1, 2049));
 
 #[test]
 fn parity_edge_pyramid_rejects_mismatched_inputs() {
