@@ -225,9 +225,19 @@ fn lowe_hinged_box_occluded_at_20_and_30_px_per_frame_has_no_more_than_1_percent
 /// while tracking. Another joint value now needs more matches as well.
 const HINGED_NOISY: Case = Case { speed: 20.0, noise: 8.0, min_tracked: 295, ..HINGED_25 };
 
+/// Noise σ 8 at 20 px/frame, seed 6: at frames 280–283 the first range
+/// fitted the closing lid 11–17° off (8–11 px, 47–56 % of the outline
+/// supported) while the doubled range had it within 3° (72–83 %, more
+/// matches); a wider range's solution that clears the re-acquisition bar
+/// with more support and matches now replaces the first (4 false frames
+/// before).
+const HINGED_NOISY_SEED_6: Case = Case { seed: 6, ..HINGED_NOISY };
+
 #[test]
 fn lowe_hinged_box_with_noise_has_no_more_than_1_percent_false_tracking_cpu() {
-    check(&HINGED_NOISY, &mut CpuBackend::new(), "cpu");
+    for case in [HINGED_NOISY, HINGED_NOISY_SEED_6] {
+        check(&case, &mut CpuBackend::new(), "cpu");
+    }
 }
 
 /// The GPU backend holds all six scenes as the CPU backend does, with the

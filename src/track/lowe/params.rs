@@ -112,7 +112,9 @@ pub struct LoweParams {
     /// A verified solution whose outline support (as `min_support`) is
     /// below this does not end the search: the wider prior ranges are
     /// searched too and a verified solution reaching it there is taken
-    /// instead (the tracker's module doc, step 6). Frames on target of the
+    /// instead, as is one that clears `search_min_support` and
+    /// `search_min_coverage` with more supported outline and more matches
+    /// (the tracker's module doc, step 6). Frames on target of the
     /// unoccluded box scenes have 0.8–0.97; at 30 px/frame, solutions
     /// 8–16 px off after abrupt reversals had 0.27–0.64. 0.8 took the
     /// false-tracking frames of six 300-frame sequences at 30 px/frame from
@@ -127,12 +129,15 @@ pub struct LoweParams {
     /// positions across it; see the tracker's module doc). Range: 1 ..= 1000.
     pub search_after: usize,
     /// Least coverage (as `min_coverage`) of a solution after a loss, at
-    /// the widened prediction or by the whole-image search. Re-acquisitions
+    /// the widened prediction or by the whole-image search, and of a wider
+    /// range's solution that replaces a weakly supported one (see
+    /// `confident_support`). Re-acquisitions
     /// on target on the box scenes cover 0.88–0.97; at 25–30 px/frame,
     /// solutions 120–200 px off covered 0.27–0.56 with support 0.50–0.56.
     /// Range: [0, 1].
     pub search_min_coverage: f64,
-    /// Least support (as `min_support`) of a solution after a loss: higher
+    /// Least support (as `min_support`) of a solution after a loss, and of
+    /// a wider range's solution that replaces a weakly supported one: higher
     /// than `min_support`, because the search tries dozens of positions over
     /// the clutter. Re-acquisitions on target on the box scenes have
     /// 0.90–0.98. Range: [0, 1].
