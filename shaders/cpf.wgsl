@@ -7,28 +7,8 @@
 // (y), so the inner min/max pairs (2i,2j),(2i,2j+1) are the two children of
 // one column and the outer op combines the two columns.
 // A missing last column/row (odd size) is clamped to the edge child.
-//
-// One dispatch builds up to LEVELS consecutive levels. Each workgroup owns a
-// 16×16 tile of the first level: each of its 8×8 invocations builds a 2×2
-// block of that tile from the buffers, then the workgroup halves the tile in
-// workgroup memory (8×8, 4×4, 2×2, 1×1), writing every level it builds. The
-// children of a tile's pixels lie in the tile of the level before (a clamped
-// child is the pixel's own edge child), so no workgroup needs another's values.
-// Kept in sync with `LevelsUniform` in src/early/cpf.rs.
-
-const TILE: u32 = 16u;
-const LEVELS: u32 = 5u;
-
-struct Params {
-    // The level read: width, height, offset of its first value.
-    src_width: u32,
-    src_height: u32,
-    src_offset: u32,
-    // Levels built by this dispatch (1 ..= LEVELS).
-    levels: u32,
-    // Each level built: (width, height, offset, unused).
-    dst: array<vec4<u32>, LEVELS>,
-}
+// One dispatch builds up to LEVELS consecutive levels, a tile per workgroup
+// (`pyramid_tile.wgsl`, included).
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> h0: array<f32>;
@@ -36,9 +16,7 @@ struct Params {
 @group(0) @binding(3) var<storage, read_write> h2: array<f32>;
 @group(0) @binding(4) var<storage, read_write> h3: array<f32>;
 
-// The workgroup's tiles, one array per hierarchy: level k of the dispatch in
-// half k % 2 (a level is read from one half while the next is written into
-// the other), pixel (x, y) of the tile at y · TILE + x of its half.
+// The workgroup's tiles, one array per hierarchy (`pyramid_tile.wgsl`).
 var<workgroup> t0: array<f32, 512>;
 var<workgroup> t1: array<f32, 512>;
 var<workgroup> t2: array<f32, 512>;
@@ -59,77 +37,54 @@ fn reduce(c0: vec4<f32>, c1: vec4<f32>, c2: vec4<f32>, c3: vec4<f32>) -> vec4<f3
     );
 }
 
-// Store pixel (x, y) of level `level` (its tile-local position `l`).
-fn store(level: vec4<u32>, x: u32, y: u32, l: u32, v: vec4<f32>) {
-    let o = level.z + y * level.x + x;
+// Store pixel `p` of level `level` in the buffers and at `slot` of the tiles.
+fn store(level: vec4<u32>, p: vec2<u32>, slot: u32, v: vec4<f32>) {
+    let o = level.z + p.y * level.x + p.x;
     h0[o] = v.x;
     h1[o] = v.y;
     h2[o] = v.z;
     h3[o] = v.w;
-    t0[l] = v.x;
-    t1[l] = v.y;
-    t2[l] = v.z;
-    t3[l] = v.w;
+    t0[slot] = v.x;
+    t1[slot] = v.y;
+    t2[slot] = v.z;
+    t3[slot] = v.w;
 }
 
 @compute @workgroup_size(8, 8)
-fn cpf_levels(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wg: vec3<u32>) {
-    // First level: children read from the buffers, clamp-to-edge.
+fn cpf_levels(@builtin(local_invocation_id) lid3: vec3<u32>, @builtin(workgroup_id) wg3: vec3<u32>) {
+    let lid = lid3.xy;
+    let wg = wg3.xy;
+    // First level: children read from the buffers.
     let first = params.dst[0];
     for (var b = 0u; b < 4u; b++) {
-        let tx = 2u * lid.x + b % 2u;
-        let ty = 2u * lid.y + b / 2u;
-        let x = wg.x * TILE + tx;
-        let y = wg.y * TILE + ty;
-        if (x < first.x && y < first.y) {
-            let x0 = 2u * x;
-            let x1 = min(x0 + 1u, params.src_width - 1u);
-            let y0 = 2u * y;
-            let y1 = min(y0 + 1u, params.src_height - 1u);
-            let r0 = params.src_offset + y0 * params.src_width;
-            let r1 = params.src_offset + y1 * params.src_width;
-            let i00 = r0 + x0; // (2i,   2j)
-            let i01 = r1 + x0; // (2i,   2j+1)
-            let i10 = r0 + x1; // (2i+1, 2j)
-            let i11 = r1 + x1; // (2i+1, 2j+1)
+        let t = block_pixel(lid, b);
+        let p = wg * TILE + t;
+        if (p.x < first.x && p.y < first.y) {
+            let i = level_children(p, params.src_width, params.src_height, params.src_offset);
             let v = reduce(
-                vec4<f32>(h0[i00], h0[i01], h0[i10], h0[i11]),
-                vec4<f32>(h1[i00], h1[i01], h1[i10], h1[i11]),
-                vec4<f32>(h2[i00], h2[i01], h2[i10], h2[i11]),
-                vec4<f32>(h3[i00], h3[i01], h3[i10], h3[i11]),
+                vec4<f32>(h0[i.x], h0[i.y], h0[i.z], h0[i.w]),
+                vec4<f32>(h1[i.x], h1[i.y], h1[i.z], h1[i.w]),
+                vec4<f32>(h2[i.x], h2[i.y], h2[i.z], h2[i.w]),
+                vec4<f32>(h3[i.x], h3[i.y], h3[i.z], h3[i.w]),
             );
-            store(first, x, y, ty * TILE + tx, v);
+            store(first, p, t.y * TILE + t.x, v);
         }
     }
-    // Deeper levels from the tile: level k's tile is TILE >> k wide.
+    // Deeper levels from the tile.
     for (var k = 1u; k < LEVELS; k++) {
         // Level k − 1 is complete in its half of the tiles.
         workgroupBarrier();
-        let read = ((k - 1u) % 2u) * TILE * TILE;
-        let write = (k % 2u) * TILE * TILE;
-        let n = TILE >> k;
-        let prev = params.dst[k - 1u];
         let cur = params.dst[k];
-        let px = wg.x * n + lid.x;
-        let py = wg.y * n + lid.y;
-        if (k < params.levels && lid.x < n && lid.y < n && px < cur.x && py < cur.y) {
-            // Children in the previous level's tile, which starts at
-            // (wg · 2n); the clamped child of an odd edge is the pixel's own.
-            let x0 = 2u * lid.x;
-            let x1 = min(2u * px + 1u, prev.x - 1u) - wg.x * 2u * n;
-            let y0 = 2u * lid.y;
-            let y1 = min(2u * py + 1u, prev.y - 1u) - wg.y * 2u * n;
-            let i00 = read + y0 * TILE + x0;
-            let i01 = read + y1 * TILE + x0;
-            let i10 = read + y0 * TILE + x1;
-            let i11 = read + y1 * TILE + x1;
+        let at = tile_pixel(lid, wg, k, params.levels, cur);
+        if (at.x == 1u) {
+            let i = tile_children(lid, wg, k, params.dst[k - 1u]);
             let v = reduce(
-                vec4<f32>(t0[i00], t0[i01], t0[i10], t0[i11]),
-                vec4<f32>(t1[i00], t1[i01], t1[i10], t1[i11]),
-                vec4<f32>(t2[i00], t2[i01], t2[i10], t2[i11]),
-                vec4<f32>(t3[i00], t3[i01], t3[i10], t3[i11]),
+                vec4<f32>(t0[i.x], t0[i.y], t0[i.z], t0[i.w]),
+                vec4<f32>(t1[i.x], t1[i.y], t1[i.z], t1[i.w]),
+                vec4<f32>(t2[i.x], t2[i.y], t2[i.z], t2[i.w]),
+                vec4<f32>(t3[i.x], t3[i.y], t3[i.z], t3[i.w]),
             );
-            store(cur, px, py, write + lid.y * TILE + lid.x, v);
+            store(cur, at.yz, tile_slot(lid, k), v);
         }
     }
 }

@@ -56,7 +56,7 @@ use rayon::prelude::*;
 use super::rows::{for_each_row, parallel};
 use crate::gpu::{
     Binding::{Storage, Uniform},
-    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+    EntryPoint, GpuContext, GpuImage, Include, Recorder, ShaderDef, run_once, workgroups_2d,
 };
 use crate::image::FloatImage;
 use crate::{Error, Result};
@@ -65,9 +65,14 @@ use crate::{Error, Result};
 pub const SHADER: ShaderDef = ShaderDef {
     name: "cpf",
     source: include_str!("../../shaders/cpf.wgsl"),
-    includes: &[],
+    includes: &[PYRAMID_TILE],
     entry_points: &[EntryPoint::pyramid_levels("cpf_levels", &[Uniform, Storage, Storage, Storage, Storage])],
 };
+
+/// The index arithmetic of a pyramid built several levels to a dispatch,
+/// included by `cpf.wgsl` and `edge_pyramid.wgsl`.
+pub(super) const PYRAMID_TILE: Include =
+    Include { name: "pyramid_tile", source: include_str!("../../shaders/pyramid_tile.wgsl") };
 
 /// Number of CPF hierarchies (m = 0..3: minimum, two saddles, maximum).
 pub const HIERARCHIES: usize = 4;
@@ -334,11 +339,12 @@ pub fn cpf_to_level(src: &FloatImage, levels_down: usize) -> Result<[FloatImage;
 // ---------------------------------------------------------------- GPU
 
 /// Most levels one dispatch of `cpf.wgsl` or `edge_pyramid.wgsl` builds:
-/// a 16×16 tile of the first, halved in workgroup memory down to 1×1.
+/// a 16×16 tile of the first, halved in workgroup memory down to 1×1
+/// (`LEVELS` in `pyramid_tile.wgsl`).
 pub(super) const LEVELS_PER_DISPATCH: usize = 5;
 
 /// Uniform block of `cpf.wgsl` and `edge_pyramid.wgsl`; kept in sync with
-/// their `Params`. Size and offset (in f32 elements) of the level read, and
+/// `Params` in `pyramid_tile.wgsl`. Size and offset (in f32 elements) of the level read, and
 /// of each level the dispatch builds, in the concatenated buffers.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]

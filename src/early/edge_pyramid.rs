@@ -15,7 +15,7 @@
 //! concatenated (level 0 first, offsets from [`EdgePyramidGpu::level_offsets`]),
 //! like the CPF hierarchies; one dispatch builds up to five levels of both.
 
-use super::cpf::{LevelLayout, level_sizes, reduce_level, reduce_row, shape_levels};
+use super::cpf::{LevelLayout, PYRAMID_TILE, level_sizes, reduce_level, reduce_row, shape_levels};
 use crate::Result;
 use crate::gpu::{
     Binding::{Storage, Uniform},
@@ -27,7 +27,7 @@ use crate::image::FloatImage;
 pub const SHADER: ShaderDef = ShaderDef {
     name: "edge_pyramid",
     source: include_str!("../../shaders/edge_pyramid.wgsl"),
-    includes: &[],
+    includes: &[PYRAMID_TILE],
     entry_points: &[EntryPoint::pyramid_levels("edge_levels", &[Uniform, Storage, Storage])],
 };
 
