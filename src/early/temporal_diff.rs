@@ -187,12 +187,29 @@ pub(crate) fn encode(
     out: &GpuImage,
     params: &TemporalDiffParams,
 ) -> Result<()> {
+    let u = checked_uniform(prev, cur, out, params)?;
+    rec.dispatch(
+        &SHADER,
+        "temporal_diff",
+        &u,
+        &[&prev.buffer, &cur.buffer, &out.buffer],
+        workgroups_2d(prev.width(), prev.height()),
+    )
+}
+
+/// The uniform block for `prev → cur` into the mask `out`, after checking
+/// the parameters and that the three images have one size.
+fn checked_uniform(
+    prev: &GpuImage,
+    cur: &GpuImage,
+    out: &GpuImage,
+    params: &TemporalDiffParams,
+) -> Result<TemporalDiffUniform> {
     params.validate()?;
-    let (w, h) = (prev.width(), prev.height());
     prev.check_same_size(cur, "temporal difference prev/cur")?;
     prev.check_same_size(out, "temporal difference prev/out")?;
-    let u = TemporalDiffUniform { width: w as u32, height: h as u32, threshold: params.threshold, _pad: 0 };
-    rec.dispatch(&SHADER, "temporal_diff", &u, &[&prev.buffer, &cur.buffer, &out.buffer], workgroups_2d(w, h))
+    let (w, h) = prev.size();
+    Ok(TemporalDiffUniform { width: w as u32, height: h as u32, threshold: params.threshold, _pad: 0 })
 }
 
 /// Record the mask `mask = |prev − cur| > threshold` and the frame sum
@@ -206,14 +223,10 @@ pub(crate) fn encode_with_sum(
     sum: &GpuImage,
     params: &TemporalDiffParams,
 ) -> Result<()> {
-    params.validate()?;
-    let (w, h) = (prev.width(), prev.height());
-    prev.check_same_size(cur, "temporal difference prev/cur")?;
-    prev.check_same_size(mask, "temporal difference prev/out")?;
+    let u = checked_uniform(prev, cur, mask, params)?;
     prev.check_same_size(sum, "temporal difference prev/sum")?;
-    let u = TemporalDiffUniform { width: w as u32, height: h as u32, threshold: params.threshold, _pad: 0 };
     let buffers = [&prev.buffer, &cur.buffer, &mask.buffer, &sum.buffer];
-    rec.dispatch(&SHADER, "temporal_diff_and_sum", &u, &buffers, workgroups_2d(w, h))
+    rec.dispatch(&SHADER, "temporal_diff_and_sum", &u, &buffers, workgroups_2d(prev.width(), prev.height()))
 }
 
 /// GPU: the motion mask and the frame sum of two CPU images in one

@@ -381,9 +381,9 @@ impl LoweTracker {
                 let first_support = first.support.map_or(0.0, support::fraction);
                 let fraction = support::fraction(support);
                 fraction >= self.params.search_min_support
-                    && coverage(&found.segs, &found.matches) >= self.params.search_min_coverage
                     && fraction > first_support
                     && found.matches.len() > first.matches.len()
+                    && coverage(&found.segs, &found.matches) >= self.params.search_min_coverage
             });
             if confident || better {
                 verified = Some(found);
