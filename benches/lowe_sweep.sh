@@ -9,8 +9,8 @@
 #
 # Scenes (300 frames each, 640×480): the hinged box with noise σ 8 at
 # 20 px/frame; at 20, 25 and 30 px/frame; with half the visible edges
-# hidden at 10, 20 and 30 px/frame; and the box at 25 and 30 px/frame and
-# half hidden at 10 and 20 px/frame. Each scene is rendered once per seed
+# hidden at 10, 20 and 30 px/frame; and the box at 20, 25 and 30 px/frame
+# and half hidden at 10 and 20 px/frame. Each scene is rendered once per seed
 # by the first binary (`synth`); --jobs runs that many tracks at a time
 # (default: the number of cores). Runs whose false tracking exceeds 1 % of
 # their frames are marked `!` (for either binary); a run whose track or
@@ -53,6 +53,7 @@ scenes=(
     "hinged-box half hidden, 10 px/frame|hinged-box --speed 10 --occlude 0.5"
     "hinged-box half hidden, 20 px/frame|hinged-box --speed 20 --occlude 0.5"
     "hinged-box half hidden, 30 px/frame|hinged-box --speed 30 --occlude 0.5"
+    "box 20 px/frame|box --speed 20"
     "box 25 px/frame|box --speed 25"
     "box 30 px/frame|box --speed 30"
     "box half hidden, 10 px/frame|box --speed 10 --occlude 0.5"
