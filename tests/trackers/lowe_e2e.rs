@@ -189,9 +189,15 @@ fn lowe_holds_25_px_per_frame_without_false_tracking_cpu() {
     }
 }
 
+/// Seed 5: frames 14, 60, 106, 243, 268 and 289 began losses after abrupt
+/// reversals, each a doubled range's solution 8–17 px off with 27–52 % of
+/// its outline supported against 76–94 % a frame before, reported tracking.
+/// A widened range's solution now needs 0.7 of the last frame's support.
+const BOX_30_SEED_5: Case = Case { seed: 5, min_tracked: 270, ..BOX_30 };
+
 #[test]
 fn lowe_at_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
-    for case in [BOX_30, Case { seed: 1, ..BOX_30 }, HINGED_30] {
+    for case in [BOX_30, Case { seed: 1, ..BOX_30 }, BOX_30_SEED_5, HINGED_30] {
         check(&case, &mut CpuBackend::new(), "cpu");
     }
 }
