@@ -86,6 +86,11 @@ const HINGED_OCCLUDED_FAST: Case = Case { speed: 20.0, occlude: 0.5, seed: 1, mi
 /// fitted to the wrong edges on 5–7 matches at 1.5–2.2 px residual and
 /// reported tracking; a loose fit on few matches is no longer verified.
 const BOX_OCCLUDED_10: Case = Case { speed: 10.0, occlude: 0.5, min_tracked: 295, max_false: 3, ..BOX_SLOW };
+/// Seed 9: lost behind the occluder, the box was taken at frames 65, 73,
+/// 80 and 82 on a dark rectangle of the background 106–141 px away, fitted
+/// as the box seen face on with the rotation's σ 3.1–4.8° (9 frames
+/// tracking off target). A re-acquisition must now fix the rotation.
+const BOX_OCCLUDED_10_SEED_9: Case = Case { seed: 9, min_tracked: 250, ..BOX_OCCLUDED_10 };
 const HINGED_OCCLUDED: Case = Case { occlude: 0.5, max_lid_frames_over_2deg: 15, max_lid_deg: 6.0, ..HINGED_SLOW };
 
 /// Track `case` on `backend`, assert its figures and return the results.
@@ -162,7 +167,7 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<
 
 #[test]
 fn lowe_holds_box_slow_fast_and_occluded_cpu() {
-    for case in [&BOX_SLOW, &BOX_FAST, &BOX_OCCLUDED, &BOX_OCCLUDED_10] {
+    for case in [&BOX_SLOW, &BOX_FAST, &BOX_OCCLUDED, &BOX_OCCLUDED_10, &BOX_OCCLUDED_10_SEED_9] {
         check(case, &mut CpuBackend::new(), "cpu");
     }
 }
