@@ -706,7 +706,8 @@ impl FrameView<'_> {
             return Err(Rejection::Support { support, least: self.min_support });
         }
         if doubling > 0 && support < self.min_widened_support {
-            return Err(Rejection::WidenedSupport { support, least: self.min_widened_support });
+            let ratio = self.tracker.params.widened_support_ratio;
+            return Err(Rejection::WidenedSupport { support, least: self.min_widened_support, ratio });
         }
         Ok(counts)
     }
@@ -787,7 +788,7 @@ enum Rejection {
     Support { support: f64, least: f64 },
     /// Found only in a widened range, with far less of the outline
     /// supported than the last frame's.
-    WidenedSupport { support: f64, least: f64 },
+    WidenedSupport { support: f64, least: f64, ratio: f64 },
     /// A re-acquisition whose matches leave the rotation loose.
     LoosePose { sigma: f64, most: f64 },
 }
@@ -816,10 +817,10 @@ impl std::fmt::Display for Rejection {
                 sigma.to_degrees(),
                 most.to_degrees()
             ),
-            Self::WidenedSupport { support, least } => write!(
+            Self::WidenedSupport { support, least, ratio } => write!(
                 f,
-                "found only in a widened range with zero crossings along {:.0} % of the visible edges \
-                 (< {:.0} %, a part of the last frame's)",
+                "found only in a widened range, with zero crossings along {:.0} % of the visible edges \
+                 (< {:.0} %, {ratio} of the last frame's)",
                 100.0 * support,
                 100.0 * least
             ),

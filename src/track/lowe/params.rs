@@ -158,7 +158,8 @@ pub struct LoweParams {
     /// background's rectangles fit it with the tilt barely fixed. Over 120
     /// sequences of 300 frames (`benches/lowe_sweep.sh --seeds "0 1 2 3 4
     /// 5 6 7 8 9"`), the 188 re-acquisitions on target had at most 0.87°,
-    /// the 7 that were 98–143 px off 3.1–7.9°. Range: (0, π].
+    /// the 7 that were 98–143 px off 3.1–7.9°. π turns the test off.
+    /// Range: (0, π].
     pub search_max_rotation_sigma: f64,
     /// Extra margin of the window of interest around the predicted model,
     /// px, on top of the search range. Range: [0, 4096].
