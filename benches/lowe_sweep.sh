@@ -5,7 +5,7 @@
 # totals. With two binaries, both track every scene and each line shows
 # the first's figures → the second's.
 #
-#   benches/lowe_sweep.sh [--seeds "0 1 2"] [--jobs N] [--scratch DIR] BINARY [BINARY2]
+#   benches/lowe_sweep.sh [--seeds "0 1 2"] [--jobs N] [--scratch DIR] [--config FILE] BINARY [BINARY2]
 #
 # Scenes (300 frames each, 640×480): the hinged box with noise σ 8 at
 # 20 px/frame; at 20, 25 and 30 px/frame; with half the visible edges
@@ -15,19 +15,22 @@
 # (default: the number of cores). Runs whose false tracking exceeds 1 % of
 # their frames are marked `!` (for either binary); a run whose track or
 # score failed shows `failed`, the tool's message in its score file under
-# --scratch.
+# --scratch. --config passes a tracker configuration (TOML, as `track
+# --config`) to every run of every binary.
 set -euo pipefail
 
 seeds="0 1 2"
 jobs=$(nproc)
 scratch=""
+config=""
 binaries=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --seeds) seeds="$2"; shift 2 ;;
         --jobs) jobs="$2"; shift 2 ;;
         --scratch) scratch="$2"; shift 2 ;;
-        -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+        --config) config="$2"; shift 2 ;;
+        -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
         *) binaries+=("$1"); shift ;;
     esac
 done
@@ -38,6 +41,11 @@ fi
 for b in "${binaries[@]}"; do
     [ -x "$b" ] || { echo "lowe_sweep.sh: $b: not an executable" >&2; exit 2; }
 done
+config_args=()
+if [ -n "$config" ]; then
+    [ -f "$config" ] || { echo "lowe_sweep.sh: $config: not a file" >&2; exit 2; }
+    config_args=(--config "$(cd "$(dirname "$config")" && pwd)/$(basename "$config")")
+fi
 if [ -z "$scratch" ]; then
     scratch=$(mktemp -d)
     trap 'rm -rf "$scratch"' EXIT
@@ -79,12 +87,13 @@ done
 # Track and score every run with every binary, `jobs` at a time.
 for b in "${!binaries[@]}"; do
     printf '%s\n' "${runs[@]}" | xargs -P "$jobs" -L 1 bash -c '
-        bin=$0; scratch=$1; b=$2; i=$3; seed=$4
+        bin=$0; scratch=$1; b=$2; i=$4; seed=$5; config_args=()
+        [ -n "$3" ] && config_args=(--config "$3")
         dir="$scratch/scene$i-seed$seed"
-        if "$bin" track "$dir" --tracker lowe --backend cpu --out "$dir.$b.jsonl" 2> "$dir.$b.score"; then
+        if "$bin" track "$dir" --tracker lowe --backend cpu "${config_args[@]}" --out "$dir.$b.jsonl" 2> "$dir.$b.score"; then
             "$bin" score "$dir" "$dir.$b.jsonl" > "$dir.$b.score" 2>&1 || true
         fi
-    ' "${binaries[$b]}" "$scratch" "$b"
+    ' "${binaries[$b]}" "$scratch" "$b" "${config_args[1]:-}"
 done
 
 # One score file's figures: tracked false mean_px joint_mean joint_max
