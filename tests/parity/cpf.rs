@@ -1,7 +1,10 @@
 //! GPU/CPU parity of `shaders/cpf.wgsl` (the `cpf` stage, four critical-point
 //! filter hierarchies) and `shaders/edge_pyramid.wgsl` (the `edge_pyramid`
 //! stage, averaged edge hierarchies) against their twins in
-//! src/early/cpf.rs and src/early/edge_pyramid.rs.
+//! src/early/cpf.rs and src/early/edge_pyramid.rs. Both shaders build their
+//! levels with `shaders/pyramid_tile.wgsl` (tiles of 16×16, five levels to a
+//! dispatch), whose index arithmetic every test here goes through;
+//! `parity_pyramid_tile_*` aims at its edges.
 //!
 //! Tolerances: CPF levels must be **equal** (min/max are exact in f32, both
 //! twins pick the same children). Edge pyramid levels: `atol 1e-4, rtol 1e-5`
@@ -78,6 +81,17 @@ fn parity_edge_pyramid_all_levels(w: usize, h: usize) {
 }
 per_size!(parity_edge_pyramid_all_levels; w256_h256 = (256, 256); w1_h7 = (1, 7); w7_h1 = (7, 1);
     w33_h65 = (33, 65); w1500_h7 = (1500, 7); w2049_h1 = (2049, 1); w1_h2049 = (1, 2049));
+
+/// Both stages through `pyramid_tile.wgsl` at sizes on its edges: a first
+/// built level of exactly one 16×16 tile and one pixel more (32×32, 34×34),
+/// exactly five levels in one dispatch and five plus one (32×32 builds 5,
+/// 64×64 builds 6), and a last tile one pixel wide (1023×17 → 512×9, …).
+fn parity_pyramid_tile_both_stages(w: usize, h: usize) {
+    parity_cpf_all_levels_exact(w, h);
+    parity_edge_pyramid_all_levels(w, h);
+}
+per_size!(parity_pyramid_tile_both_stages; w32_h32 = (32, 32); w34_h34 = (34, 34); w64_h64 = (64, 64);
+    w1023_h17 = (1023, 17));
 
 #[test]
 fn parity_edge_pyramid_rejects_mismatched_inputs() {
