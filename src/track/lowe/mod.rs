@@ -386,10 +386,9 @@ impl LoweTracker {
             diag.branches += outcome.branches;
             let Some(solution) = outcome.solution else { continue };
             let segs = outcome.model_segments;
-            let support = outcome.support.filter(|&counts| {
-                (doubling == 0 || support::fraction(counts) >= view.min_widened_support)
-                    && rotation_sigma(&solution.covariance) <= view.max_rotation_sigma
-            });
+            let support = outcome
+                .support
+                .filter(|&counts| view.range_tests(doubling, &solution.covariance, support::fraction(counts)).is_ok());
             let Some(support) = support else {
                 accepted = Some(Found { solution, matches: outcome.matches, segs, support: None, doubling });
                 continue;
@@ -674,22 +673,18 @@ impl FrameView<'_> {
     /// `residual` and the model segments `segs` at its state (module doc,
     /// step 7): its outline support when it passes, else the test it
     /// failed; `support` counts the outline's support, asked for only when
-    /// the other tests pass.
+    /// the other tests pass. `found_by` (the doublings of the range searched
+    /// and the solution's covariance) adds [`FrameView::range_tests`]; the
+    /// search itself knows neither.
     fn verdict(
         &self,
         segs: &[ModelSegment],
         matches: &[estimation::Match],
         residual: Option<f64>,
-        doubling: usize,
-        covariance: Option<&Matrix>,
+        found_by: Option<(usize, &Matrix)>,
         support: impl FnOnce() -> Support,
     ) -> Result<Support, Rejection> {
         let node = segments_needed(self.tracker.n());
-        if let Some(sigma) = covariance.map(rotation_sigma)
-            && sigma > self.max_rotation_sigma
-        {
-            return Err(Rejection::LoosePose { sigma, most: self.max_rotation_sigma });
-        }
         if matches.len() <= node {
             return Err(Rejection::NodeOnly { matches: matches.len(), node });
         }
@@ -705,11 +700,27 @@ impl FrameView<'_> {
         if support < self.min_support {
             return Err(Rejection::Support { support, least: self.min_support });
         }
+        if let Some((doubling, covariance)) = found_by {
+            self.range_tests(doubling, covariance, support)?;
+        }
+        Ok(counts)
+    }
+
+    /// The tests of a solution found after `doubling` doublings of the
+    /// prior ranges, with covariance `covariance` and outline support
+    /// `support` (module doc, step 7): while tracking, a widened range's
+    /// solution keeps `widened_support_ratio` of the last frame's support;
+    /// after a loss, the rotation is fixed to `search_max_rotation_sigma`.
+    fn range_tests(&self, doubling: usize, covariance: &Matrix, support: f64) -> Result<(), Rejection> {
+        let sigma = rotation_sigma(covariance);
+        if sigma > self.max_rotation_sigma {
+            return Err(Rejection::LoosePose { sigma, most: self.max_rotation_sigma });
+        }
         if doubling > 0 && support < self.min_widened_support {
             let ratio = self.tracker.params.widened_support_ratio;
             return Err(Rejection::WidenedSupport { support, least: self.min_widened_support, ratio });
         }
-        Ok(counts)
+        Ok(())
     }
 
     /// `(supported, samples)` of `segs`: samples of their length with a
@@ -868,10 +879,8 @@ impl SearchFrame for FrameView<'_> {
         matches: &[estimation::Match],
         residual_sigma: Option<f64>,
     ) -> Option<Support> {
-        // The search knows neither the range it searches nor the
-        // solution's covariance; `search_at` applies those tests to what it
-        // returns.
-        self.verdict(segs, matches, residual_sigma, 0, None, || self.support_counts(segs)).ok()
+        // `search_at` makes the range tests on what the search returns.
+        self.verdict(segs, matches, residual_sigma, None, || self.support_counts(segs)).ok()
     }
 
     fn covered_length(&self, segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
@@ -1034,8 +1043,7 @@ impl Tracker for LoweTracker {
                     segs,
                     matches,
                     solution.residual_sigma,
-                    *doubling,
-                    Some(&solution.covariance),
+                    Some((*doubling, &solution.covariance)),
                     || counts,
                 ) {
                     Err(rejection) => {
