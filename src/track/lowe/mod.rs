@@ -208,8 +208,6 @@ pub struct LoweTracker {
     first_doubling: usize,
     /// Consecutive frames lost up to the last one.
     lost_frames: usize,
-    /// Outline support of the last frame's solution; 0 when it was lost.
-    last_support: f64,
     phase: Phase,
     /// Window of interest around this frame's prediction.
     window: Window,
@@ -262,7 +260,6 @@ impl LoweTracker {
             before_last: None,
             first_doubling: 0,
             lost_frames: 0,
-            last_support: 0.0,
             phase: Phase::Tracking,
             window: Window::full(camera.width as usize, camera.height as usize),
             last_diagnostics: LoweDiagnostics::default(),
@@ -977,13 +974,14 @@ impl Tracker for LoweTracker {
             min_probability: self.params.min_probability,
         };
         let mut diag = LoweDiagnostics { image_segments: self.image_segments.len(), ..LoweDiagnostics::default() };
-        let (min_coverage, min_support) = if self.lost_frames > 0 {
-            (self.params.search_min_coverage, self.params.search_min_support)
+        // After a loss the bar of a re-acquisition; while tracking, the
+        // last frame (verified) sets the bar of a widened range's solution.
+        let p = &self.params;
+        let (min_coverage, min_support, min_widened_support, max_rotation_sigma) = if self.lost_frames > 0 {
+            (p.search_min_coverage, p.search_min_support, 0.0, p.search_max_rotation_sigma)
         } else {
-            (self.params.min_coverage, self.params.min_support)
+            (p.min_coverage, p.min_support, p.widened_support_ratio * self.last_diagnostics.support, f64::INFINITY)
         };
-        let min_widened_support =
-            if self.lost_frames > 0 { 0.0 } else { self.params.widened_support_ratio * self.last_support };
         let view = FrameView {
             tracker: self,
             ctx,
@@ -991,11 +989,7 @@ impl Tracker for LoweTracker {
             min_coverage,
             min_support,
             min_widened_support,
-            max_rotation_sigma: if self.lost_frames > 0 {
-                self.params.search_max_rotation_sigma
-            } else {
-                f64::INFINITY
-            },
+            max_rotation_sigma,
         };
         let mut segs = Vec::new();
         view.visible_segments(&self.prediction, &mut segs);
@@ -1071,7 +1065,6 @@ impl Tracker for LoweTracker {
                 }
                 self.first_doubling = 0;
                 self.lost_frames = 0;
-                self.last_support = diag.support;
                 self.phase = Phase::Tracking;
                 let final_segs = accepted.map(|found| found.segs).unwrap_or_default();
                 (Status::Tracking, solution.state, Some(solution.covariance), final_segs)
@@ -1082,7 +1075,6 @@ impl Tracker for LoweTracker {
                 // coasted model stays in the image at a depth near the last
                 // verified one; past that, stand at the last verified state.
                 self.lost_frames += 1;
-                self.last_support = 0.0;
                 let coasted = self.prediction.clone();
                 if self.plausible(&coasted) {
                     self.before_last = Some(std::mem::replace(&mut self.last, coasted));
