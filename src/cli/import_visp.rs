@@ -524,6 +524,13 @@ struct Part {
 impl Part {
     /// `FILE[, placement]`, `FILE` relative to `src`.
     fn parse(src: &Path, arg: &str) -> Result<Self> {
+        // The argument becomes one line of the written model.cao.
+        if arg.chars().any(char::is_control) {
+            return Err(Error::Parameter(format!(
+                "--include {:?}: a control character (a line break, a tab…) cannot be part of a load() line",
+                arg
+            )));
+        }
         let (file, placement) = arg.split_once(',').unwrap_or((arg, ""));
         let file = src.join(file.trim().trim_matches('"'));
         if !file.is_file() {

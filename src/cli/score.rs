@@ -24,6 +24,7 @@
 //! predictions file, never a silently partial score. A tracking frame whose
 //! truth is visible must have as many corners as the truth.
 
+use crate::bounds::short_number;
 use std::fmt;
 use std::path::Path;
 
@@ -196,6 +197,10 @@ pub fn score_file_read(
     Ok((score, predictions))
 }
 
+/// Largest corner error `score` measures, px: beyond it the sums and
+/// the plot's axis would overflow, and no tracker is anywhere near.
+pub const MAX_CORNER_ERROR_PX: f64 = 1e9;
+
 fn score_impl(
     truth: &[TruthFrame],
     predictions: &[FrameResult],
@@ -264,6 +269,15 @@ fn score_impl(
         for (i, ((pc, tc), acc)) in p.corners.iter().zip(&t.corners).zip(&mut corner_sums).enumerate() {
             if t.visible.vertex(i) {
                 let d = (pc[0] - tc[0]).hypot(pc[1] - tc[1]);
+                if !(d <= MAX_CORNER_ERROR_PX) {
+                    return Err(format!(
+                        "frame {}: corner {i} at [{}, {}] lies more than {} px from the truth: too far to score",
+                        p.frame,
+                        short_number(pc[0]),
+                        short_number(pc[1]),
+                        short_number(MAX_CORNER_ERROR_PX)
+                    ));
+                }
                 acc.0 += d;
                 acc.1 += 1;
                 sum += d;

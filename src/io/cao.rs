@@ -61,7 +61,7 @@
 //!   and the chain of files; so is the `load` of a missing file. A file
 //!   included twice (not in a cycle) is read twice, as ViSP does: give the
 //!   copies different placements. At most [`MAX_FILES_READ`] readings make
-//!   one model.
+//!   one model, and includes nest at most [`MAX_LOAD_DEPTH`] files deep.
 //!
 //! Errors name the file they are in (an included file's own errors name
 //! it) and the line; problems of the merged model found by
@@ -232,6 +232,9 @@ fn read_part(
             p => path.parent().unwrap_or(Path::new("")).join(p),
         };
         let fail = |msg: String| Error::input(path, one_short_line(&format!("line {}: {msg}", include.line)));
+        if included.is_dir() {
+            return Err(fail(format!("load(\"{}\"): is a folder, not a .cao file", include.path)));
+        }
         if !included.is_file() {
             return Err(fail(format!(
                 "load(\"{}\"): no such file (a path is relative to the folder of the file that loads it)",
@@ -249,6 +252,12 @@ fn read_part(
                 "load(\"{}\") makes a cycle of includes ({}): a file may not include itself",
                 include.path,
                 chain.join(" → ")
+            )));
+        }
+        if reading.len() + 1 > MAX_LOAD_DEPTH {
+            return Err(fail(format!(
+                "load(\"{}\"): includes nested more than {MAX_LOAD_DEPTH} files deep",
+                include.path
             )));
         }
         if merged.files.len() + reading.len() >= MAX_FILES_READ {
@@ -271,6 +280,11 @@ fn read_part(
 /// counts twice), so that files including each other many times over
 /// fail rather than run for ever.
 pub const MAX_FILES_READ: usize = 10_000;
+
+/// The deepest chain of includes one model may have (a file that loads a
+/// file that loads a file… counts each), so that a chain of thousands of
+/// files fails with an error rather than exhausting the stack.
+pub const MAX_LOAD_DEPTH: usize = 64;
 
 /// One `load(...)` line.
 struct Include {

@@ -94,6 +94,10 @@ pub struct InitState {
     pub camera_motion: Option<[f64; 6]>,
 }
 
+/// Largest magnitude of each number of a known camera motion (`init.json`'s
+/// `camera_motion`, and the `condensation` parameter of that name).
+pub const MAX_CAMERA_MOTION: f64 = 1e3;
+
 /// Which parts of the object a line of `truth.jsonl` says are seen: one
 /// boolean per model vertex (SPEC §4), or one boolean for the whole object.
 /// Written as JSON the way it was read: `true` or `[true, false, ...]`.
@@ -242,6 +246,7 @@ pub struct FrameResult {
 use std::path::Path;
 
 use super::json::one_short_line;
+use crate::bounds::short_number;
 use crate::{Error, Result};
 
 /// An input error naming `path`, its message made one short line
@@ -335,6 +340,20 @@ impl Pose {
 /// of the synthetic planar scenes.
 pub const MODEL_UNITS: [&str; 2] = ["m", "px"];
 
+/// Largest magnitude of a model coordinate (vertices, joint origins), in
+/// the model's units: far beyond any object a camera tracks, and small
+/// enough that the model's size and every product of coordinates stay
+/// finite.
+pub const MAX_MODEL_COORDINATE: f64 = 1e9;
+
+/// Most vertices, edges and faces a model may have (each).
+pub const MAX_MODEL_ELEMENTS: usize = 100_000;
+
+/// Whether every coordinate of `v` lies within ±[`MAX_MODEL_COORDINATE`].
+fn within_model_bound(v: &[f64; 3]) -> bool {
+    v.iter().all(|c| c.abs() <= MAX_MODEL_COORDINATE)
+}
+
 /// Two vertices closer than this fraction of the model's size (the diagonal
 /// of its bounding box) are the same point listed twice.
 pub const DUPLICATE_VERTEX_TOLERANCE: f64 = 1e-9;
@@ -387,7 +406,9 @@ pub type SourceLine = (std::path::PathBuf, usize);
 
 impl Model {
     /// Check the model: `units` one of [`MODEL_UNITS`], at least two
-    /// vertices and one edge, finite coordinates, no vertex listed twice
+    /// vertices and one edge, at most [`MAX_MODEL_ELEMENTS`] vertices,
+    /// edges and faces, finite coordinates within
+    /// ±[`MAX_MODEL_COORDINATE`], no vertex listed twice
     /// (within [`DUPLICATE_VERTEX_TOLERANCE`] of the model's size), the
     /// indices of [`Model::check_indices`], no edge listed twice (either
     /// direction), faces that enclose an area and lie in a plane (within
@@ -420,10 +441,23 @@ impl Model {
         if n < 2 {
             return Err(ModelProblem::whole(format!("the model has {n} vertices: it needs at least 2")));
         }
+        if n > MAX_MODEL_ELEMENTS || self.edges.len() > MAX_MODEL_ELEMENTS || self.faces.len() > MAX_MODEL_ELEMENTS {
+            return Err(ModelProblem::whole(format!(
+                "the model has {n} vertices, {} edges and {} faces: at most {MAX_MODEL_ELEMENTS} of each",
+                self.edges.len(),
+                self.faces.len()
+            )));
+        }
         if let Some(i) = self.vertices.iter().position(|v| !all_finite(v)) {
             return Err(ModelProblem::of(
                 ModelPart::Vertex(i),
                 format!("vertex {i} has a coordinate that is not a finite number"),
+            ));
+        }
+        if let Some(i) = self.vertices.iter().position(|v| !within_model_bound(v)) {
+            return Err(ModelProblem::of(
+                ModelPart::Vertex(i),
+                format!("vertex {i} has a coordinate beyond ±{}", short_number(MAX_MODEL_COORDINATE)),
             ));
         }
         let size = self.size();
@@ -504,6 +538,15 @@ impl Model {
                 return Err(ModelProblem::of(
                     ModelPart::Joint(j),
                     format!("joint \"{name}\": origin and axis must be finite numbers"),
+                ));
+            }
+            if !within_model_bound(&joint.origin) {
+                return Err(ModelProblem::of(
+                    ModelPart::Joint(j),
+                    format!(
+                        "joint \"{name}\": the origin has a coordinate beyond ±{}",
+                        short_number(MAX_MODEL_COORDINATE)
+                    ),
                 ));
             }
             let length2 = joint.axis.iter().map(|a| a * a).sum::<f64>();
@@ -757,8 +800,14 @@ impl InitState {
         if self.pose.is_none() && self.corners.is_empty() {
             return Err(input_error(path, "neither a pose nor corners: a tracker needs one of them"));
         }
-        if self.camera_motion.is_some_and(|m| m.iter().any(|v| !v.is_finite())) {
-            return Err(input_error(path, "camera_motion has a number that is not finite"));
+        if let Some(v) = self.camera_motion.into_iter().flatten().find(|v| !(v.abs() <= MAX_CAMERA_MOTION)) {
+            return Err(input_error(
+                path,
+                format!(
+                    "camera_motion has {}: each number must lie within ±{MAX_CAMERA_MOTION} (metres, radians)",
+                    crate::bounds::short_number(v)
+                ),
+            ));
         }
         validate_state(path, None, self.pose.as_ref(), &self.params, &self.corners, model, model_path)
     }

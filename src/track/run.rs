@@ -45,7 +45,19 @@ pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>
     }
     let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| toml_error(path, &text, &e))?;
     let section = match table.remove(tracker) {
-        Some(toml::Value::Table(t)) => t,
+        // Beside the tracker's table, only other trackers' tables: a key
+        // left outside it would be silently ignored.
+        Some(toml::Value::Table(t)) => match table.keys().find(|k| !TRACKERS.contains(&k.as_str())) {
+            Some(key) => {
+                return Err(Error::input(
+                    path,
+                    format!(
+                        "{key:?} lies outside [{tracker}], which holds this tracker's parameters: move it into the table"
+                    ),
+                ));
+            }
+            None => t,
+        },
         Some(_) => return Err(Error::input(path, format!("[{tracker}] must be a table"))),
         None => table,
     };

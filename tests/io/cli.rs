@@ -199,6 +199,25 @@ fn unknown_tracker_and_bad_config() {
     let out = track_motion_edge_cpu(&seq, &["--config", cfg2.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("typo.toml"));
+    // Beside the tracker's table, a key or table that belongs to no tracker
+    // is refused (it would be ignored); another tracker's table is not.
+    let cfg3 = root.join("outside.toml");
+    for (text, refused) in [
+        ("zeta = -3.0\n[motion-edge]\nepsilon = 20.0\n", Some("\"zeta\" lies outside [motion-edge]")),
+        ("[motion-edge]\nepsilon = 20.0\n[segments]\nmin_length = 3.0\n", Some("\"segments\" lies outside")),
+        ("[motion-edge]\nepsilon = 20.0\n[blue]\nlambda = 0.5\n", None),
+    ] {
+        std::fs::write(&cfg3, text).unwrap();
+        let out = track_motion_edge_cpu(&seq, &["--config", cfg3.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        match refused {
+            Some(needle) => {
+                assert_eq!(out.status.code(), Some(2), "{text}: {stderr}");
+                assert!(stderr.contains("outside.toml") && stderr.contains(needle), "{text}: {stderr}");
+            }
+            None => assert!(out.status.success(), "{text}: {stderr}"),
+        }
+    }
 }
 
 #[test]

@@ -262,6 +262,26 @@ fn bad_model_cao_names_the_file_and_line() {
         "parts/b.cao",
         &["line 3: load(\"a.cao\") makes a cycle of includes (a.cao → b.cao → a.cao)"],
     );
+    expect_bad_model(
+        "cao-folder",
+        &[("model.cao", missing), ("parts/rect.cao/keep", "")],
+        "model.cao",
+        &["line 3: load(\"parts/rect.cao\"): is a folder"],
+    );
+    // A chain of 100 files, each loading the next: the file that would be
+    // the 65th deep is refused (thousands of them used to exhaust the stack).
+    let chain: Vec<(String, String)> = (0..100)
+        .map(|i| (format!("parts/p{i}.cao"), format!("V1\nload(\"p{}.cao\")\n", i + 1)))
+        .chain(std::iter::once(("parts/p100.cao".to_string(), RECTANGLE_CAO.to_string())))
+        .chain(std::iter::once(("model.cao".to_string(), "V1\nload(\"parts/p0.cao\")\n".to_string())))
+        .collect();
+    let chain: Vec<(&str, &str)> = chain.iter().map(|(p, t)| (p.as_str(), t.as_str())).collect();
+    expect_bad_model(
+        "cao-deep",
+        &chain,
+        "parts/p62.cao",
+        &["line 2: load(\"p63.cao\"): includes nested more than 64 files deep"],
+    );
     // An error inside an included file names that file.
     let bad_part = RECTANGLE_CAO.replace("40 20 0\n-40", "40 20\n-40");
     expect_bad_model(
@@ -284,4 +304,34 @@ fn bad_model_obj_names_the_line() {
         "model.obj",
         &["line 6: vertex reference 5 but the file has 4"],
     );
+}
+
+/// A start pose that puts the model at or behind the camera: refused with
+/// init.json named, not tracked as lost on every frame.
+#[test]
+fn lowe_refuses_a_start_pose_behind_the_camera() {
+    let root = scratch("behind");
+    let seq = root.join("seq");
+    synth("box", &seq, "2");
+    let init_path = seq.join("init.json");
+    let mut init: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&init_path).unwrap()).unwrap();
+    for z in [-1.0, -0.3] {
+        init["pose"]["translation"] = serde_json::json!([0.0, 0.0, z]);
+        std::fs::write(&init_path, init.to_string()).unwrap();
+        let out_file = root.join("out.jsonl");
+        let out = pipetrack(&[
+            "track",
+            seq.to_str().unwrap(),
+            "--tracker",
+            "lowe",
+            "--backend",
+            "cpu",
+            "--out",
+            out_file.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "z = {z}: {stderr}");
+        assert!(stderr.contains("init.json: ") && stderr.contains("in front of the camera"), "z = {z}: {stderr}");
+        assert!(!out_file.exists(), "z = {z}: nothing written");
+    }
 }

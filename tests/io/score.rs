@@ -245,3 +245,23 @@ fn pose_errors_compare_translation_rotation_and_joints() {
     // Without poses, no pose figures.
     assert!(score(&run().0, &run().1).unwrap().pose_errors.is_none());
 }
+
+/// A corner far beyond any image (each coordinate finite, their distance
+/// from the truth not) is refused with the frame and corner named, not
+/// scored as an infinite error.
+#[test]
+fn a_corner_too_far_to_measure_is_refused() {
+    let truth = vec![truth(0, true), truth(1, true)];
+    let mut far = pred(1, Status::Tracking, 0.0, 0.0, 0.0);
+    far.corners[3] = [1e308, -1e308];
+    let preds = [pred(0, Status::Tracking, 0.0, 0.0, 0.0), far];
+    let text: String = preds.iter().map(|p| serde_json::to_string(p).unwrap() + "\n").collect();
+    let file = TempFile::new("far.jsonl", &text);
+    let message = score_file(&truth, &file.0).expect_err("refused").to_string();
+    assert!(message.contains("far.jsonl") && message.contains("frame 1: corner 3"), "{message}");
+    // Within the bound it is an error like any other.
+    let mut near = pred(1, Status::Tracking, 0.0, 0.0, 0.0);
+    near.corners = vec![[1e6, 10.0]; 4];
+    let s = score(&truth, &[pred(0, Status::Tracking, 0.0, 0.0, 0.0), near]).unwrap();
+    assert!(s.stats.is_some_and(|st| st.max > 9e5 && st.max.is_finite()));
+}

@@ -330,6 +330,10 @@ fn model_with_fewer_vertices_than_init_corners_names_the_model() {
     // Neither pose nor corners.
     f.write("init.json", "{}");
     assert!(input_error(f.open(), "init.json").contains("neither a pose nor corners"));
+    // A known camera motion beyond the bound of the parameter of that name.
+    f.write("init.json", r#"{"corners":[[1,1],[2,1],[2,2],[1,2]],"camera_motion":[0,0,1e300,0,0,0]}"#);
+    let msg = input_error(f.open(), "init.json");
+    assert!(msg.contains("camera_motion has 1.0e300") && msg.contains("±1000"), "{msg}");
 }
 
 #[test]
@@ -363,6 +367,19 @@ fn bad_models_are_named() {
            "joints":[{"name":"lid","origin":[0,0,0],"axis":[0,0,0],"vertices":[2,3],"min":0,"max":1}]}"#,
     );
     assert!(input_error(f.open(), "model.json").contains("axis is the zero vector"));
+    // Coordinates far beyond any object: the model's size would overflow.
+    f.write("model.json", r#"{"name":"sq","vertices":[[0,0,0],[1e308,0,0],[1,1,0],[0,1,0]],"edges":[[0,1]]}"#);
+    assert!(input_error(f.open(), "model.json").contains("vertex 1 has a coordinate beyond ±1.0e9"));
+    f.write(
+        "model.json",
+        r#"{"name":"sq","vertices":[[0,0,0],[1,0,0],[1,1,0],[0,1,0]],"edges":[[0,1]],
+           "joints":[{"name":"lid","origin":[0,2e9,0],"axis":[1,0,0],"vertices":[2,3],"min":0,"max":1}]}"#,
+    );
+    assert!(input_error(f.open(), "model.json").contains("joint \"lid\": the origin has a coordinate beyond"));
+    // More vertices than a model may have.
+    let many: Vec<String> = (0..100_001).map(|i| format!("[{i},0,0]")).collect();
+    f.write("model.json", &format!(r#"{{"name":"line","vertices":[{}],"edges":[[0,1]]}}"#, many.join(",")));
+    assert!(input_error(f.open(), "model.json").contains("the model has 100001 vertices"));
     f.write("model.cao", "V1\n2\n0 0 0\n1 0 0\n1\n0 5\n0\n0\n");
     f.remove("model.json");
     assert!(input_error(f.open(), "model.cao").starts_with("line 6: 3-D line 0: point index 5"));

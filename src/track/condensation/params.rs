@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use crate::Result;
 use crate::bounds::{Interval, check_count};
 use crate::early::window_energy::{MAX_SIDE_LOG2, MAX_WINDOWS, WindowEnergyParams};
+use crate::io::formats::MAX_CAMERA_MOTION;
 
 /// Largest spread or diffusion, px.
 pub const MAX_SPREAD_PX: f64 = 100.0;
@@ -118,7 +119,7 @@ impl CondensationParams {
         }
         if let Some(m) = self.camera_motion {
             for v in m {
-                Interval::closed(-1e3, 1e3).check(WHO, "camera_motion", v, "")?;
+                Interval::closed(-MAX_CAMERA_MOTION, MAX_CAMERA_MOTION).check(WHO, "camera_motion", v, "")?;
             }
         }
         Interval::open_closed(0.0, MAX_RESIDUAL).check(WHO, "max_residual", self.max_residual, " grey levels")

@@ -245,6 +245,13 @@ impl LoweTracker {
             )));
         }
         let state = State { pose: Pose::from(pose), params: joint_values };
+        let depth = state.pose.apply(geometry.centroid()).z;
+        if !(depth > 0.0) {
+            return Err(Error::Parameter(format!(
+                "the pose puts the model's centre at depth {} m: it must lie in front of the camera (depth > 0)",
+                crate::bounds::short_number(depth)
+            )));
+        }
         let segment_params = params.segments.clone();
         let mut tracker = Self {
             camera,
