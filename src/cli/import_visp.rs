@@ -704,10 +704,12 @@ fn true_state(
     for (i, p) in camera_vertices.iter().enumerate() {
         let pixel = camera.project(*p);
         if !(pixel[0].is_finite() && pixel[1].is_finite()) {
-            return Err(Error::input(
-                pose_path,
-                format!("model vertex {i} lies in the plane of the camera centre (Z = 0)"),
-            ));
+            let why = if p.z == 0.0 {
+                "lies in the plane of the camera centre (Z = 0)".to_string()
+            } else {
+                "projects to no finite pixel: the pose puts the model beyond any image".to_string()
+            };
+            return Err(Error::input(pose_path, format!("model vertex {i} {why}")));
         }
         corners.push(pixel);
         visible.push(p.z > 0.0 && camera.in_image(pixel));

@@ -237,6 +237,12 @@ fn a_bad_pose_or_a_gap_in_the_frames_is_refused_by_name() {
     std::fs::write(src.join("CameraPose/Camera_003.txt"), "1 0 0\n0 1\n").unwrap();
     expect_refused(&root, &src, &["Camera_003.txt", "5 numbers: expected 16"]);
 
+    // Finite numbers, but far too large to project.
+    let root = crate::common::scratch("import-visp", "far-pose");
+    let src = visp_data_set(&root);
+    std::fs::write(src.join("CameraPose/Camera_002.txt"), "1e308\n1e308\n1e308\n0\n0\n0\n").unwrap();
+    expect_refused(&root, &src, &["Camera_002.txt", "model vertex 0 projects to no finite pixel"]);
+
     let root = crate::common::scratch("import-visp", "gap");
     let src = visp_data_set(&root);
     std::fs::remove_file(src.join("Images/Image_0002.png")).unwrap();
