@@ -24,10 +24,10 @@
 //! predictions file, never a silently partial score. A tracking frame whose
 //! truth is visible must have as many corners as the truth.
 
-use crate::bounds::short_number;
 use std::fmt;
 use std::path::Path;
 
+use crate::bounds::short_number;
 use crate::io::formats::{FrameResult, Status, TruthFrame, Visibility};
 use crate::io::json::read_frame_lines;
 use crate::{Error, Result};

@@ -805,7 +805,7 @@ impl InitState {
                 path,
                 format!(
                     "camera_motion has {}: each number must lie within ±{MAX_CAMERA_MOTION} (metres, radians)",
-                    crate::bounds::short_number(v)
+                    short_number(v)
                 ),
             ));
         }
