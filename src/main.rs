@@ -232,7 +232,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
-            note(format_args!("pipetrack: {e:#}"));
+            note(format_args!("pipetrack: {}", one_message(&e)));
             let bad_input = e.chain().any(|c| {
                 matches!(
                     c.downcast_ref::<pipetrack::Error>(),
@@ -262,6 +262,20 @@ fn remove_unfinished_outputs_on_signals() {
             std::process::exit(128 + signal);
         }
     });
+}
+
+/// `e` and its causes on one line, a cause left out where the message
+/// before it already says it (an I/O error names its OS error, which is
+/// also its source).
+fn one_message(e: &anyhow::Error) -> String {
+    let mut message = e.to_string();
+    for cause in e.chain().skip(1) {
+        let text = cause.to_string();
+        if !message.contains(&text) {
+            message = format!("{message}: {text}");
+        }
+    }
+    message
 }
 
 /// Whether `e` comes from writing to a pipe whose reader has gone.

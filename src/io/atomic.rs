@@ -194,7 +194,15 @@ impl StagedDir {
             fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
         }
         let mut list = unfinished();
-        fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        fs::create_dir_all(&staging).map_err(|e| {
+            Error::input(
+                dir,
+                format!(
+                    "cannot create its staging folder in {} ({e}): the folder is written beside its final place, then renamed",
+                    parent.display()
+                ),
+            )
+        })?;
         list.push(staging.clone());
         Ok(Self { dir: dir.to_path_buf(), staging, finished: false })
     }

@@ -305,6 +305,7 @@ fn a_full_stdout_or_out_file_is_one_error_line() {
     assert!(out.status.code().is_some(), "ended by a signal");
     assert_eq!(lines.len(), 1, "{lines:?}");
     assert!(lines[0].contains("stdout") && lines[0].contains("No space left"), "{}", lines[0]);
+    assert_eq!(lines[0].matches("No space left").count(), 1, "{}", lines[0]);
 
     let seq_arg = seq.to_str().unwrap();
     let out = with_stdout_full(&["track", seq_arg, "--tracker", "motion-edge", "--backend", "cpu"]).unwrap();
@@ -319,6 +320,8 @@ fn a_full_stdout_or_out_file_is_one_error_line() {
     assert_ne!(out.status.code(), Some(0));
     assert_eq!(lines.len(), 1, "{lines:?}");
     assert!(lines[0].contains("/dev/full") && lines[0].contains("No space left"), "{}", lines[0]);
+    // The OS error is said once (it is the I/O error's message and its source).
+    assert_eq!(lines[0].matches("No space left").count(), 1, "{}", lines[0]);
     use std::os::unix::fs::FileTypeExt;
     assert!(std::fs::metadata("/dev/full").unwrap().file_type().is_char_device());
     assert!(!Path::new("/dev/full.partial").exists());
