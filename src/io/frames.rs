@@ -56,8 +56,26 @@ fn decode_error(path: &Path, e: &::image::ImageError) -> Error {
         ::image::ImageError::Limits(limit) => {
             Error::input(path, format!("image too large ({limit}): {}", limits_text()))
         }
-        other => Error::input(path, format!("corrupt image: {other}")),
+        other => Error::input(path, format!("corrupt image: {}", without_chunk_dumps(&other.to_string()))),
     }
+}
+
+/// A decoder's message with each PNG chunk type it prints as a Rust
+/// structure (`ChunkType { type: IDAT, critical: true, … }`) put as its
+/// name (`IDAT`).
+fn without_chunk_dumps(message: &str) -> String {
+    const OPEN: &str = "ChunkType { type: ";
+    let mut out = String::with_capacity(message.len());
+    let mut rest = message;
+    while let Some(start) = rest.find(OPEN) {
+        let after = &rest[start + OPEN.len()..];
+        let Some(end) = after.find('}') else { break };
+        out.push_str(&rest[..start]);
+        out.push_str(after[..end].split(',').next().unwrap_or("").trim());
+        rest = &after[end + 1..];
+    }
+    out.push_str(rest);
+    out
 }
 
 /// The frame images in `frames_dir`, in natural name order (digit runs
@@ -466,6 +484,14 @@ impl Iterator for FrameSource {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn chunk_types_in_decoder_messages_are_named() {
+        let message =
+            "CRC error: expected 0x4e while decoding ChunkType { type: IDAT, critical: true, private: false } chunk.";
+        assert_eq!(super::without_chunk_dumps(message), "CRC error: expected 0x4e while decoding IDAT chunk.");
+        assert_eq!(super::without_chunk_dumps("no chunk here"), "no chunk here");
+    }
+
     use super::*;
 
     #[test]
