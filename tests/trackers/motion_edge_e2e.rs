@@ -170,9 +170,33 @@ fn a_second_object_crossing_behind_the_target_is_never_tracked_instead() {
         println!("distractor {speed:>4} px/frame: {st}");
         println!("distractor {speed:>4} px/frame: tracked {}/{}, false {:?}", s.tracked, s.frames, s.false_tracking);
         assert!(s.false_tracking.is_empty(), "{speed} px/frame: false tracking at {:?}", s.false_tracking);
-        // Measured: 195, 200 and 193 of 200.
+        // Measured: 195, 200 and 198 of 200 (193 at 16 px/frame without the
+        // second look at a wider angle).
         let least = 190;
         assert!(s.tracked >= least, "{speed} px/frame: {} of 200 frames tracking", s.tracked);
+    }
+}
+
+/// A side whose prediction leans past δ (the hexagon's pixels pulled a
+/// corner the frame before, or the pendulum turns fast) gets its own pixels
+/// refused; the second look at `retry_delta` measures it, and the
+/// verification at δ still decides. Without it (`retry_delta = 0`) these
+/// runs hold 187, 176 and 176 of 200 frames.
+#[test]
+fn a_second_look_at_a_wider_angle_holds_a_leaning_side() {
+    let cases = [
+        (
+            "second object, 16 px/frame, seed 3",
+            PendulumOptions { distractor: true, distractor_y: 120.0, seed: 3, ..pendulum(16.0) },
+        ),
+        ("20 px/frame, seed 4", PendulumOptions { seed: 4, ..pendulum(20.0) }),
+        ("20 px/frame, seed 8", PendulumOptions { seed: 8, ..pendulum(20.0) }),
+    ];
+    for (name, opts) in cases {
+        let (_, s) = track(&opts, &mut CpuBackend::new());
+        println!("{name}: tracked {}/{}, false {:?}", s.tracked, s.frames, s.false_tracking);
+        assert!(s.false_tracking.is_empty(), "{name}: false tracking at {:?}", s.false_tracking);
+        assert!(s.tracked >= 190, "{name}: {} of 200 frames tracking", s.tracked);
     }
 }
 

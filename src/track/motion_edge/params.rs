@@ -158,6 +158,13 @@ pub struct MotionEdgeParams {
     /// px/frame, panned out and back) have ≥ 0.96 overall and ≥ 0.88 on
     /// each side; one 6 px off had 0.72 and 0.65. Range: [0, 1].
     pub reacquire_min_support: f64,
+    /// Angle tolerance δ of the second look at a tracking frame that is
+    /// about to be lost (module doc, "A second look at a wider angle"),
+    /// radians: the frame is measured again from the same prediction with
+    /// this δ, and the second measurement is kept when it passes every test,
+    /// the verification included. Only with `verify`; a value at or below
+    /// `delta` turns it off. Default 30°. Range: [0, π/2].
+    pub retry_delta: f64,
     /// With `verify`, lost frames in a row after which re-acquisition
     /// searches the whole image: the window of interest opens to the full
     /// frame and the last tracked shape is placed on the centroid of the
@@ -240,6 +247,7 @@ impl Default for MotionEdgeParams {
             min_support: 0.6,
             min_side_support: 0.5,
             reacquire_min_support: 0.85,
+            retry_delta: 30f64.to_radians(),
             search_after: 2,
             support_distance: 3.0,
             support_edge_threshold: 80.0,
@@ -254,7 +262,8 @@ impl MotionEdgeParams {
     /// to the motion band put them (no half-frame lag correction), lines
     /// without motion pixels not fitted to the frame's edges, loss by
     /// eq. 9 only (no contradicted-line or vanished-motion loss, no
-    /// verification against the image's edges). A corner
+    /// verification against the image's edges, no second look at a wider
+    /// angle). A corner
     /// without motion pixels feeds its last measurement to eq. 10–11, so its
     /// predictions slow down (paper §2, Fig. 2).
     ///
@@ -277,6 +286,7 @@ impl MotionEdgeParams {
             prediction: Prediction::Smoothed,
             held_line_edges: false,
             verify: false,
+            retry_delta: 0.0,
             ..Self::default()
         }
     }
@@ -303,6 +313,7 @@ impl MotionEdgeParams {
             ("min_support", self.min_support, Interval::closed(0.0, 1.0), ""),
             ("min_side_support", self.min_side_support, Interval::closed(0.0, 1.0), ""),
             ("reacquire_min_support", self.reacquire_min_support, Interval::closed(0.0, 1.0), ""),
+            ("retry_delta", self.retry_delta, Interval::closed(0.0, std::f64::consts::FRAC_PI_2), " radians"),
             ("support_distance", self.support_distance, POSITIVE_PX, " px"),
             (
                 "support_edge_threshold",
