@@ -53,7 +53,7 @@ enum Command {
         /// Write one overlay PNG per frame into this folder.
         #[arg(long)]
         overlay: Option<PathBuf>,
-        /// Tracker parameters (TOML; a `[motion-edge]` table or top-level keys).
+        /// Tracker parameters (TOML; the tracker's own table, e.g. `[lowe]`, or top-level keys).
         #[arg(long)]
         config: Option<PathBuf>,
         /// `-` reads the frames as a Y4M stream from stdin instead of SEQ_DIR/frames.

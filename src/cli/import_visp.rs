@@ -527,8 +527,7 @@ impl Part {
         // The argument becomes one line of the written model.cao.
         if arg.chars().any(char::is_control) {
             return Err(Error::Parameter(format!(
-                "--include {:?}: a control character (a line break, a tab…) cannot be part of a load() line",
-                arg
+                "--include {arg:?}: a control character (a line break, a tab…) cannot be part of a load() line"
             )));
         }
         let (file, placement) = arg.split_once(',').unwrap_or((arg, ""));
@@ -611,6 +610,9 @@ pub fn loaded_files(top: &Path) -> Result<Vec<(PathBuf, PathBuf)>> {
                 return Err(at(format!("load({target:?}) has the name of a sequence file")));
             }
             let full = top_dir.join(&rel);
+            if full.is_dir() {
+                return Err(at(format!("load({target:?}): {} is a folder, not a .cao file", full.display())));
+            }
             if !full.is_file() {
                 return Err(at(format!("load({target:?}): {} is missing", full.display())));
             }
@@ -705,9 +707,9 @@ fn true_state(
         let pixel = camera.project(*p);
         if !(pixel[0].is_finite() && pixel[1].is_finite()) {
             let why = if p.z == 0.0 {
-                "lies in the plane of the camera centre (Z = 0)".to_string()
+                "lies in the plane of the camera centre (Z = 0)"
             } else {
-                "projects to no finite pixel: the pose puts the model beyond any image".to_string()
+                "projects to no finite pixel: the pose puts the model beyond any image"
             };
             return Err(Error::input(pose_path, format!("model vertex {i} {why}")));
         }

@@ -346,7 +346,11 @@ pub const MODEL_UNITS: [&str; 2] = ["m", "px"];
 /// finite.
 pub const MAX_MODEL_COORDINATE: f64 = 1e9;
 
-/// Most vertices, edges and faces a model may have (each).
+/// Most vertices, edges and faces a model may have (each): every frame
+/// projects every vertex and tests every edge against the faces for hidden
+/// lines, so per-frame work grows with their product (a 20 000-edge model
+/// already takes seconds a frame), and a million-vertex model takes
+/// gigabytes to hold.
 pub const MAX_MODEL_ELEMENTS: usize = 100_000;
 
 /// Whether every coordinate of `v` lies within ±[`MAX_MODEL_COORDINATE`].

@@ -484,15 +484,15 @@ impl Iterator for FrameSource {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
     #[test]
     fn chunk_types_in_decoder_messages_are_named() {
         let message =
             "CRC error: expected 0x4e while decoding ChunkType { type: IDAT, critical: true, private: false } chunk.";
-        assert_eq!(super::without_chunk_dumps(message), "CRC error: expected 0x4e while decoding IDAT chunk.");
-        assert_eq!(super::without_chunk_dumps("no chunk here"), "no chunk here");
+        assert_eq!(without_chunk_dumps(message), "CRC error: expected 0x4e while decoding IDAT chunk.");
+        assert_eq!(without_chunk_dumps("no chunk here"), "no chunk here");
     }
-
-    use super::*;
 
     #[test]
     fn natural_order_compares_digit_runs_as_numbers() {

@@ -30,7 +30,9 @@ pub const TRACKERS: &[&str] = &["motion-edge", "blue", "condensation", "lowe"];
 pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
 
 /// Read tracker parameters of type `P` from a TOML file: the table named after
-/// the tracker (`[motion-edge]`) when there is one, else the whole file.
+/// the tracker (`[motion-edge]`) when there is one, else the file's top-level
+/// keys; other trackers' tables are left to them, and a key beside the
+/// tracker's own table is an error.
 /// Errors name the file, in one short line, with long numbers and long
 /// quoted text shortened (`io::json::one_short_line`).
 pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>, tracker: &str) -> Result<P> {
@@ -44,17 +46,17 @@ pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>
         return Err(Error::input(path, format!("too large for a config file (at most {MAX_CONFIG_BYTES} bytes)")));
     }
     let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| toml_error(path, &text, &e))?;
-    let section = match table.remove(tracker) {
-        // Beside the tracker's table, only other trackers' tables: a key
-        // left outside it would be silently ignored.
-        Some(toml::Value::Table(t)) => match table.keys().find(|k| !TRACKERS.contains(&k.as_str())) {
+    // Other trackers' tables are theirs: one file may serve several trackers.
+    let own = table.remove(tracker);
+    table.retain(|key, value| !(TRACKERS.contains(&key) && value.is_table()));
+    let section = match own {
+        // Beside the tracker's table, a key would be silently ignored.
+        Some(toml::Value::Table(t)) => match table.keys().next() {
             Some(key) => {
-                return Err(Error::input(
-                    path,
-                    format!(
-                        "{key:?} lies outside [{tracker}], which holds this tracker's parameters: move it into the table"
-                    ),
-                ));
+                let message = format!(
+                    "{key:?} lies outside [{tracker}], which holds this tracker's parameters: move it into the table"
+                );
+                return Err(Error::input(path, one_short_line(&message)));
             }
             None => t,
         },

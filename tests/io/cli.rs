@@ -206,6 +206,8 @@ fn unknown_tracker_and_bad_config() {
         ("zeta = -3.0\n[motion-edge]\nepsilon = 20.0\n", Some("\"zeta\" lies outside [motion-edge]")),
         ("[motion-edge]\nepsilon = 20.0\n[segments]\nmin_length = 3.0\n", Some("\"segments\" lies outside")),
         ("[motion-edge]\nepsilon = 20.0\n[blue]\nlambda = 0.5\n", None),
+        ("[blue]\nlambda = 0.5\n[lowe]\nmax_branches = 4\n", None),
+        ("epsilon = 20.0\n[blue]\nlambda = 0.5\n", None),
     ] {
         std::fs::write(&cfg3, text).unwrap();
         let out = track_motion_edge_cpu(&seq, &["--config", cfg3.to_str().unwrap()]);

@@ -269,7 +269,7 @@ fn bad_model_cao_names_the_file_and_line() {
         &["line 3: load(\"parts/rect.cao\"): is a folder"],
     );
     // A chain of 100 files, each loading the next: the file that would be
-    // the 65th deep is refused (thousands of them used to exhaust the stack).
+    // the 65th deep is refused (a chain of thousands would exhaust the stack).
     let chain: Vec<(String, String)> = (0..100)
         .map(|i| (format!("parts/p{i}.cao"), format!("V1\nload(\"p{}.cao\")\n", i + 1)))
         .chain(std::iter::once(("parts/p100.cao".to_string(), RECTANGLE_CAO.to_string())))
@@ -315,7 +315,7 @@ fn lowe_refuses_a_start_pose_behind_the_camera() {
     synth("box", &seq, "2");
     let init_path = seq.join("init.json");
     let mut init: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&init_path).unwrap()).unwrap();
-    for z in [-1.0, -0.3] {
+    for z in [-1.0, -0.3, 0.0] {
         init["pose"]["translation"] = serde_json::json!([0.0, 0.0, z]);
         std::fs::write(&init_path, init.to_string()).unwrap();
         let out_file = root.join("out.jsonl");

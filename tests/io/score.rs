@@ -5,7 +5,9 @@ use std::fs;
 use std::path::PathBuf;
 
 use pipetrack::Error;
-use pipetrack::cli::score::{ErrorStats, read_predictions, score, score_file, score_file_with, score_with};
+use pipetrack::cli::score::{
+    ErrorStats, MAX_CORNER_ERROR_PX, read_predictions, score, score_file, score_file_with, score_with,
+};
 use pipetrack::io::formats::{FrameResult, Status, TruthFrame};
 
 const SQUARE: [[f64; 2]; 4] = [[10.0, 10.0], [20.0, 10.0], [20.0, 20.0], [10.0, 20.0]];
@@ -247,21 +249,18 @@ fn pose_errors_compare_translation_rotation_and_joints() {
 }
 
 /// A corner far beyond any image (each coordinate finite, their distance
-/// from the truth not) is refused with the frame and corner named, not
-/// scored as an infinite error.
+/// from the truth not) counts as `MAX_CORNER_ERROR_PX` off: the frame is
+/// false tracking and every figure stays finite.
 #[test]
-fn a_corner_too_far_to_measure_is_refused() {
+fn a_corner_too_far_to_measure_counts_as_the_largest_error() {
     let truth = vec![truth(0, true), truth(1, true)];
     let mut far = pred(1, Status::Tracking, 0.0, 0.0, 0.0);
     far.corners[3] = [1e308, -1e308];
     let preds = [pred(0, Status::Tracking, 0.0, 0.0, 0.0), far];
     let text: String = preds.iter().map(|p| serde_json::to_string(p).unwrap() + "\n").collect();
     let file = TempFile::new("far.jsonl", &text);
-    let message = score_file(&truth, &file.0).expect_err("refused").to_string();
-    assert!(message.contains("far.jsonl") && message.contains("frame 1: corner 3"), "{message}");
-    // Within the bound it is an error like any other.
-    let mut near = pred(1, Status::Tracking, 0.0, 0.0, 0.0);
-    near.corners = vec![[1e6, 10.0]; 4];
-    let s = score(&truth, &[pred(0, Status::Tracking, 0.0, 0.0, 0.0), near]).unwrap();
-    assert!(s.stats.is_some_and(|st| st.max > 9e5 && st.max.is_finite()));
+    let s = score_file(&truth, &file.0).expect("scored");
+    assert_eq!(s.frame_errors, vec![(0, 0.0), (1, MAX_CORNER_ERROR_PX / 4.0)]);
+    assert_eq!(s.false_tracking, vec![1]);
+    assert!(s.stats.is_some_and(|st| st.mean.is_finite() && st.max == MAX_CORNER_ERROR_PX / 4.0));
 }

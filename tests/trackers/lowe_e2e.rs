@@ -92,8 +92,8 @@ const BOX_OCCLUDED_10: Case = Case { speed: 10.0, occlude: 0.5, min_tracked: 295
 /// tracking off target). A re-acquisition must now fix the rotation.
 const BOX_OCCLUDED_10_SEED_9: Case = Case { seed: 9, min_tracked: 250, ..BOX_OCCLUDED_10 };
 /// A joint's velocity only from frames that measured it: 7 frames with the
-/// lid more than 2° off (13 when a step from an unmeasured lid was carried
-/// on, frames 245–255 behind the band).
+/// lid more than 2° off (13 with a step from an unmeasured lid
+/// extrapolated, frames 245–255 behind the band).
 const HINGED_OCCLUDED: Case = Case { occlude: 0.5, max_lid_frames_over_2deg: 8, max_lid_deg: 6.0, ..HINGED_SLOW };
 
 /// Track `case` on `backend`, assert its figures and return the results.

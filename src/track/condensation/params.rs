@@ -61,8 +61,9 @@ pub struct CondensationParams {
     pub gain: [f64; 6],
     /// The known first camera motion `[tx, ty, tz, rx, ry, rz]` (camera 1 in
     /// the frame of camera 0, m and rad); overrides `init.json`'s
-    /// `camera_motion`. Each number within ±1000 ([`MAX_CAMERA_MOTION`],
-    /// as in `init.json`). Default: none (then `init.json`'s, or zero).
+    /// `camera_motion`. Default: none (then `init.json`'s, or zero).
+    /// Range: each in [−1000, 1000] ([`MAX_CAMERA_MOTION`], as in
+    /// `init.json`).
     pub camera_motion: Option<[f64; 6]>,
     /// Which sample is the frame's estimate.
     pub estimate: Estimate,

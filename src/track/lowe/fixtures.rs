@@ -7,6 +7,11 @@ use crate::io::formats::{Joint, Model};
 /// A box 0.30 × 0.15 × 0.20 m with a lid plate hinged about x at the
 /// back of its top.
 pub fn hinged_box() -> ModelGeometry {
+    ModelGeometry::new(&hinged_box_model()).unwrap()
+}
+
+/// The model of [`hinged_box`].
+pub fn hinged_box_model() -> Model {
     let (w, h, d) = (0.3, 0.15, 0.2);
     let vertices = vec![
         [0.0, 0.0, 0.0],
@@ -25,7 +30,7 @@ pub fn hinged_box() -> ModelGeometry {
     let mut edges =
         vec![[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4], [0, 4], [1, 5], [2, 6], [3, 7]];
     edges.extend([[8, 9], [9, 10], [10, 11], [11, 8]]);
-    let model = Model {
+    Model {
         name: "hinged".into(),
         units: "m".into(),
         vertices,
@@ -39,8 +44,7 @@ pub fn hinged_box() -> ModelGeometry {
             min: 0.0,
             max: 1.9,
         }],
-    };
-    ModelGeometry::new(&model).unwrap()
+    }
 }
 
 /// A 640×480 camera with a 600 px focal length.

@@ -10,12 +10,13 @@
 //!    limits), with a prior standard deviation per parameter
 //!    (`prior_rotation_sigma`, `prior_translation_px`, `prior_joint_sigma`).
 //!    A joint's step is its last one between two frames whose matches both
-//!    measured it (σ in P below 0.9 of its prior; our addition): where no
-//!    match constrains a joint its value is the prior's, and a step from or
-//!    to such a value is not the part's motion. A lid under an occluder,
-//!    unmeasured on one frame and loosely fitted 4° back on the next,
-//!    carried that step on through the four frames that did not see it,
-//!    13–32° off (hinged box half hidden at 10 px/frame, seed 0).
+//!    measured it (σ in P below [`UNMEASURED_SIGMA_RATIO`] of
+//!    `prior_joint_sigma`; our addition): where no match constrains a joint
+//!    its value is the prior's, and a step from or to such a value is not
+//!    the part's motion. Extrapolated, such a step (a lid under an occluder,
+//!    unmeasured on one frame, loosely fitted 4° back on the next) puts the
+//!    lid 13–32° off over the four frames that do not see it (hinged box
+//!    half hidden at 10 px/frame, seed 0).
 //! 2. **Features** ([`segments`]): LoG σ = 1.2 zero crossings in a window
 //!    around the predicted model (wide enough for the largest search
 //!    range), linked with hysteresis, cut into straight segments, indexed
@@ -232,8 +233,9 @@ pub struct LoweTracker {
 impl LoweTracker {
     /// A tracker of `model` seen by `camera`, starting at `init`'s pose and
     /// joint values. Errors on a model the tracker cannot use (too many
-    /// joints, no edges) and on an `init` without a pose or with the wrong
-    /// number of joint values.
+    /// joints, no edges) and on an `init` without a pose, with the wrong
+    /// number of joint values, or whose pose puts the model's centre at or
+    /// behind the camera.
     pub fn new(camera: Camera, model: &Model, init: &InitState, params: LoweParams) -> Result<Self> {
         params.validate()?;
         let geometry = ModelGeometry::new(model)?;
@@ -260,7 +262,7 @@ impl LoweTracker {
         let depth = state.pose.apply(geometry.centroid()).z;
         if !(depth > 0.0) {
             return Err(Error::Parameter(format!(
-                "the pose puts the model's centre at depth {} m: it must lie in front of the camera (depth > 0)",
+                "the pose puts the model's centre at depth {}: it must lie in front of the camera (depth > 0)",
                 crate::bounds::short_number(depth)
             )));
         }
@@ -329,9 +331,9 @@ impl LoweTracker {
         )
     }
 
-    /// The next frame's prediction: velocity extrapolation from the last two
-    /// accepted solutions (module doc), or the last one when there is no
-    /// velocity.
+    /// The next frame's prediction (module doc, step 1): the pose's step
+    /// between the last two accepted solutions applied once more, each
+    /// joint's `joint_velocity`; the last solution when there is no step.
     fn predict(&self) -> State {
         let Some(before) = &self.before_last else { return self.last.clone() };
         let mut step = self.last.deviation_from(before, self.centre);
@@ -1164,10 +1166,57 @@ impl Tracker for LoweTracker {
 mod tests {
     use glam::DVec3;
 
-    use super::{State, better_supported, distinct_outline, rotation_between};
+    use super::estimation::Solution;
+    use super::{LoweParams, LoweTracker, State, better_supported, distinct_outline, fixtures, rotation_between};
     use crate::geometry::Pose;
+    use crate::io::formats::InitState;
     use crate::track::lowe::params::MAX_PARAMS;
     use crate::track::lowe::projection::ModelSegment;
+
+    /// A solution with the lid at `lid` and its variance `lid_variance`
+    /// (every other parameter measured tightly).
+    fn solution(lid: f64, lid_variance: f64) -> Solution {
+        let mut covariance = [[0.0; MAX_PARAMS]; MAX_PARAMS];
+        for (i, row) in covariance.iter_mut().enumerate().take(7) {
+            row[i] = if i == 6 { lid_variance } else { 1e-8 };
+        }
+        let state = State { pose: Pose::from(&start_pose()), params: vec![lid] };
+        Solution { state, covariance, residual_sigma: Some(1.0), rows: 40 }
+    }
+
+    fn start_pose() -> crate::io::formats::Pose {
+        crate::io::formats::Pose { rotation: [0.3, 0.2, 0.1], translation: [0.0, 0.0, 1.0] }
+    }
+
+    /// The joint velocity of step 1: a step between two frames that both
+    /// measured the joint; kept through a frame that did not; none after a
+    /// loss.
+    #[test]
+    fn a_joint_steps_only_between_frames_that_measured_it() {
+        let init = InitState { pose: Some(start_pose()), params: vec![0.5], ..InitState::default() };
+        let params = LoweParams::default();
+        let mut tracker = LoweTracker::new(fixtures::camera(), &fixtures::hinged_box_model(), &init, params).unwrap();
+        let measured = (0.3 * tracker.params.prior_joint_sigma).powi(2);
+        let unmeasured = tracker.params.prior_joint_sigma.powi(2);
+        let mut last = tracker.last.clone();
+        let mut verify = |tracker: &mut LoweTracker, lid: f64, variance: f64| {
+            let s = solution(lid, variance);
+            tracker.update_joint_velocity(&last, &s);
+            last = s.state;
+            tracker.joint_velocity[0]
+        };
+        // The first measured frame has no measured frame before it.
+        assert_eq!(verify(&mut tracker, 0.52, measured), 0.0);
+        assert!((verify(&mut tracker, 0.55, measured) - 0.03).abs() < 1e-12);
+        // Unmeasured: its value is the prior's; the last measured step stays.
+        assert!((verify(&mut tracker, 0.40, unmeasured) - 0.03).abs() < 1e-12);
+        // Measured again, but the step comes from an unmeasured value.
+        assert!((verify(&mut tracker, 0.61, measured) - 0.03).abs() < 1e-12);
+        assert!((verify(&mut tracker, 0.65, measured) - 0.04).abs() < 1e-12);
+        // The first frame after a loss starts from no velocity.
+        tracker.lost_frames = 3;
+        assert_eq!(verify(&mut tracker, 0.9, measured), 0.0);
+    }
 
     fn segment(a: [f64; 2], b: [f64; 2]) -> ModelSegment {
         let rows = [[0.0; MAX_PARAMS]; 2];

@@ -174,7 +174,8 @@ pub struct LoweParams {
     /// is 2–6 px wide there). Range: [0, 50].
     pub swap_gap_px: f64,
     /// Linking, segmentation and indexing of the zero crossings (a
-    /// `[segments]` table in the TOML file; see [`SegmentParams`]).
+    /// `[segments]` table in a file of top-level keys, `[lowe.segments]`
+    /// in one with a `[lowe]` table; see [`SegmentParams`]).
     pub segments: SegmentParams,
 }
 
