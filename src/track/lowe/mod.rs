@@ -10,8 +10,8 @@
 //!    limits), with a prior standard deviation per parameter
 //!    (`prior_rotation_sigma`, `prior_translation_px`, `prior_joint_sigma`).
 //!    A joint's step is its last one between two frames whose matches both
-//!    measured it (σ in P below [`UNMEASURED_SIGMA_RATIO`] of
-//!    `prior_joint_sigma`; our addition): where no match constrains a joint
+//!    measured it (σ in P below 0.9 of `prior_joint_sigma`; our
+//!    addition): where no match constrains a joint
 //!    its value is the prior's, and a step from or to such a value is not
 //!    the part's motion. Extrapolated, such a step (a lid under an occluder,
 //!    unmeasured on one frame, loosely fitted 4° back on the next) puts the
