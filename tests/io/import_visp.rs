@@ -307,28 +307,17 @@ fn loaded_files_are_copied_and_included_parts_placed() {
         );
     }
 
-    // A bad placement is named as the --include argument's.
-    let out = pipetrack(&[
-        "import-visp",
-        src.to_str().unwrap(),
-        root.join("seq-bad").to_str().unwrap(),
-        "--include",
-        "Extra/wedge.cao, t=[0.2; 0]",
-    ]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("--include"), "{stderr}");
-    assert!(!root.join("seq-bad").exists());
-    // A line break would add a line of its own to the written model.cao.
-    let out = pipetrack(&[
-        "import-visp",
-        src.to_str().unwrap(),
-        root.join("seq-bad").to_str().unwrap(),
-        "--include",
-        "Extra/wedge.cao, t=[0.2; 0; 0])\nload(\"/elsewhere/other.cao\")\n#",
-    ]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("--include") && stderr.contains("control character"), "{stderr}");
-    assert!(!root.join("seq-bad").exists());
+    // A bad placement is named as the --include argument's; a line break
+    // would add a line of its own to the written model.cao.
+    for (include, needle) in [
+        ("Extra/wedge.cao, t=[0.2; 0]", "--include"),
+        ("Extra/wedge.cao, t=[0.2; 0; 0])\nload(\"/elsewhere/other.cao\")\n#", "control character"),
+    ] {
+        let bad = root.join("seq-bad");
+        let out = pipetrack(&["import-visp", src.to_str().unwrap(), bad.to_str().unwrap(), "--include", include]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains("--include") && stderr.contains(needle), "{stderr}");
+        assert!(!bad.exists());
+    }
 }

@@ -162,6 +162,20 @@ fn an_obj_model_tracks_with_the_edges_where_the_surface_bends() {
     assert_eq!(lines[0]["status"], "tracking");
 }
 
+/// `track SEQ --tracker TRACKER --backend cpu --out OUT`.
+fn track_cpu(seq: &Path, tracker: &str, out: &Path) -> Output {
+    pipetrack(&[
+        "track",
+        seq.to_str().unwrap(),
+        "--tracker",
+        tracker,
+        "--backend",
+        "cpu",
+        "--out",
+        out.to_str().unwrap(),
+    ])
+}
+
 /// A good pendulum sequence in `root/seq` whose model files are replaced
 /// by `files` (name, text): `track` must exit 2 with one line on stderr
 /// naming `file` and holding every `needles`, and leave no output.
@@ -176,16 +190,7 @@ fn expect_bad_model(name: &str, files: &[(&str, &str)], file: &str, needles: &[&
         std::fs::write(path, text).unwrap();
     }
     let out_file = root.join("out.jsonl");
-    let out = pipetrack(&[
-        "track",
-        seq.to_str().unwrap(),
-        "--tracker",
-        "motion-edge",
-        "--backend",
-        "cpu",
-        "--out",
-        out_file.to_str().unwrap(),
-    ]);
+    let out = track_cpu(&seq, "motion-edge", &out_file);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{name}: {stderr}");
     let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
@@ -319,16 +324,7 @@ fn lowe_refuses_a_start_pose_behind_the_camera() {
         init["pose"]["translation"] = serde_json::json!([0.0, 0.0, z]);
         std::fs::write(&init_path, init.to_string()).unwrap();
         let out_file = root.join("out.jsonl");
-        let out = pipetrack(&[
-            "track",
-            seq.to_str().unwrap(),
-            "--tracker",
-            "lowe",
-            "--backend",
-            "cpu",
-            "--out",
-            out_file.to_str().unwrap(),
-        ]);
+        let out = track_cpu(&seq, "lowe", &out_file);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "z = {z}: {stderr}");
         assert!(stderr.contains("init.json: ") && stderr.contains("in front of the camera"), "z = {z}: {stderr}");

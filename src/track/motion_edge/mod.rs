@@ -955,18 +955,19 @@ impl MotionEdgeTracker {
         self.outcome(frame, Status::Tracking, corners, m, None)
     }
 
-    /// One tracking cycle: measure around the prediction, check eq. 9 and
-    /// contradiction, update the smoothers and predict.
     /// A tracking frame: measured from the prediction and, when that would
     /// lose the track, measured again with the orientation tolerance
     /// widened to `retry_delta` (module doc, "A second look at a wider
     /// angle"); the first attempt's outcome and state stand unless the
-    /// second one is tracking.
+    /// second one is tracking. The state is copied for the second look only
+    /// where it is on.
     fn track_frame(&mut self, frame: usize, motion: &[Feature]) -> FrameOutcome {
+        if !(self.params.verify && self.params.retry_delta > self.params.delta) {
+            return self.track_frame_once(frame, motion);
+        }
         let before = self.without_frame_data(|t| t.clone());
         let first = self.track_frame_once(frame, motion);
-        let wider = self.params.retry_delta;
-        if first.status == Status::Tracking || !self.params.verify || wider <= self.params.delta {
+        if first.status == Status::Tracking {
             return first;
         }
         let failed = self.without_frame_data(|t| std::mem::replace(t, before));
@@ -997,8 +998,8 @@ impl MotionEdgeTracker {
         result
     }
 
-    /// One measurement of a tracking frame from the prediction (steps 1–6
-    /// and the verification).
+    /// One tracking cycle: measure around the prediction, check eq. 9 and
+    /// contradiction, update the smoothers, predict, and verify.
     fn track_frame_once(&mut self, frame: usize, motion: &[Feature]) -> FrameOutcome {
         let predicted = self.predicted.clone();
         let tolerances = self.tracking_tolerances(&predicted, &self.trend);
