@@ -13,7 +13,9 @@
 # script itself, e.g. on lavapipe). BASELINE=path/to/another/pipetrack
 # times that build too, in the same run, for the chain with sequences in
 # flight and the GPU batches (lanes_baseline.json, lines marked "baseline"
-# in batch.txt). Results go to $OUT (default gpu_results): device.txt,
+# in batch.txt) and its pyramid and chain rows at the three sizes
+# (bench_baseline.json). ROUNDS (default 2) is how many times each batch
+# runs. Results go to $OUT (default gpu_results): device.txt,
 # bench.json, lanes.json, windows.json, batch.txt, track.txt and log.txt; a
 # short summary is printed last.
 set -uo pipefail
@@ -22,6 +24,7 @@ BIN=$(realpath "${1:-target/release/pipetrack}")
 BASE=${BASELINE:+$(realpath "$BASELINE")}
 OUT=$(realpath -m "${OUT:-gpu_results}")
 SCALE=${SCALE:-full}
+ROUNDS=${ROUNDS:-2}
 mkdir -p "$OUT"
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
@@ -59,6 +62,10 @@ say "device"
 say "bench: stages at $SIZES"
 timeout 240 "$BIN" bench --json --sizes "$SIZES" --seconds "$SECONDS_PER" >"$OUT/bench.json" 2>>"$LOG"
 grep -m1 '"adapter"' "$OUT/bench.json" | tee -a "$LOG"
+if [ -n "$BASE" ]; then
+    say "baseline bench: pyramids and the chain at $SIZES"
+    timeout 120 "$BASE" bench --json --sizes "$SIZES" --seconds "$SECONDS_PER" --stages cpf,edge_pyramid,chain >"$OUT/bench_baseline.json" 2>>"$LOG"
+fi
 
 say "bench: chain with $LANES sequences in flight at $LANE_SIZES"
 timeout 240 "$BIN" bench --json --lanes "$LANES" --sizes "$LANE_SIZES" --seconds "$SECONDS_PER" >"$OUT/lanes.json" 2>>"$LOG"
@@ -83,7 +90,7 @@ run_batch() { # name manifest tracker backend jobs [binary]
     echo "${6:+baseline }$1 $3 backend=$4 jobs=$5: $line" | tee -a "$OUT/batch.txt"
 }
 : >"$OUT/batch.txt"
-for round in 1 2; do
+for round in $(seq 1 "$ROUNDS"); do
     say "batch round $round"
     for k in $JOBS; do
         run_batch pendulum "$WORK/p" motion-edge gpu "$k"
