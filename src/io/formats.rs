@@ -234,6 +234,11 @@ pub struct FrameResult {
     /// Search branches tried on this frame (Lowe's best-first search).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub search_branches: Option<usize>,
+    /// Why the frame is lost, on lost frames: the test the tracker's answer
+    /// failed (e.g. too little of its contour supported by image edges) or
+    /// why there was no answer.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lost_reason: Option<String>,
     /// Milliseconds spent on this frame.
     pub ms: f64,
 }

@@ -182,9 +182,15 @@ impl FrameOutcome {
         let params = self.params.clone().filter(|p| finite(p));
         let state_finite =
             corners_finite && pose.is_some() == self.pose.is_some() && params.is_some() == self.params.is_some();
+        let status = if state_finite { self.status } else { Status::Lost };
+        let lost_reason = match status {
+            Status::Tracking => None,
+            Status::Lost if state_finite => self.diagnostics.lost_reason.clone(),
+            Status::Lost => Some("the tracker's state is not all finite numbers".to_string()),
+        };
         FrameResult {
             frame: self.frame,
-            status: if state_finite { self.status } else { Status::Lost },
+            status,
             corners: if corners_finite { self.corners.clone() } else { Vec::new() },
             pose,
             params,
@@ -192,6 +198,7 @@ impl FrameOutcome {
             velocity_screw: None,
             effective_sample_size: None,
             search_branches: None,
+            lost_reason,
             ms: if ms.is_finite() { ms } else { 0.0 },
         }
     }

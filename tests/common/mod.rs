@@ -267,7 +267,8 @@ pub fn box_model() -> pipetrack::io::formats::Model {
 
 /// Track `frames` (`size` px) with `tracker` on `backend` through the real
 /// per-frame loop: every frame's output line, and the frames not tracking
-/// as `frame (reason)`.
+/// as `frame (reason)`, the reason from the output line (asserted present
+/// on every lost line, absent on tracking ones).
 pub fn track_lost<F: AsFrame>(
     tracker: &mut dyn Tracker,
     backend: &mut dyn EarlyVision,
@@ -276,9 +277,13 @@ pub fn track_lost<F: AsFrame>(
 ) -> (Vec<FrameResult>, Vec<String>) {
     let mut results = Vec::new();
     let mut lost = Vec::new();
-    pipetrack::track::run::track_frames(tracker, backend, frames.into_iter().map(Ok), size, |_, outcome, result| {
-        if outcome.status != Status::Tracking {
-            lost.push(format!("{} ({})", outcome.frame, outcome.diagnostics.lost_reason.as_deref().unwrap_or("?")));
+    pipetrack::track::run::track_frames(tracker, backend, frames.into_iter().map(Ok), size, |_, _, result| {
+        if result.status == Status::Tracking {
+            assert_eq!(result.lost_reason, None, "frame {} is tracking", result.frame);
+        } else {
+            let why = result.lost_reason.as_deref().filter(|why| !why.is_empty());
+            let why = why.unwrap_or_else(|| panic!("frame {} is lost without a reason in its line", result.frame));
+            lost.push(format!("{} ({why})", result.frame));
         }
         results.push(result.clone());
         Ok(())

@@ -30,6 +30,7 @@ fn pred(frame: usize, status: Status, dx: f64, dy: f64, extra: f64) -> FrameResu
         velocity_screw: None,
         effective_sample_size: None,
         search_branches: None,
+        lost_reason: None,
         ms: 1.0,
     }
 }

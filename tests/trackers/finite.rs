@@ -245,6 +245,10 @@ fn to_result_writes_only_finite_numbers() {
     assert!(results[1].pose.is_none() && results[1].corners == square);
     assert_eq!(results[2].status, Status::Tracking);
     assert!(results[2].covariance.is_none() && results[2].corners == square);
+    for r in &results[..2] {
+        assert!(r.lost_reason.as_deref().is_some_and(|why| why.contains("not all finite")), "{:?}", r.lost_reason);
+    }
+    assert_eq!(results[2].lost_reason, None);
     let read = write_check_and_score("guard", &results, &truth(results.len(), &square));
     assert_eq!(read, results);
 }

@@ -120,7 +120,8 @@ fn statuses(out: &[(FrameOutcome, FrameResult)]) -> String {
     out.iter().map(|(_, r)| if r.status == Status::Tracking { 'T' } else { 'L' }).collect()
 }
 
-/// Asserts no false tracking (> 5 px or nothing visible); prints the run.
+/// Asserts no false tracking (> 5 px or nothing visible) and a reason on
+/// every lost frame's output line (none on tracking ones); prints the run.
 fn check_no_false_tracking(label: &str, seq: &SyntheticSequence, out: &[(FrameOutcome, FrameResult)]) -> String {
     let results: Vec<FrameResult> = out.iter().map(|(_, r)| r.clone()).collect();
     let s = score(&seq.truth, &results).expect("score");
@@ -134,6 +135,16 @@ fn check_no_false_tracking(label: &str, seq: &SyntheticSequence, out: &[(FrameOu
         .map(|&f| format!("{f}: {:?}", s.frame_errors.iter().find(|e| e.0 == f)))
         .collect();
     assert!(s.false_tracking.is_empty(), "{label}: false tracking at {}", why.join(", "));
+    for (_, r) in out {
+        match r.status {
+            Status::Lost => assert!(
+                r.lost_reason.as_ref().is_some_and(|why| !why.is_empty()),
+                "{label}: frame {} is lost without a reason in its output line",
+                r.frame
+            ),
+            Status::Tracking => assert_eq!(r.lost_reason, None, "{label}: frame {} tracking", r.frame),
+        }
+    }
     st
 }
 
