@@ -55,8 +55,40 @@
 //! intensity difference per compared value, bounded from above by its
 //! energy (`U · Σ_n C_I / 4K²`, since U ≥ C_I / Σ_n C_I), is at most
 //! [`CondensationParams::max_residual`]. Otherwise it is `lost`, with the
-//! residual in the reason, and the filter carries on (the template stays,
-//! so the window can be found again).
+//! residual in the reason; the template stays, so the window can be found
+//! again.
+//!
+//! # Searching while lost
+//! 004 tracks one image pair and has no loss. On a sequence, a window that
+//! is hidden or jumps leaves the sample set, whose spread is the diffusion
+//! of one frame (0.3 px), where the paper's update cannot bring it back: on
+//! a lost frame the best sample is any mismatch, the drift of eq. 19 moves
+//! the reference to it and the motion of the next interval is taken from
+//! that jump. With [`CondensationParams::search_spread_px`] above 0 (the
+//! default), a lost frame instead runs a search:
+//! * the reference stays where the window was last tracked, and the motion
+//!   of the last tracked interval is kept as the prediction;
+//! * the next frame's samples are drawn afresh, as §III-B.3 draws the
+//!   initial set: sample 0 is the search's centre, half of the others are
+//!   drawn around it with the search's spread, the other half around where
+//!   the last tracked motion carries the window (its *coast*) with
+//!   [`CondensationParams::max_search_spread_px`];
+//! * the centre starts at the filter's own prediction with
+//!   `search_spread_px`. Each lost frame it moves to the best sample when
+//!   that sample is evidence of the window — its residual at most 0.9 of
+//!   the centre's and below [`CondensationParams::search_evidence_ratio`]
+//!   of the median residual of the frame's samples, so the luck of the draw
+//!   among mismatches does not move it — and the spread halves (down to
+//!   `diffusion_px`); otherwise the spread doubles (up to the largest);
+//! * the centre and the coast move on by the last tracked motion each
+//!   frame, the centre only until the search has first found evidence (the
+//!   motion since the loss is unknown; the spread follows the window);
+//! * a frame whose best window matches the template is `tracking` again,
+//!   and the paper's update resumes from it, with the motion kept from
+//!   before the loss as the next interval's prediction.
+//!
+//! A frame that is never lost takes exactly the paper's update (the
+//! outputs of the `textured-plane` acceptance runs do not change).
 
 pub mod params;
 pub mod steps;
@@ -100,6 +132,27 @@ pub struct CondensationTracker {
     rng: ChaCha8Rng,
     extras: FrameExtras,
     phase: Phase,
+    /// The motion of the last tracked frame interval: the prediction while lost.
+    velocity: Screw,
+    /// The search for the window while lost (None while tracking).
+    search: Option<Search>,
+}
+
+/// A best sample moves a lost window's search only when its residual is at
+/// most this fraction of the residual of the search's centre.
+const SEARCH_MIN_IMPROVEMENT: f64 = 0.9;
+
+/// The search for a lost window: the next frame's sample 0 is its centre,
+/// the first half of the rest are drawn around the centre with
+/// `spread_px`, the second half around `coast` with the largest spread.
+#[derive(Clone, Copy, Debug)]
+struct Search {
+    spread_px: f64,
+    /// Where the motion of the last tracked frame interval carries the
+    /// window, relative to the reference.
+    coast: Screw,
+    /// Whether the search has moved to evidence of the window.
+    found: bool,
 }
 
 impl CondensationTracker {
@@ -134,6 +187,8 @@ impl CondensationTracker {
             rng: ChaCha8Rng::seed_from_u64(params.seed),
             extras: FrameExtras::default(),
             phase: Phase::Acquiring,
+            velocity: steps::screw_of_camera_motion(&motion),
+            search: None,
             params,
         };
         let (corners, depths) = tracker.reference_window();
@@ -238,8 +293,27 @@ impl CondensationTracker {
 
         // The claim of tracking, checked against the image.
         let side = self.params.window().level_side();
-        let residual =
-            steps::residual_bound(energies.energies[best], energies.intensity_total, HIERARCHIES * side * side);
+        let residual_of =
+            |n: usize| steps::residual_bound(energies.energies[n], energies.intensity_total, HIERARCHIES * side * side);
+        let residual = residual_of(best);
+        if residual > self.params.max_residual && self.params.search_spread_px > 0.0 {
+            let reason =
+                format!("best window's residual {residual:.1} grey levels exceeds {}", self.params.max_residual);
+            // Evidence of the window: the best sample beats the search's
+            // centre (sample 0) and stands out from the frame's typical
+            // mismatch, the samples' median residual.
+            let mut all: Vec<f64> = (0..energies.energies.len()).map(residual_of).collect();
+            all.sort_by(f64::total_cmp);
+            let median = all[all.len() / 2];
+            let improved = best != 0
+                && residual < SEARCH_MIN_IMPROVEMENT * residual_of(0)
+                && residual < self.params.search_evidence_ratio * median;
+            return self.search_while_lost(frame, &weights, best, improved, reason);
+        }
+        // After a search, the motion before the loss is the prediction, not
+        // the jump from the search's centre to the window found.
+        let interval_motion = if self.search.take().is_some() { self.velocity } else { interval_motion };
+        self.velocity = interval_motion;
         let (status, reason) = if residual <= self.params.max_residual {
             self.phase = Phase::Tracking;
             (Status::Tracking, None)
@@ -282,6 +356,58 @@ impl CondensationTracker {
         steps::diffuse(&mut next, &sigma, &mut self.rng);
         self.windows = steps::project_sample_windows(&self.camera, &corners, &depths, &next);
         self.samples = next;
+        outcome
+    }
+}
+
+impl CondensationTracker {
+    /// A lost frame with the search on (module documentation, "Searching
+    /// while lost"); `improved`: the best sample is evidence of the window.
+    fn search_while_lost(
+        &mut self,
+        frame: usize,
+        weights: &[f64],
+        best: usize,
+        improved: bool,
+        reason: String,
+    ) -> FrameOutcome {
+        self.phase = Phase::Lost;
+        let (centre, spread_px, coast) = match self.search {
+            // The first lost frame: the filter's own prediction.
+            None => {
+                let predicted = steps::mean(&self.samples);
+                (predicted, self.params.search_spread_px, predicted)
+            }
+            Some(s) if improved => (self.samples[best], (s.spread_px / 2.0).max(self.params.diffusion_px), s.coast),
+            Some(s) => (self.samples[0], (s.spread_px * 2.0).min(self.params.max_search_spread_px), s.coast),
+        };
+        let (corners, depths) = self.reference_window();
+        let window = steps::project_sample_windows(&self.camera, &corners, &depths, &[centre]);
+        let reported: Vec<[f64; 2]> = window[0].iter().map(|c| [f64::from(c[0]), f64::from(c[1])]).collect();
+        self.estimate = steps::screw_motion(&centre).compose(&self.reference);
+        let mut outcome = self.outcome(frame, Status::Lost, reported, Some(reason));
+        outcome.covariance = Some(screw_covariance(&self.samples, weights));
+        self.extras = FrameExtras {
+            velocity_screw: Some(self.velocity),
+            effective_sample_size: Some(steps::effective_sample_size(weights)),
+            search_branches: None,
+        };
+        let coasted = |s: &Screw| -> Screw { std::array::from_fn(|k| s[k] + self.velocity[k]) };
+        // Once the search has found evidence of the window, its centre stays
+        // where the evidence is; before, it coasts.
+        let found = improved || self.search.is_some_and(|s| s.found);
+        let (next_centre, next_coast) = (if found { centre } else { coasted(&centre) }, coasted(&coast));
+        let weights = &self.params.component_weights;
+        let near = steps::component_sigmas(&self.camera, &corners, &depths, spread_px, weights);
+        let wide = steps::component_sigmas(&self.camera, &corners, &depths, self.params.max_search_spread_px, weights);
+        let n = self.params.samples;
+        let half = n.div_ceil(2);
+        let mut next = vec![next_centre];
+        next.extend(steps::draw_initial_samples(&next_centre, &near, half.saturating_sub(1), &mut self.rng));
+        next.extend(steps::draw_initial_samples(&next_coast, &wide, n - next.len(), &mut self.rng));
+        self.windows = steps::project_sample_windows(&self.camera, &corners, &depths, &next);
+        self.samples = next;
+        self.search = Some(Search { spread_px, coast: next_coast, found });
         outcome
     }
 }

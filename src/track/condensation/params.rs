@@ -74,6 +74,19 @@ pub struct CondensationParams {
     /// about 2 levels and windows of another texture about 17.
     /// Range: (0, [`MAX_RESIDUAL`]].
     pub max_residual: f64,
+    /// Spread of the search for a lost window on the first lost frame, in
+    /// the units of `initial_spread_px` (module documentation, "Searching
+    /// while lost"); 0 turns the search off, and lost frames then update the
+    /// samples as tracking ones do (the paper's Fig. 2 has no loss).
+    /// Range: [0, [`MAX_SPREAD_PX`]].
+    pub search_spread_px: f64,
+    /// Largest spread the search widens to, px. Range: [0, [`MAX_SPREAD_PX`]].
+    pub max_search_spread_px: f64,
+    /// The search moves to its best sample (and narrows) only when that
+    /// sample's residual is below this fraction of the median residual of
+    /// the frame's samples: evidence of the window, not the luck of the
+    /// draw among mismatches. Range: (0, 1].
+    pub search_evidence_ratio: f64,
     /// Seed of the sampling. Range: any.
     pub seed: u64,
 }
@@ -92,6 +105,9 @@ impl Default for CondensationParams {
             camera_motion: None,
             estimate: Estimate::Best,
             max_residual: 8.0,
+            search_spread_px: 4.0,
+            max_search_spread_px: 32.0,
+            search_evidence_ratio: 0.75,
             seed: 0x0c0d_e45e,
         }
     }
@@ -113,6 +129,9 @@ impl CondensationParams {
         let spread = Interval::closed(0.0, MAX_SPREAD_PX);
         spread.check(WHO, "initial_spread_px", self.initial_spread_px, " px")?;
         spread.check(WHO, "diffusion_px", self.diffusion_px, " px")?;
+        spread.check(WHO, "search_spread_px", self.search_spread_px, " px")?;
+        spread.check(WHO, "max_search_spread_px", self.max_search_spread_px, " px")?;
+        Interval::open_closed(0.0, 1.0).check(WHO, "search_evidence_ratio", self.search_evidence_ratio, "")?;
         for w in self.component_weights {
             Interval::closed(0.0, 10.0).check(WHO, "component_weights", w, "")?;
         }

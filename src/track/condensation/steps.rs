@@ -176,6 +176,13 @@ pub fn best_sample(weights: &[f64]) -> usize {
     weights.iter().enumerate().fold(0, |best, (n, &w)| if w > weights[best] { n } else { best })
 }
 
+/// The mean of the samples.
+#[must_use]
+pub fn mean(samples: &[Screw]) -> Screw {
+    let n = samples.len().max(1) as f64;
+    std::array::from_fn(|k| samples.iter().map(|s| s[k]).sum::<f64>() / n)
+}
+
 /// The weighted mean of the samples.
 #[must_use]
 pub fn weighted_mean(samples: &[Screw], weights: &[f64]) -> Screw {
