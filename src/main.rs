@@ -157,13 +157,16 @@ enum Command {
         /// Tracker whose paper to reproduce: motion-edge (Tables 1–3 of 000)
         /// or condensation (Fig. 4 of 004, written to --out).
         tracker: String,
-        /// `default` (pipetrack's parameters), `paper` (the method as printed), or `both`.
-        #[arg(long, default_value = "both")]
-        config: String,
-        /// Seeds, comma-separated: each renders its own sequence per velocity.
-        #[arg(long, value_delimiter = ',', default_values_t = pipetrack::cli::reproduce::SEEDS)]
-        seeds: Vec<u64>,
-        /// Folder for figures (condensation: fig4.csv and fig4_l<l>.png).
+        /// motion-edge: `default` (pipetrack's parameters), `paper` (the
+        /// method as printed), or `both` (the default).
+        #[arg(long)]
+        config: Option<String>,
+        /// Seeds, comma-separated. motion-edge: each renders its own
+        /// sequence per velocity (default 1,2,3,4,5); condensation: one seed
+        /// (default 1).
+        #[arg(long, value_delimiter = ',')]
+        seeds: Option<Vec<u64>>,
+        /// condensation: the folder for fig4.csv and fig4_l<l>.png.
         #[arg(long)]
         out: Option<PathBuf>,
     },
@@ -438,10 +441,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Reproduce { tracker, config, seeds, out } => {
             use pipetrack::cli::reproduce::{Config, Setup, markdown, run_tables};
             if tracker == "condensation" {
+                if config.is_some() {
+                    return Err(pipetrack::Error::Parameter(
+                        "reproduce condensation has one configuration: --config is for motion-edge".into(),
+                    )
+                    .into());
+                }
+                let seed = match seeds.as_deref() {
+                    None => 1,
+                    Some(&[seed]) => seed,
+                    Some(_) => {
+                        return Err(pipetrack::Error::Parameter("reproduce condensation takes one seed".into()).into());
+                    }
+                };
                 let out = out.ok_or_else(|| {
                     pipetrack::Error::Parameter("reproduce condensation writes figures: give --out DIR".into())
                 })?;
-                let seed = seeds.first().copied().unwrap_or(0);
                 let summary = pipetrack::cli::reproduce_condensation::reproduce_fig4(&out, seed)?;
                 note(format_args!("reproduce: wrote fig4.csv and fig4_l1..6.png to {}", out.display()));
                 return say(format_args!("{summary}"));
@@ -452,7 +467,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 ))
                 .into());
             }
-            let setup = Setup::tables(Config::parse_list(&config)?, seeds);
+            if out.is_some() {
+                return Err(pipetrack::Error::Parameter(
+                    "reproduce motion-edge prints its tables on stdout: --out is for condensation's figures".into(),
+                )
+                .into());
+            }
+            let seeds = seeds.unwrap_or_else(|| pipetrack::cli::reproduce::SEEDS.to_vec());
+            let setup = Setup::tables(Config::parse_list(config.as_deref().unwrap_or("both"))?, seeds);
             let tables = run_tables(&setup, &|done, total| {
                 let _ = write!(std::io::stderr(), "\rreproduce: {done}/{total} runs");
             })?;

@@ -12,7 +12,7 @@
 # A task killed part-way (time limit, pre-emption) is simply run again: it
 # skips the sequences whose output is complete. Once every task has ended,
 #
-#   pipetrack batch "$MANIFEST" --out "$OUT"
+#   pipetrack batch "$MANIFEST" --out "$OUT" [the same arguments, e.g. --tracker motion-edge]
 #
 # (no --shard) tracks whatever is still missing and writes the summary of the
 # whole manifest; as a follow-up job: `sbatch --dependency=afterany:<job id> ...`.

@@ -559,3 +559,23 @@ fn bench_windows_cpu_only_opens_no_adapter() {
         assert!(row["gpu_ms"].is_null() && row["adapter"].is_null(), "{row}");
     }
 }
+
+/// `reproduce` refuses options that do not apply to the tracker named,
+/// instead of ignoring them: exit 2, one line saying which.
+#[test]
+fn reproduce_refuses_options_of_the_other_paper() {
+    let root = scratch("reproduce");
+    let out_dir = root.join("fig4");
+    let out_arg = out_dir.to_str().unwrap();
+    for (args, needle) in [
+        (vec!["reproduce", "condensation", "--out", out_arg, "--config", "paper"], "--config is for motion-edge"),
+        (vec!["reproduce", "condensation", "--out", out_arg, "--seeds", "1,2"], "takes one seed"),
+        (vec!["reproduce", "motion-edge", "--out", out_arg], "--out is for condensation"),
+    ] {
+        let out = pipetrack(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(needle) && stderr.trim().lines().count() == 1, "{args:?}: {stderr}");
+        assert!(!out_dir.exists(), "{args:?} wrote {out_arg}");
+    }
+}
