@@ -16,8 +16,9 @@
 # in batch.txt) and its pyramid and chain rows at the three sizes
 # (bench_baseline.json). ROUNDS (default 2) is how many times each batch
 # runs. Results go to $OUT (default gpu_results): device.txt,
-# bench.json, lanes.json, windows.json, batch.txt, track.txt and log.txt; a
-# short summary is printed last.
+# bench.json, lanes.json, windows.json, batch.txt, track.txt and log.txt
+# (with BASELINE also bench_baseline.json and lanes_baseline.json); a short
+# summary is printed last.
 set -uo pipefail
 
 BIN=$(realpath "${1:-target/release/pipetrack}")

@@ -560,8 +560,8 @@ fn bench_windows_cpu_only_opens_no_adapter() {
     }
 }
 
-/// `reproduce` refuses options that do not apply to the tracker named,
-/// instead of ignoring them: exit 2, one line saying which.
+/// `reproduce` refuses options that do not apply to the tracker named:
+/// exit 2, one line saying which, nothing written.
 #[test]
 fn reproduce_refuses_options_of_the_other_paper() {
     let root = scratch("reproduce");

@@ -45,7 +45,9 @@
 //!
 //! # Output
 //! Corners: the window scored for the estimate (the best sample by
-//! default, [`Estimate`]), in model-vertex order; pose: the window's pose
+//! default, [`Estimate`]; on the frame after a search, the best sample; on
+//! a lost frame with the search on, the search's centre), in model-vertex
+//! order; pose: the window's pose
 //! relative to the camera (the estimate's screw applied to the reference);
 //! the velocity screw estimate (`velocity_screw`, per frame interval) and the
 //! effective sample size 1/Σπ² (`effective_sample_size`) as extra keys; the
@@ -74,21 +76,24 @@
 //!   the last tracked motion carries the window (its *coast*) with
 //!   [`CondensationParams::max_search_spread_px`];
 //! * the centre starts at the filter's own prediction with
-//!   `search_spread_px`. Each lost frame it moves to the best sample when
-//!   that sample is evidence of the window — its residual at most 0.9 of
-//!   the centre's and below [`CondensationParams::search_evidence_ratio`]
-//!   of the median residual of the frame's samples, so the luck of the draw
-//!   among mismatches does not move it — and the spread halves (down to
-//!   `diffusion_px`); otherwise the spread doubles (up to the largest);
+//!   `search_spread_px`. A best sample is evidence of the window when its
+//!   residual is below [`CondensationParams::search_evidence_ratio`] of the
+//!   median residual of the frame's samples (so the luck of the draw among
+//!   mismatches is not). On evidence the spread halves (down to
+//!   `diffusion_px`) and the centre moves to the best sample if its
+//!   residual is below 0.9 of the centre's (it stays when it is the best
+//!   sample itself); without, the spread doubles (up to the largest);
 //! * the centre and the coast move on by the last tracked motion each
-//!   frame, the centre only until the search has first found evidence (the
-//!   motion since the loss is unknown; the spread follows the window);
+//!   frame, the centre only until the search first finds evidence: from
+//!   then on the window's motion since the loss is unknown, and the centre
+//!   stays at the evidence while its spread covers where the window moves;
 //! * a frame whose best window matches the template is `tracking` again,
 //!   and the paper's update resumes from it, with the motion kept from
 //!   before the loss as the next interval's prediction.
 //!
-//! A frame that is never lost takes exactly the paper's update (the
-//! outputs of the `textured-plane` acceptance runs do not change).
+//! A frame that is never lost takes exactly the paper's update. With fewer
+//! than 3 samples the search has no sample both around its centre and
+//! around the coast and does little.
 
 pub mod params;
 pub mod steps;
@@ -138,13 +143,28 @@ pub struct CondensationTracker {
     search: Option<Search>,
 }
 
-/// A best sample moves a lost window's search only when its residual is at
-/// most this fraction of the residual of the search's centre.
+/// A best sample moves a lost window's search only when its residual is
+/// below this fraction of the residual of the search's centre.
 const SEARCH_MIN_IMPROVEMENT: f64 = 0.9;
 
+/// What a lost frame does to the search (module documentation, "Searching
+/// while lost").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum SearchStep {
+    /// The first lost frame: centre on the filter's own prediction.
+    Start,
+    /// The centre is the best sample and evidence: stay, halve the spread.
+    Narrow,
+    /// This sample is evidence and clearly better than the centre: move
+    /// there, halve the spread.
+    MoveTo(usize),
+    /// No evidence: stay, double the spread.
+    Widen,
+}
+
 /// The search for a lost window: the next frame's sample 0 is its centre,
-/// the first half of the rest are drawn around the centre with
-/// `spread_px`, the second half around `coast` with the largest spread.
+/// half of the rest (the larger half) are drawn around the centre with
+/// `spread_px`, the others around `coast` with the largest spread.
 #[derive(Clone, Copy, Debug)]
 struct Search {
     spread_px: f64,
@@ -281,9 +301,11 @@ impl CondensationTracker {
         let weights = steps::weights_from_energies(&energies.energies);
         let best = steps::best_sample(&weights);
         let best_screw = self.samples[best];
+        // After a search the samples are spread widely: the weighted mean of
+        // that frame is no estimate, the best sample is.
         let estimate_screw = match self.params.estimate {
-            Estimate::Best => best_screw,
-            Estimate::WeightedMean => steps::weighted_mean(&self.samples, &weights),
+            Estimate::WeightedMean if self.search.is_none() => steps::weighted_mean(&self.samples, &weights),
+            Estimate::Best | Estimate::WeightedMean => best_screw,
         };
         let window = steps::project_sample_windows(&self.camera, &ref_corners, &ref_depths, &[estimate_screw]);
         let corners: Vec<[f64; 2]> = window[0].iter().map(|c| [f64::from(c[0]), f64::from(c[1])]).collect();
@@ -299,16 +321,21 @@ impl CondensationTracker {
         if residual > self.params.max_residual && self.params.search_spread_px > 0.0 {
             let reason =
                 format!("best window's residual {residual:.1} grey levels exceeds {}", self.params.max_residual);
-            // Evidence of the window: the best sample beats the search's
-            // centre (sample 0) and stands out from the frame's typical
-            // mismatch, the samples' median residual.
+            // Evidence of the window: the best sample stands out from the
+            // frame's typical mismatch, the samples' median residual; it
+            // moves the search when it also beats the search's centre
+            // (sample 0) clearly.
             let mut all: Vec<f64> = (0..energies.energies.len()).map(residual_of).collect();
             all.sort_by(f64::total_cmp);
             let median = all[all.len() / 2];
-            let improved = best != 0
-                && residual < SEARCH_MIN_IMPROVEMENT * residual_of(0)
-                && residual < self.params.search_evidence_ratio * median;
-            return self.search_while_lost(frame, &weights, best, improved, reason);
+            let evidence = residual < self.params.search_evidence_ratio * median;
+            let step = match self.search {
+                None => SearchStep::Start,
+                Some(_) if evidence && best == 0 => SearchStep::Narrow,
+                Some(_) if evidence && residual < SEARCH_MIN_IMPROVEMENT * residual_of(0) => SearchStep::MoveTo(best),
+                Some(_) => SearchStep::Widen,
+            };
+            return self.search_while_lost(frame, &weights, step, reason);
         }
         // After a search, the motion before the loss is the prediction, not
         // the jump from the search's centre to the window found.
@@ -362,24 +389,18 @@ impl CondensationTracker {
 
 impl CondensationTracker {
     /// A lost frame with the search on (module documentation, "Searching
-    /// while lost"); `improved`: the best sample is evidence of the window.
-    fn search_while_lost(
-        &mut self,
-        frame: usize,
-        weights: &[f64],
-        best: usize,
-        improved: bool,
-        reason: String,
-    ) -> FrameOutcome {
+    /// while lost").
+    fn search_while_lost(&mut self, frame: usize, weights: &[f64], step: SearchStep, reason: String) -> FrameOutcome {
         self.phase = Phase::Lost;
-        let (centre, spread_px, coast) = match self.search {
-            // The first lost frame: the filter's own prediction.
-            None => {
+        let (largest, least) = (self.params.max_search_spread_px, self.params.diffusion_px);
+        let (centre, spread_px, coast, found) = match (self.search, step) {
+            (Some(s), SearchStep::Narrow) => (self.samples[0], (s.spread_px / 2.0).max(least), s.coast, true),
+            (Some(s), SearchStep::MoveTo(n)) => (self.samples[n], (s.spread_px / 2.0).max(least), s.coast, true),
+            (Some(s), SearchStep::Widen) => (self.samples[0], (s.spread_px * 2.0).min(largest), s.coast, s.found),
+            (None, _) | (Some(_), SearchStep::Start) => {
                 let predicted = steps::mean(&self.samples);
-                (predicted, self.params.search_spread_px, predicted)
+                (predicted, self.params.search_spread_px, predicted, false)
             }
-            Some(s) if improved => (self.samples[best], (s.spread_px / 2.0).max(self.params.diffusion_px), s.coast),
-            Some(s) => (self.samples[0], (s.spread_px * 2.0).min(self.params.max_search_spread_px), s.coast),
         };
         let (corners, depths) = self.reference_window();
         let window = steps::project_sample_windows(&self.camera, &corners, &depths, &[centre]);
@@ -395,16 +416,15 @@ impl CondensationTracker {
         let coasted = |s: &Screw| -> Screw { std::array::from_fn(|k| s[k] + self.velocity[k]) };
         // Once the search has found evidence of the window, its centre stays
         // where the evidence is; before, it coasts.
-        let found = improved || self.search.is_some_and(|s| s.found);
         let (next_centre, next_coast) = (if found { centre } else { coasted(&centre) }, coasted(&coast));
-        let weights = &self.params.component_weights;
-        let near = steps::component_sigmas(&self.camera, &corners, &depths, spread_px, weights);
-        let wide = steps::component_sigmas(&self.camera, &corners, &depths, self.params.max_search_spread_px, weights);
-        let n = self.params.samples;
-        let half = n.div_ceil(2);
+        let component_weights = &self.params.component_weights;
+        let near = steps::component_sigmas(&self.camera, &corners, &depths, spread_px, component_weights);
+        let wide = steps::component_sigmas(&self.camera, &corners, &depths, largest, component_weights);
+        let others = self.params.samples - 1;
+        let around_centre = others.div_ceil(2);
         let mut next = vec![next_centre];
-        next.extend(steps::draw_initial_samples(&next_centre, &near, half.saturating_sub(1), &mut self.rng));
-        next.extend(steps::draw_initial_samples(&next_coast, &wide, n - next.len(), &mut self.rng));
+        next.extend(steps::draw_initial_samples(&next_centre, &near, around_centre, &mut self.rng));
+        next.extend(steps::draw_initial_samples(&next_coast, &wide, others - around_centre, &mut self.rng));
         self.windows = steps::project_sample_windows(&self.camera, &corners, &depths, &next);
         self.samples = next;
         self.search = Some(Search { spread_px, coast: next_coast, found });

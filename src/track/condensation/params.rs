@@ -4,10 +4,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::Result;
 use crate::bounds::{Interval, check_count};
 use crate::early::window_energy::{MAX_SIDE_LOG2, MAX_WINDOWS, WindowEnergyParams};
 use crate::io::formats::MAX_CAMERA_MOTION;
+use crate::{Error, Result};
 
 /// Largest spread or diffusion, px.
 pub const MAX_SPREAD_PX: f64 = 100.0;
@@ -80,7 +80,10 @@ pub struct CondensationParams {
     /// samples as tracking ones do (the paper's Fig. 2 has no loss).
     /// Range: [0, [`MAX_SPREAD_PX`]].
     pub search_spread_px: f64,
-    /// Largest spread the search widens to, px. Range: [0, [`MAX_SPREAD_PX`]].
+    /// Largest spread the search widens to, and the spread of its samples
+    /// around where the last tracked motion carries the window, px.
+    /// Range: [`search_spread_px`](Self::search_spread_px) ..=
+    /// [`MAX_SPREAD_PX`], above 0 while the search is on.
     pub max_search_spread_px: f64,
     /// The search moves to its best sample (and narrows) only when that
     /// sample's residual is below this fraction of the median residual of
@@ -131,6 +134,12 @@ impl CondensationParams {
         spread.check(WHO, "diffusion_px", self.diffusion_px, " px")?;
         spread.check(WHO, "search_spread_px", self.search_spread_px, " px")?;
         spread.check(WHO, "max_search_spread_px", self.max_search_spread_px, " px")?;
+        if self.search_spread_px > self.max_search_spread_px {
+            return Err(Error::Parameter(format!(
+                "condensation: search_spread_px {} exceeds max_search_spread_px {}",
+                self.search_spread_px, self.max_search_spread_px
+            )));
+        }
         Interval::open_closed(0.0, 1.0).check(WHO, "search_evidence_ratio", self.search_evidence_ratio, "")?;
         for w in self.component_weights {
             Interval::closed(0.0, 10.0).check(WHO, "component_weights", w, "")?;
@@ -144,5 +153,31 @@ impl CondensationParams {
             }
         }
         Interval::open_closed(0.0, MAX_RESIDUAL).check(WHO, "max_residual", self.max_residual, " grey levels")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The search's spreads are checked: within [0, MAX_SPREAD_PX], the
+    /// first no larger than the largest; the evidence ratio in (0, 1].
+    #[test]
+    fn search_parameters_are_checked() {
+        let ok = CondensationParams::default();
+        assert!(ok.validate().is_ok());
+        let off = CondensationParams { search_spread_px: 0.0, max_search_spread_px: 0.0, ..ok.clone() };
+        assert!(off.validate().is_ok());
+        for (bad, needle) in [
+            (CondensationParams { search_spread_px: -1.0, ..ok.clone() }, "search_spread_px"),
+            (CondensationParams { max_search_spread_px: 1e9, ..ok.clone() }, "max_search_spread_px"),
+            (CondensationParams { search_spread_px: 8.0, max_search_spread_px: 4.0, ..ok.clone() }, "exceeds"),
+            (CondensationParams { search_evidence_ratio: 0.0, ..ok.clone() }, "search_evidence_ratio"),
+            (CondensationParams { search_evidence_ratio: 1.5, ..ok.clone() }, "search_evidence_ratio"),
+            (CondensationParams { search_evidence_ratio: f64::NAN, ..ok.clone() }, "search_evidence_ratio"),
+        ] {
+            let e = bad.validate().expect_err(needle).to_string();
+            assert!(e.contains(needle), "{e}");
+        }
     }
 }

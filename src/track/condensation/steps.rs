@@ -100,10 +100,12 @@ pub fn project_sample_windows(
 /// much as this, not infinitely.
 pub const MIN_ENERGY: f64 = 1e-12;
 
-/// Eq. 27–28: π_n = 1/U_n, normalised to sum to 1.
+/// Eq. 27–28: π_n = 1/U_n, normalised to sum to 1; a window whose energy
+/// is not a finite number weighs nothing.
 #[must_use]
 pub fn weights_from_energies(energies: &[f32]) -> Vec<f64> {
-    let raw: Vec<f64> = energies.iter().map(|&u| 1.0 / f64::from(u).max(MIN_ENERGY)).collect();
+    let raw: Vec<f64> =
+        energies.iter().map(|&u| if u.is_finite() { 1.0 / f64::from(u).max(MIN_ENERGY) } else { 0.0 }).collect();
     let total: f64 = raw.iter().sum();
     if !(total.is_finite() && total > 0.0) {
         return vec![1.0 / energies.len().max(1) as f64; energies.len()];
@@ -198,9 +200,12 @@ pub fn weighted_mean(samples: &[Screw], weights: &[f64]) -> Screw {
 /// An upper bound on the RMS intensity difference per compared value of a
 /// window with energy `energy` (eq. 22): its intensity term is at most
 /// `energy · Σ_n C_I` (eq. 25), spread over `values` = 4·K² compared values.
+/// Infinite when the energy or the total is not a finite number (no such
+/// window matches).
 #[must_use]
 pub fn residual_bound(energy: f32, intensity_total: f32, values: usize) -> f64 {
-    (f64::from(energy) * f64::from(intensity_total) / values.max(1) as f64).max(0.0).sqrt()
+    let squared = f64::from(energy) * f64::from(intensity_total) / values.max(1) as f64;
+    if squared.is_finite() { squared.max(0.0).sqrt() } else { f64::INFINITY }
 }
 
 #[cfg(test)]
@@ -208,6 +213,21 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
+
+    /// A window whose energy is NaN or infinite is no match: no weight,
+    /// an infinite residual (a NaN used to become the best weight and a
+    /// residual of 0).
+    #[test]
+    fn energies_that_are_not_finite_weigh_nothing_and_never_match() {
+        let w = weights_from_energies(&[1.0, f32::NAN, f32::INFINITY, 0.5]);
+        assert_eq!(w[1], 0.0);
+        assert_eq!(w[2], 0.0);
+        assert!((w[0] - 1.0 / 3.0).abs() < 1e-12 && (w[3] - 2.0 / 3.0).abs() < 1e-12, "{w:?}");
+        assert_eq!(best_sample(&w), 3);
+        assert_eq!(residual_bound(f32::NAN, 10.0, 64), f64::INFINITY);
+        assert_eq!(residual_bound(1.0, f32::INFINITY, 64), f64::INFINITY);
+        assert!((residual_bound(4.0, 16.0, 64) - 1.0).abs() < 1e-12);
+    }
 
     #[test]
     fn weights_are_inverse_energies_normalised() {
