@@ -28,7 +28,8 @@ fn render(motion: PlaneMotion) -> SyntheticSequence {
         .expect("render textured-plane")
 }
 
-fn params(motion: PlaneMotion) -> CondensationParams {
+/// The defaults, sampling the screw components `motion` has (004 §IV).
+pub(crate) fn params(motion: PlaneMotion) -> CondensationParams {
     let component_weights = match motion {
         PlaneMotion::Translation => [1.0, 1.0, 0.0, 0.0, 0.0, 0.0],
         PlaneMotion::Roll => [1.0, 1.0, 0.0, 0.0, 0.0, 1.0],

@@ -332,18 +332,30 @@ fn blue_covered_for_20_frames_is_lost_then_reacquired_gpu() {
 
 #[test]
 fn blue_jump_is_lost_at_once_then_reacquired() {
-    let mut seq = target();
-    jump(&mut seq, 60, 40);
-    let out = run(&seq, blue(&seq), &mut CpuBackend::new());
-    let st = check_no_false_tracking("blue jump", &seq, &out);
-    assert!(st[..60].chars().all(|c| c == 'T'));
+    check_jump("blue jump", target(), blue, 40, 5);
+}
+
+/// `seq` from frame 60 on showing where its object is `ahead` frames
+/// later: tracking before, lost at 60 or 61, tracking again within
+/// `within` frames of the loss and from then on.
+fn check_jump(
+    label: &str,
+    mut seq: SyntheticSequence,
+    tracker: fn(&SyntheticSequence) -> Box<dyn Tracker>,
+    ahead: usize,
+    within: usize,
+) {
+    jump(&mut seq, 60, ahead);
+    let out = run(&seq, tracker(&seq), &mut CpuBackend::new());
+    let st = check_no_false_tracking(label, &seq, &out);
+    assert!(st[..60].chars().all(|c| c == 'T'), "{label}: {st}");
     let lost = first(&st, 60, 'L').expect("lost");
-    println!("blue jump: lost at {lost}: {}", reason(&out, lost));
-    assert!(lost <= 61, "lost at {lost}");
+    println!("{label}: lost at {lost}: {}", reason(&out, lost));
+    assert!(lost <= 61, "{label}: lost at {lost}");
     let back = first(&st, lost, 'T').expect("re-acquired");
-    println!("blue jump: re-acquired at {back}");
-    assert!(back <= lost + 5, "re-acquired at {back}");
-    assert!(st[back..].chars().all(|c| c == 'T'), "holds the target once re-acquired: {st}");
+    println!("{label}: re-acquired at {back}");
+    assert!(back <= lost + within, "{label}: re-acquired at {back}");
+    assert!(st[back..].chars().all(|c| c == 'T'), "{label}: holds the object once re-acquired: {st}");
 }
 
 #[test]
@@ -448,9 +460,10 @@ fn plane() -> SyntheticSequence {
 }
 
 fn condensation(seq: &SyntheticSequence) -> Box<dyn Tracker> {
-    // As in 004 §IV for a pure translation: only T_x and T_y are sampled.
-    let params =
-        CondensationParams { component_weights: [1.0, 1.0, 0.0, 0.0, 0.0, 0.0], ..CondensationParams::default() };
+    condensation_with(seq, crate::condensation_e2e::params(PlaneMotion::Translation))
+}
+
+fn condensation_with(seq: &SyntheticSequence, params: CondensationParams) -> Box<dyn Tracker> {
     Box::new(CondensationTracker::new(seq.camera, &seq.model, &seq.init, params).expect("tracker"))
 }
 
@@ -475,18 +488,7 @@ fn condensation_covered_for_20_frames_is_lost_then_reacquired_gpu() {
 
 #[test]
 fn condensation_jump_is_lost_at_once_then_reacquired() {
-    let mut seq = plane();
-    jump(&mut seq, 60, 15);
-    let out = run(&seq, condensation(&seq), &mut CpuBackend::new());
-    let st = check_no_false_tracking("condensation jump", &seq, &out);
-    assert!(st[..60].chars().all(|c| c == 'T'), "{st}");
-    let lost = first(&st, 60, 'L').expect("lost");
-    println!("condensation jump: lost at {lost}: {}", reason(&out, lost));
-    assert!(lost <= 61, "lost at {lost}");
-    let back = first(&st, lost, 'T').expect("re-acquired");
-    println!("condensation jump: re-acquired at {back}");
-    assert!(back <= lost + 8, "re-acquired at {back}");
-    assert!(st[back..].chars().all(|c| c == 'T'), "holds the window once re-acquired: {st}");
+    check_jump("condensation jump", plane(), condensation, 15, 8);
 }
 
 /// Seeds of the condensation sweep below: `PIPETRACK_STATUS_SEEDS=A-B`
@@ -530,17 +532,11 @@ fn condensation_reacquires_after_covers_and_jumps_across_seeds() {
                     80
                 }
             };
-            let mut weights = [1.0, 1.0, 0.0, 0.0, 0.0, 0.0];
-            if motion == PlaneMotion::Roll {
-                weights[5] = 1.0;
-            }
-            let mut params = CondensationParams { component_weights: weights, ..CondensationParams::default() };
+            let mut params = crate::condensation_e2e::params(motion);
             if let Ok(spread) = std::env::var("PIPETRACK_STATUS_SEARCH_SPREAD") {
                 params.search_spread_px = spread.parse().expect("a spread in px");
             }
-            let tracker =
-                Box::new(CondensationTracker::new(seq.camera, &seq.model, &seq.init, params).expect("tracker"));
-            let out = run(&seq, tracker, &mut CpuBackend::new());
+            let out = run(&seq, condensation_with(&seq, params), &mut CpuBackend::new());
             let label = format!("condensation seed {seed} {scene}");
             let st = check_no_false_tracking(&label, &seq, &out);
             assert!(st[..60].chars().all(|c| c == 'T'), "{label}: tracking before frame 60");
@@ -563,20 +559,12 @@ fn condensation_reacquires_after_covers_and_jumps_across_seeds() {
 /// same lines (but `ms`) with the search on and off.
 #[test]
 fn condensation_search_leaves_a_run_that_is_never_lost_unchanged() {
-    let seq = render_textured_plane(&TexturedPlaneOptions {
-        frames: 40,
-        motion: PlaneMotion::Roll,
-        ..TexturedPlaneOptions::default()
-    })
-    .expect("render");
+    let seq = plane();
     let lines = |search_spread_px: f64| -> Vec<FrameResult> {
-        let params = CondensationParams {
-            component_weights: [1.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-            search_spread_px,
-            ..CondensationParams::default()
-        };
-        let tracker = Box::new(CondensationTracker::new(seq.camera, &seq.model, &seq.init, params).expect("tracker"));
-        run(&seq, tracker, &mut CpuBackend::new()).into_iter().map(|(_, r)| FrameResult { ms: 0.0, ..r }).collect()
+        let params =
+            CondensationParams { search_spread_px, ..crate::condensation_e2e::params(PlaneMotion::Translation) };
+        let out = run(&seq, condensation_with(&seq, params), &mut CpuBackend::new());
+        out.into_iter().map(|(_, r)| FrameResult { ms: 0.0, ..r }).collect()
     };
     let on = lines(CondensationParams::default().search_spread_px);
     assert!(on.iter().all(|r| r.status == Status::Tracking), "never lost");
