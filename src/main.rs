@@ -88,28 +88,50 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
-    /// Convert a ViSP model-based-tracking data set (Images/, CameraPose/, Config/, Models/) to a sequence folder.
+    /// Convert a ViSP model-based-tracking data set (Images/, CameraPose/, Config/, Models/), or a folder of
+    /// frames imageNNNN.png with NAME.cao, NAME.xml and NAME.0.pos beside it, to a sequence folder.
     ImportVisp {
-        /// The ViSP data set folder, e.g. mbt-depth/Castle-simu of ViSP's test images.
+        /// The ViSP data set folder, e.g. mbt-depth/Castle-simu of ViSP's test images, or a folder of frames
+        /// such as mbt/cube.
         src: PathBuf,
         /// Output sequence folder (must be absent or empty).
         out_dir: PathBuf,
-        /// The .cao model, relative to SRC (default: the one in Models/ named like a Config/ file).
+        /// The .cao model, relative to SRC (default: the one in Models/ named like a Config/ file; for a folder
+        /// of frames, relative to the folder holding it, default SRC.cao).
         #[arg(long)]
         model: Option<PathBuf>,
-        /// The ViSP settings .xml with the <camera> intrinsics, relative to SRC (default: Config/<model>.xml).
+        /// The ViSP settings .xml with the <camera> intrinsics, relative as --model (default: Config/<model>.xml;
+        /// SRC.xml for a folder of frames).
         #[arg(long)]
         camera: Option<PathBuf>,
         /// Convert only the first N frames.
         #[arg(long)]
         frames: Option<usize>,
-        /// Also draw the true projection of the model over every frame into this folder.
+        /// Also draw the true projection of the model over every frame with a known pose into this folder.
         #[arg(long)]
         overlay: Option<PathBuf>,
         /// A further part of the object, as ViSP's load() arguments: FILE.cao (relative to SRC)
         /// [, t=[x; y; z], tu=[a; b; c] or R=[r11; ...; r33]] (repeatable).
         #[arg(long, value_name = "FILE[, PLACEMENT]")]
         include: Vec<String>,
+    },
+    /// Track forward, then backward from the last tracking frame, and report how the two runs agree
+    /// (a check for sequences without truth).
+    Roundtrip {
+        /// Sequence folder (as for track; truth.jsonl is not read).
+        seq_dir: PathBuf,
+        /// Tracker: motion-edge (000), lowe (001), blue (002) or condensation (004).
+        #[arg(long)]
+        tracker: String,
+        /// Early-vision backend.
+        #[arg(long, value_enum, default_value_t = Backend::Gpu)]
+        backend: Backend,
+        /// Tracker parameters (TOML; the tracker's own table, e.g. `[lowe]`, or top-level keys).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Also write each frame's agreement as JSON Lines here (appears only when complete).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Score a tracker's output against the sequence's truth.jsonl.
     Score {
@@ -367,23 +389,36 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             use pipetrack::cli::import_visp::{ImportOptions, import_visp};
             let r = import_visp(&src, &out_dir, &ImportOptions { model, camera, frames, overlay, include })?;
             let a = &r.alignment;
+            let motion = match (r.mean_motion_px, r.max_motion_px) {
+                (Some(mean), Some(max)) => format!("true vertex motion {mean:.2} px/frame mean, {max:.2} max"),
+                _ => "no truth, init.json from the first frame's pose".to_string(),
+            };
+            let over = if r.truth { "" } else { " of the first frame" };
             note(format_args!(
-                "pipetrack: wrote {} frames of {}x{} and a model of {} vertices ({} files) to {}; \
-                 true vertex motion {:.2} px/frame mean, {:.2} max; visible edges to image edges: \
-                 {:.3} px mean, {:.3} px median over {} of {} points",
+                "pipetrack: wrote {} frames of {}x{} and a model of {} vertices ({} files) to {}; {motion}; \
+                 visible edges{over} to image edges: {:.3} px mean, {:.3} px median over {} of {} points",
                 r.frames,
                 r.camera.width,
                 r.camera.height,
                 r.vertices,
                 r.model_files.len(),
                 out_dir.display(),
-                r.mean_motion_px,
-                r.max_motion_px,
                 a.mean_px,
                 a.median_px,
                 a.found,
                 a.samples
             ));
+            Ok(())
+        }
+        Command::Roundtrip { seq_dir, tracker, backend, config, out } => {
+            use pipetrack::cli::roundtrip::{roundtrip, roundtrip_to_file, summary};
+            let seq = Sequence::open(&seq_dir, false)?;
+            let opts = TrackOptions { tracker, backend: backend.into(), config, overlay: None, progress: true };
+            let report = match &out {
+                Some(path) => roundtrip_to_file(&seq, &opts, path)?,
+                None => roundtrip(&seq, &opts)?,
+            };
+            println!("{}", summary(&report));
             Ok(())
         }
         Command::Score { seq_dir, pred, false_tracking_px, plot, plot_size } => {

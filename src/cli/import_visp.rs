@@ -17,6 +17,21 @@
 //! SRC/Models/NAME.cao             the model, with the files it load()s
 //! ```
 //!
+//! A ViSP tracking sequence without ground truth (ViSP's `mbt/cube` in the
+//! same data set, the frames its model-based-tracking tutorials track) is
+//! converted too: SRC is then the folder of the frames, and its model,
+//! settings and initial pose sit beside it under the folder's name:
+//!
+//! ```text
+//! SRC/image0000.png ...           the frames (PNG, PGM, PPM or JPEG), numbered without gaps
+//! SRC.cao                         the model (e.g. mbt/cube.cao for mbt/cube)
+//! SRC.xml                         the settings with the <camera> intrinsics
+//! SRC.0.pos                       the pose of the first frame, as above
+//! ```
+//!
+//! Such a sequence has no `truth.jsonl`: its `init.json` holds the pose of
+//! the first frame, and the alignment check below measures that frame only.
+//!
 //! ViSP's conventions are pipetrack's: cMo maps object points to the camera
 //! frame (X_c = R·X_o + t), the camera frame has x right, y down, z forward,
 //! u = u0 + px·X/Z with pixel (0, 0) the centre of the top-left pixel, θu is
@@ -67,6 +82,11 @@ pub const CONFIG_DIR: &str = "Config";
 pub const MODELS_DIR: &str = "Models";
 /// Name prefix of a frame file (`Image_0001.png`).
 pub const IMAGE_PREFIX: &str = "Image_";
+/// Name prefix of a frame file of a tracking sequence (`image0000.png`).
+pub const SEQUENCE_IMAGE_PREFIX: &str = "image";
+/// Extension, after the folder's name, of a tracking sequence's first pose
+/// (`cube.0.pos`).
+pub const SEQUENCE_POSE_EXTENSION: &str = "0.pos";
 /// Extensions of frame files.
 pub const IMAGE_EXTENSIONS: [&str; 5] = ["png", "pgm", "ppm", "jpg", "jpeg"];
 /// Largest departure of a pose matrix from a rotation (|RᵀR − I| per entry,
@@ -87,21 +107,23 @@ pub const STRONG_EDGE_GRADIENT: f64 = 40.0;
 /// Options of `pipetrack import-visp`.
 #[derive(Clone, Debug, Default)]
 pub struct ImportOptions {
-    /// The model file; relative paths are taken from the source folder.
-    /// Without it: the only `.cao` in `Models/`, or among several the one
-    /// named like a settings file in `Config/`.
+    /// The model file; relative paths are taken from the source folder (a
+    /// tracking sequence: from the folder that holds it). Without it: the
+    /// only `.cao` in `Models/`, or among several the one named like a
+    /// settings file in `Config/` (a tracking sequence: `SRC.cao`).
     pub model: Option<PathBuf>,
-    /// The settings file with the intrinsics; relative paths are taken from
-    /// the source folder. Without it: `Config/` + the model's name + `.xml`,
-    /// or the only `.xml` in `Config/` with a `<camera>`.
+    /// The settings file with the intrinsics; relative paths are taken as
+    /// for `model`. Without it: `Config/` + the model's name + `.xml`, or
+    /// the only `.xml` in `Config/` with a `<camera>` (a tracking sequence:
+    /// `SRC.xml`).
     pub camera: Option<PathBuf>,
     /// Convert only the first this many frames.
     pub frames: Option<usize>,
     /// Also draw the true projection (visible edges, every vertex) over
-    /// every frame into this folder, one PNG per frame.
+    /// every frame with a known pose into this folder, one PNG per frame.
     pub overlay: Option<PathBuf>,
     /// More parts of the object, each the arguments of a ViSP `load()`: a
-    /// `.cao` file relative to the source folder, optionally followed by its
+    /// `.cao` file relative to the source folder (as for `model`), optionally followed by its
     /// placement in the model's frame, e.g.
     /// `Models/cube.cao, t=[-0.2; 0.12; -0.15], R=[-1; 0; 0; 0; 0; 1; 0; 1; 0]`
     /// (as ViSP's own test places the cube of `Castle-simu`). With parts,
@@ -120,11 +142,17 @@ pub struct ImportReport {
     pub vertices: usize,
     /// The model files copied, relative to the output folder (`model.cao` first).
     pub model_files: Vec<PathBuf>,
-    /// Mean motion of the visible vertices from one frame to the next, pixels.
-    pub mean_motion_px: f64,
-    /// Largest motion of a vertex visible in both frames, pixels.
-    pub max_motion_px: f64,
-    /// Distance of the projected visible edges to the image edges.
+    /// Whether the source had every frame's pose (a data set) and
+    /// `truth.jsonl` was written, or only the first frame's (a tracking
+    /// sequence).
+    pub truth: bool,
+    /// Mean motion of the visible vertices from one frame to the next,
+    /// pixels (with truth).
+    pub mean_motion_px: Option<f64>,
+    /// Largest motion of a vertex visible in both frames, pixels (with truth).
+    pub max_motion_px: Option<f64>,
+    /// Distance of the projected visible edges to the image edges, over the
+    /// frames with a known pose.
     pub alignment: EdgeAlignment,
 }
 
@@ -157,22 +185,31 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
     if !src.is_dir() {
         return Err(Error::input(
             src,
-            "not a folder: expected a ViSP data set (Images/, CameraPose/, Config/, Models/)",
+            "not a folder: expected a ViSP data set (Images/, CameraPose/, Config/, Models/) or a folder of frames imageNNNN.png",
         ));
     }
     if opts.frames == Some(0) {
         return Err(Error::Parameter("--frames must be at least 1".into()));
     }
-    let mut images = list_images(&src.join(IMAGES_DIR))?;
+    let Layout { mut images, base, truth: has_truth } = Layout::of(src)?;
     if let Some(n) = opts.frames {
         images.truncate(n);
     }
-    let poses = images.iter().map(|(number, image)| read_pose(src, *number, image)).collect::<Result<Vec<_>>>()?;
-    let model_path = choose_model(src, opts.model.as_deref())?;
-    let camera_path = choose_camera(src, opts.camera.as_deref(), &model_path)?;
+    let (model_path, camera_path, poses) = if has_truth {
+        let poses = images.iter().map(|(number, image)| read_pose(src, *number, image)).collect::<Result<Vec<_>>>()?;
+        let model_path = choose_model(src, opts.model.as_deref())?;
+        let camera_path = choose_camera(src, opts.camera.as_deref(), &model_path)?;
+        (model_path, camera_path, poses)
+    } else {
+        let model_path = sequence_file(src, &base, opts.model.as_deref(), "cao", "--model")?;
+        let camera_path = sequence_file(src, &base, opts.camera.as_deref(), "xml", "--camera")?;
+        let pose_path = sequence_file(src, &base, None, SEQUENCE_POSE_EXTENSION, "")?;
+        let pose = parse_pose(&crate::io::json::read_text(&pose_path)?).map_err(|msg| Error::input(&pose_path, msg))?;
+        (model_path, camera_path, vec![(pose, pose_path)])
+    };
     let first = decode_gray(&images[0].1)?;
     let camera = read_camera(&camera_path, first.width(), first.height())?;
-    let parts = opts.include.iter().map(|arg| Part::parse(src, arg)).collect::<Result<Vec<_>>>()?;
+    let parts = opts.include.iter().map(|arg| Part::parse(&base, arg)).collect::<Result<Vec<_>>>()?;
     let model_copies = model_copies(&model_path, &parts)?;
     let model_files: Vec<PathBuf> = model_copies.iter().map(|(_, to)| to.clone()).collect();
 
@@ -211,9 +248,9 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
     fs::create_dir_all(&frames_dir).map_err(|e| Error::io(&frames_dir, e))?;
     let per_frame = images
         .par_iter()
-        .zip(&truth)
-        .map(|((_, image), state)| {
-            let frame = if image == &images[0].1 { first.clone() } else { decode_gray(image)? };
+        .enumerate()
+        .map(|(index, (_, image))| {
+            let frame = if index == 0 { first.clone() } else { decode_gray(image)? };
             first.check_same_size(&frame, "frame").map_err(|_| {
                 Error::input(
                     image,
@@ -226,8 +263,9 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
                     ),
                 )
             })?;
-            let name = format!("{:06}.png", state.truth.frame);
+            let name = format!("{index:06}.png");
             save_gray_png(&frames_dir.join(&name), &frame)?;
+            let Some(state) = truth.get(index) else { return Ok(Vec::new()) };
             if let Some(overlay) = &overlay {
                 let edges: Vec<[usize; 2]> =
                     geometry.edges().iter().zip(&state.visible_edges).filter(|(_, v)| **v).map(|(e, _)| *e).collect();
@@ -248,15 +286,21 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
         camera_motion: None,
     };
     write_json(&dir.join(INIT_FILE), &init)?;
-    let mut lines = String::new();
-    for state in &truth {
-        lines.push_str(&serde_json::to_string(&state.truth).map_err(|e| Error::io(dir, std::io::Error::other(e)))?);
-        lines.push('\n');
+    if has_truth {
+        let mut lines = String::new();
+        for state in &truth {
+            lines.push_str(&serde_json::to_string(&state.truth).map_err(|e| Error::io(dir, std::io::Error::other(e)))?);
+            lines.push('\n');
+        }
+        let truth_path = dir.join(TRUTH_FILE);
+        fs::write(&truth_path, lines).map_err(|e| Error::io(&truth_path, e))?;
     }
-    let truth_path = dir.join(TRUTH_FILE);
-    fs::write(&truth_path, lines).map_err(|e| Error::io(&truth_path, e))?;
     let meta = serde_json::json!({
-        "source": "ViSP model-based-tracking data set",
+        "source": if has_truth {
+            "ViSP model-based-tracking data set"
+        } else {
+            "ViSP model-based-tracking sequence (no ground truth; init.json from the first frame's pose)"
+        },
         "images": images.iter().map(|(_, p)| file_name(p)).collect::<Vec<_>>(),
         "poses": poses.iter().map(|(_, p)| file_name(p)).collect::<Vec<_>>(),
         "camera": file_name(&camera_path),
@@ -268,29 +312,96 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
     write_json(&dir.join("meta.json"), &meta)?;
 
     let sequence = Sequence::open(dir, false).map_err(|e| relocate_error(e, dir, out_dir))?;
-    sequence.read_truth().map_err(|e| relocate_error(e, dir, out_dir))?;
+    if has_truth {
+        sequence.read_truth().map_err(|e| relocate_error(e, dir, out_dir))?;
+    }
     staged.finish()?;
     if let Some(overlay) = overlay {
         overlay.finish()?;
     }
-    let (mean_motion_px, max_motion_px) = motion(&truth);
+    let (mean_motion_px, max_motion_px) = if has_truth { motion(&truth) } else { (f64::NAN, f64::NAN) };
     Ok(ImportReport {
-        frames: truth.len(),
+        frames: images.len(),
+        truth: has_truth,
+        mean_motion_px: has_truth.then_some(mean_motion_px),
+        max_motion_px: has_truth.then_some(max_motion_px),
         camera,
         vertices: model.vertices.len(),
         model_files,
-        mean_motion_px,
-        max_motion_px,
         alignment,
     })
 }
 
-/// The frames in `images`: `(number, path)` of every `Image_<digits>.<ext>`
+/// Where a source's frames are and how to read the rest.
+struct Layout {
+    /// The frames, `(number, path)`, by number.
+    images: Vec<(u64, PathBuf)>,
+    /// The folder that `--model`, `--camera` and `--include` paths are
+    /// relative to: the data set, or the folder holding a tracking sequence.
+    base: PathBuf,
+    /// A data set with every frame's pose, or a tracking sequence.
+    truth: bool,
+}
+
+impl Layout {
+    /// The layout of `src`: a data set when it has `Images/`, else a
+    /// tracking sequence when it holds `imageNNNN` frames.
+    fn of(src: &Path) -> Result<Self> {
+        let images = src.join(IMAGES_DIR);
+        if images.exists() {
+            return Ok(Self { images: list_images(&images, IMAGE_PREFIX)?, base: src.to_path_buf(), truth: true });
+        }
+        let base = match src.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let holds_frames = fs::read_dir(src).map_err(|e| Error::io(src, e))?.filter_map(|e| e.ok()).any(|e| {
+            e.file_name().to_str().is_some_and(|name| {
+                name.strip_prefix(SEQUENCE_IMAGE_PREFIX)
+                    .is_some_and(|rest| rest.starts_with(|c: char| c.is_ascii_digit()))
+            })
+        });
+        if !holds_frames {
+            return Err(Error::input(
+                src,
+                "neither a ViSP data set (no Images/ folder) nor a tracking sequence (no frames image0000.png, …)",
+            ));
+        }
+        Ok(Self { images: list_images(src, SEQUENCE_IMAGE_PREFIX)?, base, truth: false })
+    }
+}
+
+/// A file of the tracking sequence `src`: `given` (relative to `base`), or
+/// `base/<name of src>.<ext>`; `option` names the option that gives it.
+fn sequence_file(src: &Path, base: &Path, given: Option<&Path>, ext: &str, option: &str) -> Result<PathBuf> {
+    if let Some(path) = given {
+        let path = base.join(path);
+        return if path.is_file() {
+            Ok(path)
+        } else {
+            Err(Error::input(path, format!("missing: the file given with {option}")))
+        };
+    }
+    let name = src.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let path = base.join(format!("{name}.{ext}"));
+    if path.is_file() {
+        Ok(path)
+    } else {
+        let what = match ext {
+            "cao" => "the model of the frames in the folder of the same name (or give one with --model)".to_string(),
+            "xml" => "the settings with the <camera> intrinsics (or give them with --camera)".to_string(),
+            _ => format!("the pose of the first frame of {name}/, ViSP's pose vector or cMo matrix"),
+        };
+        Err(Error::input(path, format!("missing: {what}")))
+    }
+}
+
+/// The frames in `images`: `(number, path)` of every `<prefix><digits>.<ext>`
 /// file, by number; the numbers must follow each other without a gap.
-fn list_images(images: &Path) -> Result<Vec<(u64, PathBuf)>> {
+fn list_images(images: &Path, prefix: &str) -> Result<Vec<(u64, PathBuf)>> {
     let entries = fs::read_dir(images).map_err(|e| {
         if e.kind() == std::io::ErrorKind::NotFound {
-            Error::input(images, "missing: a ViSP data set keeps its frames in Images/Image_NNNN.png")
+            Error::input(images, format!("missing: the frames {prefix}NNNN.png"))
         } else {
             Error::io(images, e)
         }
@@ -300,7 +411,7 @@ fn list_images(images: &Path) -> Result<Vec<(u64, PathBuf)>> {
         let path = entry.map_err(|e| Error::io(images, e))?.path();
         let Some(name) = path.file_name().and_then(|n| n.to_str()) else { continue };
         let Some((stem, ext)) = name.rsplit_once('.') else { continue };
-        let Some(digits) = stem.strip_prefix(IMAGE_PREFIX) else { continue };
+        let Some(digits) = stem.strip_prefix(prefix) else { continue };
         if !IMAGE_EXTENSIONS.contains(&ext.to_ascii_lowercase().as_str()) || digits.is_empty() {
             continue;
         }
@@ -309,7 +420,10 @@ fn list_images(images: &Path) -> Result<Vec<(u64, PathBuf)>> {
     }
     found.sort();
     if found.is_empty() {
-        return Err(Error::input(images, "no frames: expected files named Image_NNNN.png (or .pgm, .ppm, .jpg)"));
+        return Err(Error::input(
+            images,
+            format!("no frames: expected files named {prefix}NNNN.png (or .pgm, .ppm, .jpg)"),
+        ));
     }
     for pair in found.windows(2) {
         let ((a, pa), (b, pb)) = (&pair[0], &pair[1]);

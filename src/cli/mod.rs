@@ -10,5 +10,6 @@ pub mod import_visp;
 pub mod plot;
 pub mod reproduce;
 pub mod reproduce_condensation;
+pub mod roundtrip;
 pub mod score;
 pub mod tracker_bench;

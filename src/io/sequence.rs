@@ -96,6 +96,15 @@ impl Sequence {
         Ok(Self { camera, model, init, dir: dir.to_path_buf(), model_path, frames })
     }
 
+    /// This sequence's first `count` frames (all when fewer) in reverse
+    /// order, starting from `init`; `None` when the frames come from stdin.
+    #[must_use]
+    pub fn reversed(&self, count: usize, init: InitState) -> Option<Sequence> {
+        let FrameList::Files(paths) = &self.frames else { return None };
+        let frames = FrameList::Files(paths.iter().take(count).rev().cloned().collect());
+        Some(Self { init, frames, ..self.clone() })
+    }
+
     /// The sequence folder.
     #[must_use]
     pub fn dir(&self) -> &Path {

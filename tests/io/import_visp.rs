@@ -321,3 +321,79 @@ fn loaded_files_are_copied_and_included_parts_placed() {
         assert!(!bad.exists());
     }
 }
+
+/// A tracking sequence in the layout of ViSP's `mbt/cube` under `root/src`:
+/// the frames `tetra/image0000.png` … `image0002.png` (numbered from 0, as
+/// ViSP's tutorials save them), and beside the folder `tetra.cao`,
+/// `tetra.xml` and `tetra.0.pos` (the first frame's pose as a 4×4 matrix).
+/// Returns the frames' folder.
+fn visp_tracking_sequence(root: &Path) -> PathBuf {
+    let frames = root.join("src").join("tetra");
+    std::fs::create_dir_all(&frames).unwrap();
+    for k in 0..3u32 {
+        let img = image::RgbImage::from_fn(WIDTH, HEIGHT, |x, y| image::Rgb(colour(k, x, y)));
+        img.save(frames.join(format!("image{k:04}.png"))).unwrap();
+    }
+    let (r, t) = true_poses()[0];
+    let row = |i: usize| format!("{} {} {} {}\n", r[i][0], r[i][1], r[i][2], t[i]);
+    std::fs::write(root.join("src/tetra.0.pos"), format!("{}{}{}0 0 0 1\n", row(0), row(1), row(2))).unwrap();
+    let settings = format!(
+        "<?xml version=\"1.0\"?>\n<conf>\n  <camera>\n    <px>{FX}</px>\n    <py>{FY}</py>\n    \
+         <u0>{CX}</u0>\n    <v0>{CY}</v0>\n  </camera>\n</conf>\n"
+    );
+    std::fs::write(root.join("src/tetra.xml"), settings).unwrap();
+    std::fs::write(root.join("src/tetra.cao"), TETRAHEDRON).unwrap();
+    frames
+}
+
+#[test]
+fn a_tracking_sequence_without_truth_starts_from_its_first_pose() {
+    let root = crate::common::scratch("import-visp", "tracking-sequence");
+    let src = visp_tracking_sequence(&root);
+    let seq = root.join("seq");
+    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("wrote 3 frames of 64x48") && stderr.contains("no truth"), "{stderr}");
+    assert!(!seq.join("truth.jsonl").exists(), "no truth to write");
+    assert_eq!(std::fs::read_to_string(seq.join("model.cao")).unwrap(), TETRAHEDRON);
+
+    let init: InitState = serde_json::from_str(&std::fs::read_to_string(seq.join("init.json")).unwrap()).unwrap();
+    let pose = init.pose.expect("the first frame's pose");
+    let (r, t) = true_poses()[0];
+    for a in 0..3 {
+        assert!(close(pose.rotation[a], TRUE_AXIS_ANGLES[0][a]), "rotation {:?}", pose.rotation);
+        assert!(close(pose.translation[a], t[a]), "translation {:?}", pose.translation);
+    }
+    for (i, p) in vertices().iter().enumerate() {
+        let (pixel, _) = project(&r, &t, p);
+        let got = init.corners[i];
+        assert!(close(got[0], pixel[0]) && close(got[1], pixel[1]), "vertex {i}: {got:?} vs {pixel:?}");
+    }
+    for k in 0..3u32 {
+        let frame = image::open(seq.join(format!("frames/{k:06}.png"))).unwrap();
+        let grey = frame.as_luma8().expect("frames are written grey");
+        let (x, y) = (5, 7);
+        let [cr, cg, cb] = colour(k, x, y);
+        assert_eq!(grey.get_pixel(x, y).0[0], pipetrack::image::luma(cr, cg, cb), "frame {k}");
+    }
+    let opened = pipetrack::io::Sequence::open(&seq, false).unwrap();
+    assert_eq!(opened.frame_count(), Some(3));
+}
+
+#[test]
+fn a_tracking_sequence_without_its_first_pose_or_frames_is_refused_by_name() {
+    let root = crate::common::scratch("import-visp", "tracking-sequence-no-pose");
+    let src = visp_tracking_sequence(&root);
+    std::fs::remove_file(root.join("src/tetra.0.pos")).unwrap();
+    expect_refused(&root, &src, &["tetra.0.pos", "missing", "pose of the first frame"]);
+
+    let root = crate::common::scratch("import-visp", "tracking-sequence-no-frames");
+    let src = visp_tracking_sequence(&root);
+    std::fs::remove_file(src.join("image0001.png")).unwrap();
+    expect_refused(&root, &src, &["image0002.png", "frame 1 is missing"]);
+    for k in [0, 2] {
+        std::fs::remove_file(src.join(format!("image{k:04}.png"))).unwrap();
+    }
+    expect_refused(&root, &src, &["neither a ViSP data set", "image0000.png"]);
+}

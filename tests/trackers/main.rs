@@ -13,4 +13,5 @@ mod finite;
 mod lowe_e2e;
 mod motion_edge_e2e;
 mod motion_edge_logic;
+mod roundtrip;
 mod status;

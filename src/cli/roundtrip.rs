@@ -1,0 +1,303 @@
+//! `pipetrack roundtrip SEQ --tracker NAME`: how well a tracker agrees with
+//! itself on a sequence that has no ground truth.
+//!
+//! The tracker runs forward from `init.json` to the last frame, then
+//! backward over the same frames from the forward run's last tracking
+//! frame, started from that frame's reported state (pose, joint values and
+//! corners). Where both runs report `tracking`, the two answers for a frame
+//! came from different histories (the backward run has seen the frames
+//! after it, not those before), so their difference bounds what drift and
+//! lag the tracker has there: a tracker that slid off the object on the way
+//! out does not come back onto the forward run's answers by chance. It is
+//! not an error against truth: two runs that make the same mistake agree.
+//!
+//! Per frame where both track: the **corner disagreement**, the mean over
+//! the model vertices of the distance between the two runs' corners, in
+//! pixels; and, for trackers with a pose, the distance between the two
+//! translations (metres) and the angle of the rotation between the two
+//! orientations (radians). [`RoundtripReport`] summarises them with
+//! [`ErrorStats`].
+
+use std::io::{self, Write};
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::cli::score::ErrorStats;
+use crate::geometry::Pose;
+use crate::io::formats::{FrameResult, InitState, Status};
+use crate::io::{AtomicFile, Sequence};
+use crate::track::run::{TrackOptions, check_output, track_sequence};
+use crate::{Error, Result};
+
+/// How the forward and the backward run agree on one frame (a line of
+/// `--out`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FrameAgreement {
+    /// Frame index.
+    pub frame: usize,
+    /// Status of the forward run.
+    pub forward: Status,
+    /// Status of the backward run (lost for the frames after the forward
+    /// run's last tracking frame, which the backward run does not see).
+    pub backward: Status,
+    /// Mean distance between the two runs' corners, px (both tracking).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub corner_px: Option<f64>,
+    /// Distance between the two translations, metres (both tracking, with a pose).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub translation_m: Option<f64>,
+    /// Angle of the rotation from one orientation to the other, radians
+    /// (both tracking, with a pose).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rotation_rad: Option<f64>,
+}
+
+/// What [`roundtrip`] measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoundtripReport {
+    /// Frames in the sequence.
+    pub frames: usize,
+    /// Frames the forward run reports tracking.
+    pub forward_tracked: usize,
+    /// The frame the backward run starts from (the forward run's last
+    /// tracking frame); `None` when the forward run tracked no frame.
+    pub start: Option<usize>,
+    /// Frames the backward run reports tracking.
+    pub backward_tracked: usize,
+    /// Per frame, in frame order.
+    pub per_frame: Vec<FrameAgreement>,
+}
+
+impl RoundtripReport {
+    /// Frames both runs report tracking.
+    #[must_use]
+    pub fn both_tracked(&self) -> usize {
+        self.per_frame.iter().filter(|f| f.corner_px.is_some()).count()
+    }
+
+    /// Figures of the corner disagreement, px.
+    #[must_use]
+    pub fn corner_px(&self) -> Option<ErrorStats> {
+        ErrorStats::of(&self.per_frame.iter().filter_map(|f| f.corner_px).collect::<Vec<_>>())
+    }
+
+    /// Figures of the translation disagreement, metres.
+    #[must_use]
+    pub fn translation_m(&self) -> Option<ErrorStats> {
+        ErrorStats::of(&self.per_frame.iter().filter_map(|f| f.translation_m).collect::<Vec<_>>())
+    }
+
+    /// Figures of the rotation disagreement, radians.
+    #[must_use]
+    pub fn rotation_rad(&self) -> Option<ErrorStats> {
+        ErrorStats::of(&self.per_frame.iter().filter_map(|f| f.rotation_rad).collect::<Vec<_>>())
+    }
+}
+
+/// Track `seq` forward and backward with `opts` (its overlay is not
+/// drawn) and compare the two runs frame by frame (module doc). A sequence
+/// read from stdin cannot be read twice: [`Error::Parameter`].
+pub fn roundtrip(seq: &Sequence, opts: &TrackOptions) -> Result<RoundtripReport> {
+    if seq.reads_stdin() {
+        return Err(Error::Parameter("roundtrip reads the frames twice: give a folder of frames, not stdin".into()));
+    }
+    let opts = TrackOptions { overlay: None, ..opts.clone() };
+    let mut forward = Vec::new();
+    track_sequence(seq, &opts, &mut io::sink(), |r| forward.push(r.clone()))?;
+    let start = forward.iter().rposition(|r| r.status == Status::Tracking);
+    let mut backward = Vec::new();
+    if let Some(start) = start {
+        let last = &forward[start];
+        let init = InitState {
+            pose: last.pose,
+            params: last.params.clone().unwrap_or_default(),
+            corners: last.corners.clone(),
+            camera_motion: None,
+        };
+        let reversed = seq.reversed(start + 1, init).ok_or_else(|| Error::Parameter("no frames to reverse".into()))?;
+        track_sequence(&reversed, &opts, &mut io::sink(), |r| backward.push(r.clone()))?;
+        backward.reverse();
+    }
+    Ok(compare(&forward, &backward, start))
+}
+
+/// The report of a forward run and a backward run (in frame order, the
+/// frames up to `start`).
+#[must_use]
+pub fn compare(forward: &[FrameResult], backward: &[FrameResult], start: Option<usize>) -> RoundtripReport {
+    let per_frame = forward
+        .iter()
+        .enumerate()
+        .map(|(frame, f)| {
+            let b = backward.get(frame);
+            let both = f.status == Status::Tracking && b.is_some_and(|b| b.status == Status::Tracking);
+            let (corner_px, translation_m, rotation_rad) = match b {
+                Some(b) if both => {
+                    let corners = (f.corners.len() == b.corners.len() && !f.corners.is_empty()).then(|| {
+                        f.corners.iter().zip(&b.corners).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).sum::<f64>()
+                            / f.corners.len() as f64
+                    });
+                    let poses = f.pose.zip(b.pose).map(|(p, q)| (Pose::from(p), Pose::from(q)));
+                    (
+                        corners,
+                        poses.map(|(p, q)| p.translation.distance(q.translation)),
+                        poses.map(|(p, q)| rotation_angle(&p, &q)),
+                    )
+                }
+                _ => (None, None, None),
+            };
+            FrameAgreement {
+                frame,
+                forward: f.status,
+                backward: b.map_or(Status::Lost, |b| b.status),
+                corner_px,
+                translation_m,
+                rotation_rad,
+            }
+        })
+        .collect();
+    RoundtripReport {
+        frames: forward.len(),
+        forward_tracked: forward.iter().filter(|r| r.status == Status::Tracking).count(),
+        start,
+        backward_tracked: backward.iter().filter(|r| r.status == Status::Tracking).count(),
+        per_frame,
+    }
+}
+
+/// Angle of the rotation taking `a`'s orientation to `b`'s, radians.
+fn rotation_angle(a: &Pose, b: &Pose) -> f64 {
+    let relative = a.rotation.transpose() * b.rotation;
+    let cos = 0.5 * (relative.x_axis.x + relative.y_axis.y + relative.z_axis.z - 1.0);
+    cos.clamp(-1.0, 1.0).acos()
+}
+
+/// [`roundtrip`], writing each frame's [`FrameAgreement`] as a JSON line
+/// to `out` (checked before the runs as `track --out` is; the file appears
+/// only when complete).
+pub fn roundtrip_to_file(seq: &Sequence, opts: &TrackOptions, out: &Path) -> Result<RoundtripReport> {
+    check_output(seq, opts, out)?;
+    let report = roundtrip(seq, opts)?;
+    let mut file = AtomicFile::create(out)?;
+    for line in &report.per_frame {
+        serde_json::to_writer(&mut file, line).map_err(|e| Error::io(out, e.into()))?;
+        writeln!(file).map_err(|e| Error::io(out, e))?;
+    }
+    file.finish()?;
+    Ok(report)
+}
+
+/// The report as the command prints it: one line per figure.
+#[must_use]
+pub fn summary(report: &RoundtripReport) -> String {
+    let mut lines = vec![format!("frames: {}", report.frames)];
+    lines.push(format!("forward run tracking: {}", report.forward_tracked));
+    match report.start {
+        Some(start) => lines.push(format!(
+            "backward run tracking: {} (from frame {start}, the forward run's last tracking frame)",
+            report.backward_tracked
+        )),
+        None => lines.push("backward run: none (the forward run tracked no frame)".into()),
+    }
+    lines.push(format!("both tracking: {}", report.both_tracked()));
+    let worst = |key: fn(&FrameAgreement) -> Option<f64>| {
+        report.per_frame.iter().filter_map(|f| key(f).map(|v| (f.frame, v))).max_by(|a, b| a.1.total_cmp(&b.1))
+    };
+    if let Some(s) = report.corner_px() {
+        let (frame, _) = worst(|f| f.corner_px).unwrap_or_default();
+        lines.push(format!(
+            "corner disagreement: mean {:.3} px, median {:.3} px, p95 {:.3} px, max {:.3} px (frame {frame})",
+            s.mean, s.median, s.p95, s.max
+        ));
+    }
+    if let Some(s) = report.translation_m() {
+        let (frame, _) = worst(|f| f.translation_m).unwrap_or_default();
+        lines.push(format!(
+            "translation disagreement: mean {:.2} mm, median {:.2} mm, p95 {:.2} mm, max {:.2} mm (frame {frame})",
+            s.mean * 1e3,
+            s.median * 1e3,
+            s.p95 * 1e3,
+            s.max * 1e3
+        ));
+    }
+    if let Some(s) = report.rotation_rad() {
+        let (frame, _) = worst(|f| f.rotation_rad).unwrap_or_default();
+        lines.push(format!(
+            "rotation disagreement: mean {:.3}°, median {:.3}°, p95 {:.3}°, max {:.3}° (frame {frame})",
+            s.mean.to_degrees(),
+            s.median.to_degrees(),
+            s.p95.to_degrees(),
+            s.max.to_degrees()
+        ));
+    }
+    lines.join("\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::formats;
+    use glam::{DMat3, DVec3};
+
+    fn result(frame: usize, status: Status, corners: Vec<[f64; 2]>, pose: Option<Pose>) -> FrameResult {
+        FrameResult {
+            frame,
+            status,
+            corners,
+            pose: pose.map(formats::Pose::from),
+            params: None,
+            covariance: None,
+            velocity_screw: None,
+            effective_sample_size: None,
+            search_branches: None,
+            lost_reason: None,
+            ms: 0.0,
+        }
+    }
+
+    #[test]
+    fn agreement_is_measured_where_both_runs_track() {
+        let pose =
+            |angle: f64, x: f64| Pose { rotation: DMat3::from_rotation_z(angle), translation: DVec3::new(x, 0.0, 1.0) };
+        let forward = vec![
+            result(0, Status::Tracking, vec![[0.0, 0.0], [10.0, 0.0]], Some(pose(0.0, 0.0))),
+            result(1, Status::Tracking, vec![[1.0, 1.0], [11.0, 1.0]], Some(pose(0.1, 0.01))),
+            result(2, Status::Lost, vec![[2.0, 2.0], [12.0, 2.0]], Some(pose(0.2, 0.02))),
+            result(3, Status::Tracking, vec![[3.0, 3.0], [13.0, 3.0]], Some(pose(0.3, 0.03))),
+            result(4, Status::Lost, vec![[4.0, 4.0], [14.0, 4.0]], None),
+        ];
+        // The backward run: frame 0 off by (3, 4) and (0, 0), frame 1 lost,
+        // frames 2 and 3 exact, starting at frame 3.
+        let backward = vec![
+            result(0, Status::Tracking, vec![[3.0, 4.0], [10.0, 0.0]], Some(pose(0.05, 0.003))),
+            result(1, Status::Lost, vec![[1.0, 1.0], [11.0, 1.0]], Some(pose(0.1, 0.01))),
+            result(2, Status::Tracking, vec![[2.0, 2.0], [12.0, 2.0]], Some(pose(0.2, 0.02))),
+            result(3, Status::Tracking, vec![[3.0, 3.0], [13.0, 3.0]], Some(pose(0.3, 0.03))),
+        ];
+        let report = compare(&forward, &backward, Some(3));
+        assert_eq!((report.frames, report.forward_tracked, report.backward_tracked), (5, 3, 3));
+        assert_eq!(report.both_tracked(), 2, "frames 0 and 3");
+        let f0 = &report.per_frame[0];
+        assert!((f0.corner_px.unwrap() - 2.5).abs() < 1e-12, "mean of 5 and 0 px");
+        assert!((f0.translation_m.unwrap() - 0.003).abs() < 1e-12);
+        assert!((f0.rotation_rad.unwrap() - 0.05).abs() < 1e-9);
+        assert_eq!(report.per_frame[3].corner_px, Some(0.0));
+        assert_eq!((report.per_frame[1].corner_px, report.per_frame[2].corner_px), (None, None));
+        assert_eq!(report.per_frame[4].backward, Status::Lost, "after the start the backward run has no frame");
+        let corners = report.corner_px().unwrap();
+        assert!((corners.mean - 1.25).abs() < 1e-12 && (corners.max - 2.5).abs() < 1e-12);
+        let text = summary(&report);
+        assert!(text.contains("both tracking: 2"), "{text}");
+        assert!(text.contains("max 2.500 px (frame 0)"), "{text}");
+    }
+
+    #[test]
+    fn a_forward_run_that_never_tracks_has_nothing_to_compare() {
+        let forward = vec![result(0, Status::Lost, vec![[0.0, 0.0]], None)];
+        let report = compare(&forward, &[], None);
+        assert_eq!((report.both_tracked(), report.start), (0, None));
+        assert!(report.corner_px().is_none());
+        assert!(summary(&report).contains("the forward run tracked no frame"));
+    }
+}

@@ -1,0 +1,51 @@
+//! `pipetrack roundtrip`: a sequence tracked forward and back agrees with
+//! itself where the tracker is on target, and the command reads no truth.
+
+use std::process::Command;
+
+use crate::common;
+
+fn pipetrack(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
+}
+
+/// The number after `key` on the line that starts with `line`.
+fn figure(stdout: &str, line: &str, key: &str) -> f64 {
+    let text = stdout.lines().find(|l| l.starts_with(line)).unwrap_or_else(|| panic!("no {line:?} in {stdout}"));
+    let rest = &text[text.find(key).unwrap_or_else(|| panic!("no {key:?} in {text}")) + key.len()..];
+    rest.split_whitespace().next().and_then(|w| w.trim_end_matches(['°', ',']).parse().ok()).expect(text)
+}
+
+#[test]
+fn lowe_tracked_forward_and_back_agrees_on_a_rendered_box() {
+    let root = common::scratch("roundtrip", "box");
+    let seq = root.join("box");
+    let made = pipetrack(&["synth", "box", seq.to_str().unwrap(), "--frames", "40", "--speed", "10"]);
+    assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
+    // The check must not lean on the truth.
+    std::fs::remove_file(seq.join("truth.jsonl")).unwrap();
+    let out = pipetrack(&["roundtrip", seq.to_str().unwrap(), "--tracker", "lowe", "--backend", "cpu"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    println!("{stdout}");
+    assert!(stdout.contains("frames: 40"), "{stdout}");
+    assert!(stdout.contains("backward run tracking: 40 (from frame 39"), "{stdout}");
+    assert!(stdout.contains("both tracking: 40"), "{stdout}");
+    assert!(figure(&stdout, "corner disagreement", "mean") < 0.3, "{stdout}");
+    assert!(figure(&stdout, "corner disagreement", "max") < 1.0, "{stdout}");
+    assert!(figure(&stdout, "translation disagreement", "max") < 5.0, "{stdout}");
+    assert!(figure(&stdout, "rotation disagreement", "max") < 1.0, "{stdout}");
+}
+
+#[test]
+fn a_bad_tracker_name_is_one_line_and_exit_2() {
+    let root = common::scratch("roundtrip", "bad");
+    let seq = root.join("box");
+    assert!(pipetrack(&["synth", "box", seq.to_str().unwrap(), "--frames", "2"]).status.success());
+    let out = pipetrack(&["roundtrip", seq.to_str().unwrap(), "--tracker", "nope", "--backend", "cpu"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("unknown tracker"), "{stderr}");
+    assert!(out.stdout.is_empty());
+}
