@@ -97,13 +97,17 @@ enum Command {
         /// Output sequence folder (must be absent or empty).
         out_dir: PathBuf,
         /// The .cao model, relative to SRC (default: the one in Models/ named like a Config/ file; for a folder
-        /// of frames, relative to the folder holding it, default SRC.cao).
+        /// of frames, relative to the folder holding it, default SRC.cao or the only .cao there).
         #[arg(long)]
         model: Option<PathBuf>,
         /// The ViSP settings .xml with the <camera> intrinsics, relative as --model (default: Config/<model>.xml;
-        /// SRC.xml for a folder of frames).
+        /// <model>.xml beside the model for a folder of frames).
         #[arg(long)]
         camera: Option<PathBuf>,
+        /// For a folder of frames: the first frame's pose, relative as --model (default: <model>.0.pos beside
+        /// the model).
+        #[arg(long)]
+        init: Option<PathBuf>,
         /// Convert only the first N frames.
         #[arg(long)]
         frames: Option<usize>,
@@ -385,9 +389,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             note(format_args!("pipetrack: wrote {} frames of '{}' to {}", seq.frames.len(), scene, out_dir.display()));
             Ok(())
         }
-        Command::ImportVisp { src, out_dir, model, camera, frames, overlay, include } => {
+        Command::ImportVisp { src, out_dir, model, camera, init, frames, overlay, include } => {
             use pipetrack::cli::import_visp::{ImportOptions, import_visp};
-            let r = import_visp(&src, &out_dir, &ImportOptions { model, camera, frames, overlay, include })?;
+            let r = import_visp(&src, &out_dir, &ImportOptions { model, camera, init, frames, overlay, include })?;
             let a = &r.alignment;
             let motion = match (r.mean_motion_px, r.max_motion_px) {
                 (Some(mean), Some(max)) => format!("true vertex motion {mean:.2} px/frame mean, {max:.2} max"),

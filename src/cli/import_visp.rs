@@ -17,16 +17,19 @@
 //! SRC/Models/NAME.cao             the model, with the files it load()s
 //! ```
 //!
-//! A ViSP tracking sequence without ground truth (ViSP's `mbt/cube` in the
-//! same data set, the frames its model-based-tracking tutorials track) is
-//! converted too: SRC is then the folder of the frames, and its model,
-//! settings and initial pose sit beside it under the folder's name:
+//! A ViSP tracking sequence without ground truth (in the same data set
+//! `mbt/cube`, the video its model-based-tracking tutorials track, and
+//! `mbt-depth/castel`, the castle filmed) is converted too: SRC is then the
+//! folder of the frames, and the model, its settings and the first frame's
+//! pose sit beside it, named as ViSP's examples name them:
 //!
 //! ```text
-//! SRC/image0000.png ...           the frames (PNG, PGM, PPM or JPEG), numbered without gaps
-//! SRC.cao                         the model (e.g. mbt/cube.cao for mbt/cube)
-//! SRC.xml                         the settings with the <camera> intrinsics
-//! SRC.0.pos                       the pose of the first frame, as above
+//! SRC/image0000.png ...           the frames (PNG, PGM, PPM or JPEG; also image_0000.png),
+//!                                 numbered without gaps
+//! SRC.cao                         the model (e.g. mbt/cube.cao for mbt/cube), else the only
+//!                                 .cao beside SRC (mbt-depth/castel/chateau.cao)
+//! MODEL.xml                       beside the model, named like it: the <camera> intrinsics
+//! MODEL.0.pos                     beside the model, named like it: the first frame's pose, as above
 //! ```
 //!
 //! Such a sequence has no `truth.jsonl`: its `init.json` holds the pose of
@@ -110,13 +113,18 @@ pub struct ImportOptions {
     /// The model file; relative paths are taken from the source folder (a
     /// tracking sequence: from the folder that holds it). Without it: the
     /// only `.cao` in `Models/`, or among several the one named like a
-    /// settings file in `Config/` (a tracking sequence: `SRC.cao`).
+    /// settings file in `Config/` (a tracking sequence: `SRC.cao`, else the
+    /// only `.cao` beside SRC).
     pub model: Option<PathBuf>,
     /// The settings file with the intrinsics; relative paths are taken as
     /// for `model`. Without it: `Config/` + the model's name + `.xml`, or
     /// the only `.xml` in `Config/` with a `<camera>` (a tracking sequence:
-    /// `SRC.xml`).
+    /// the model's name + `.xml` beside the model).
     pub camera: Option<PathBuf>,
+    /// The first frame's pose of a tracking sequence (ViSP's pose vector or
+    /// cMo matrix), relative as `model`. Without it: the model's name +
+    /// `.0.pos` beside the model, as ViSP's tracker examples keep it.
+    pub init: Option<PathBuf>,
     /// Convert only the first this many frames.
     pub frames: Option<usize>,
     /// Also draw the true projection (visible edges, every vertex) over
@@ -201,9 +209,13 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
         let camera_path = choose_camera(src, opts.camera.as_deref(), &model_path)?;
         (model_path, camera_path, poses)
     } else {
-        let model_path = sequence_file(src, &base, opts.model.as_deref(), "cao", "--model")?;
-        let camera_path = sequence_file(src, &base, opts.camera.as_deref(), "xml", "--camera")?;
-        let pose_path = sequence_file(src, &base, None, SEQUENCE_POSE_EXTENSION, "")?;
+        let name = src.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let model_path = sequence_model(&base, &name, opts.model.as_deref())?;
+        let model_name = model_path.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let beside_model = model_path.parent().unwrap_or(&base).to_path_buf();
+        let camera_path = sequence_file(&beside_model, &model_name, &base, opts.camera.as_deref(), "xml", "--camera")?;
+        let pose_path =
+            sequence_file(&beside_model, &model_name, &base, opts.init.as_deref(), SEQUENCE_POSE_EXTENSION, "--init")?;
         let pose = parse_pose(&crate::io::json::read_text(&pose_path)?).map_err(|msg| Error::input(&pose_path, msg))?;
         (model_path, camera_path, vec![(pose, pose_path)])
     };
@@ -357,8 +369,9 @@ impl Layout {
         };
         let holds_frames = fs::read_dir(src).map_err(|e| Error::io(src, e))?.filter_map(|e| e.ok()).any(|e| {
             e.file_name().to_str().is_some_and(|name| {
-                name.strip_prefix(SEQUENCE_IMAGE_PREFIX)
-                    .is_some_and(|rest| rest.starts_with(|c: char| c.is_ascii_digit()))
+                name.strip_prefix(SEQUENCE_IMAGE_PREFIX).is_some_and(|rest| {
+                    rest.strip_prefix('_').unwrap_or(rest).starts_with(|c: char| c.is_ascii_digit())
+                })
             })
         });
         if !holds_frames {
@@ -371,9 +384,45 @@ impl Layout {
     }
 }
 
-/// A file of the tracking sequence `src`: `given` (relative to `base`), or
-/// `base/<name of src>.<ext>`; `option` names the option that gives it.
-fn sequence_file(src: &Path, base: &Path, given: Option<&Path>, ext: &str, option: &str) -> Result<PathBuf> {
+/// The model of a tracking sequence whose frames are in `base/name`:
+/// `given` (relative to `base`), else `base/<name>.cao`, else the only
+/// `.cao` in `base`.
+fn sequence_model(base: &Path, name: &str, given: Option<&Path>) -> Result<PathBuf> {
+    if let Some(path) = given {
+        let path = base.join(path);
+        return if path.is_file() {
+            Ok(path)
+        } else {
+            Err(Error::input(path, "missing: the model given with --model"))
+        };
+    }
+    let named = base.join(format!("{name}.cao"));
+    if named.is_file() {
+        return Ok(named);
+    }
+    match files_with_extension(base, "cao")?.as_slice() {
+        [one] => Ok(one.clone()),
+        [] => Err(Error::input(
+            named,
+            format!(
+                "missing: the model of the frames in {name}/ (or the only .cao beside them; or give one with --model)"
+            ),
+        )),
+        _ => Err(Error::input(base, format!("several .cao models and none named {name}.cao: pick one with --model"))),
+    }
+}
+
+/// A file of a tracking sequence: `given` (relative to `base`), else
+/// `<model's folder>/<model's name>.<ext>`, as ViSP names a model's settings
+/// and first pose; `option` is the option that gives it.
+fn sequence_file(
+    beside_model: &Path,
+    model_name: &str,
+    base: &Path,
+    given: Option<&Path>,
+    ext: &str,
+    option: &str,
+) -> Result<PathBuf> {
     if let Some(path) = given {
         let path = base.join(path);
         return if path.is_file() {
@@ -382,15 +431,14 @@ fn sequence_file(src: &Path, base: &Path, given: Option<&Path>, ext: &str, optio
             Err(Error::input(path, format!("missing: the file given with {option}")))
         };
     }
-    let name = src.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let path = base.join(format!("{name}.{ext}"));
+    let path = beside_model.join(format!("{model_name}.{ext}"));
     if path.is_file() {
         Ok(path)
     } else {
-        let what = match ext {
-            "cao" => "the model of the frames in the folder of the same name (or give one with --model)".to_string(),
-            "xml" => "the settings with the <camera> intrinsics (or give them with --camera)".to_string(),
-            _ => format!("the pose of the first frame of {name}/, ViSP's pose vector or cMo matrix"),
+        let what = if ext == "xml" {
+            "the settings with the <camera> intrinsics (or give them with --camera)"
+        } else {
+            "the pose of the first frame, ViSP's pose vector or cMo matrix (or give it with --init)"
         };
         Err(Error::input(path, format!("missing: {what}")))
     }
@@ -412,6 +460,8 @@ fn list_images(images: &Path, prefix: &str) -> Result<Vec<(u64, PathBuf)>> {
         let Some(name) = path.file_name().and_then(|n| n.to_str()) else { continue };
         let Some((stem, ext)) = name.rsplit_once('.') else { continue };
         let Some(digits) = stem.strip_prefix(prefix) else { continue };
+        // A tracking sequence's frames may have a `_` before the number (`image_0000`).
+        let digits = if prefix == SEQUENCE_IMAGE_PREFIX { digits.strip_prefix('_').unwrap_or(digits) } else { digits };
         if !IMAGE_EXTENSIONS.contains(&ext.to_ascii_lowercase().as_str()) || digits.is_empty() {
             continue;
         }

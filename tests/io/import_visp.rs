@@ -397,3 +397,33 @@ fn a_tracking_sequence_without_its_first_pose_or_frames_is_refused_by_name() {
     }
     expect_refused(&root, &src, &["neither a ViSP data set", "image0000.png"]);
 }
+
+/// As ViSP's `mbt-depth/castel`: frames `image_0000.png …` in a folder
+/// named unlike the model, the only `.cao` beside it taken, its settings
+/// and first pose named like the model; `--init` names another pose file.
+#[test]
+fn a_tracking_sequence_named_unlike_its_model_and_an_init_option() {
+    let root = crate::common::scratch("import-visp", "tracking-sequence-castel");
+    let tetra = visp_tracking_sequence(&root);
+    let film = root.join("src/film");
+    std::fs::rename(&tetra, &film).unwrap();
+    for k in 0..3 {
+        std::fs::rename(film.join(format!("image{k:04}.png")), film.join(format!("image_{k:04}.png"))).unwrap();
+    }
+    let seq = root.join("seq");
+    let out = pipetrack(&["import-visp", film.to_str().unwrap(), seq.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let init: InitState = serde_json::from_str(&std::fs::read_to_string(seq.join("init.json")).unwrap()).unwrap();
+    let pose = init.pose.expect("the first frame's pose");
+    assert!(close(pose.rotation[0], TRUE_AXIS_ANGLES[0][0]), "rotation {:?}", pose.rotation);
+    assert_eq!(pipetrack::io::Sequence::open(&seq, false).unwrap().frame_count(), Some(3));
+
+    // The pose under another name: refused by its default name, taken with --init.
+    std::fs::remove_dir_all(&seq).unwrap();
+    std::fs::rename(root.join("src/tetra.0.pos"), root.join("src/start.pos")).unwrap();
+    expect_refused(&root, &film, &["tetra.0.pos", "missing", "--init"]);
+    let out = pipetrack(&["import-visp", film.to_str().unwrap(), seq.to_str().unwrap(), "--init", "start.pos"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let again: InitState = serde_json::from_str(&std::fs::read_to_string(seq.join("init.json")).unwrap()).unwrap();
+    assert_eq!(again.pose, init.pose);
+}

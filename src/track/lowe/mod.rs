@@ -22,8 +22,10 @@
 //!    range), linked with hysteresis, cut into straight segments, indexed
 //!    by midpoint and orientation.
 //! 3. **Visible model** at the prediction: back-face test and hidden-line
-//!    removal ([`crate::geometry::hidden_lines`]); each visible part of an
-//!    edge is a model segment ([`projection`]).
+//!    removal ([`crate::geometry::hidden_lines`]), and each visible part of
+//!    an edge clipped to the image ([`projection::clip_to_image`]: a part
+//!    beyond the border can be neither matched nor supported); each is a
+//!    model segment ([`projection`]).
 //! 4. **Candidates** ([`matching`]): for each model segment the index is
 //!    queried within `search_sigmas` of its predicted position and
 //!    orientation (S = A P Aᵀ, eq. 2) and every hit gets its probability of
@@ -699,6 +701,10 @@ impl FrameView<'_> {
         let parts = crate::geometry::hidden_lines::visible_edge_parts(&t.geometry, &lin.points, &t.camera);
         for (edge, intervals) in parts.iter().enumerate() {
             for &interval in intervals {
+                let Some(interval) = projection::clip_to_image(&lin, &t.camera, t.geometry.edges()[edge], interval)
+                else {
+                    continue;
+                };
                 if let Some(seg) = ModelSegment::new(&lin, &t.camera, t.geometry.edges(), edge, interval)
                     && seg.length() >= MIN_MODEL_SEGMENT_PX
                 {

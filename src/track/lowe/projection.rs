@@ -171,6 +171,41 @@ pub struct ModelSegment {
     pub db: [Row; 2],
 }
 
+/// The part of `interval` (3-D parameters along the edge `[i, j]`, both
+/// ends in front of the camera) whose image lies inside the image, pixel
+/// centres 0 … width − 1 and 0 … height − 1: the image segment is clipped
+/// to that rectangle (Liang–Barsky) and the image fractions λ are taken back
+/// to 3-D fractions μ = λ·Z_a / ((1 − λ)·Z_b + λ·Z_a), Z_a and Z_b the
+/// depths of the interval's ends. `None` when no part of it is inside.
+#[must_use]
+pub fn clip_to_image(lin: &Linearised, camera: &Camera, [i, j]: [usize; 2], interval: [f64; 2]) -> Option<[f64; 2]> {
+    let at = |t: f64| lin.points[i] + (lin.points[j] - lin.points[i]) * t;
+    let (p, q) = (at(interval[0]), at(interval[1]));
+    let (a, b) = (camera.project_in_front(p)?, camera.project_in_front(q)?);
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let (max_x, max_y) = (f64::from(camera.width) - 1.0, f64::from(camera.height) - 1.0);
+    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+    // Each side of the rectangle as `d·λ ≤ room`.
+    for (d, room) in [(-dx, a[0]), (dx, max_x - a[0]), (-dy, a[1]), (dy, max_y - a[1])] {
+        if d == 0.0 {
+            if room < 0.0 {
+                return None;
+            }
+        } else if d > 0.0 {
+            hi = hi.min(room / d);
+        } else {
+            lo = lo.max(room / d);
+        }
+    }
+    if !(lo < hi) {
+        return None;
+    }
+    let (za, zb) = (p.z, q.z);
+    let to_3d = |lambda: f64| lambda * za / ((1.0 - lambda) * zb + lambda * za);
+    let span = interval[1] - interval[0];
+    Some([interval[0] + to_3d(lo) * span, interval[0] + to_3d(hi) * span])
+}
+
 impl ModelSegment {
     /// The projected part of `edge` over `interval`, `None` when an end does
     /// not project or the part is shorter than a pixel's thousandth.
@@ -287,6 +322,36 @@ mod tests {
             pose: Pose::from_axis_angle(DVec3::new(0.4, -0.3, 0.2), DVec3::new(-0.1, 0.05, 0.9)),
             params: vec![0.7],
         }
+    }
+
+    /// An edge running out of the image keeps the part inside: its clipped
+    /// ends project onto the border, under perspective (the ends at
+    /// different depths), and an edge wholly outside has no part.
+    #[test]
+    fn clip_to_image_keeps_the_part_inside() {
+        let cam = camera();
+        let (w, h) = (f64::from(cam.width) - 1.0, f64::from(cam.height) - 1.0);
+        let lin = Linearised {
+            n: 6,
+            points: vec![DVec3::new(-0.1, 0.02, 0.5), DVec3::new(1.5, 0.3, 2.5), DVec3::new(-3.0, 0.0, 1.0)],
+            derivatives: vec![[[0.0; MAX_PARAMS]; 3]; 3],
+        };
+        let start = cam.project(lin.points[0]);
+        assert!(start[0] > 0.0 && start[0] < w && start[1] > 0.0 && start[1] < h, "starts inside: {start:?}");
+        assert!(cam.project(lin.points[1])[0] > w, "ends beyond the right border");
+        let [t0, t1] = clip_to_image(&lin, &cam, [0, 1], [0.0, 1.0]).expect("a part inside");
+        assert_eq!(t0, 0.0);
+        assert!(t1 > 0.0 && t1 < 1.0);
+        let end = cam.project(lin.points[0] + (lin.points[1] - lin.points[0]) * t1);
+        assert!((end[0] - w).abs() < 1e-9, "clipped end on the border: {end:?}");
+        // The same edge the other way round, and from within an interval.
+        let [u0, u1] = clip_to_image(&lin, &cam, [1, 0], [0.0, 1.0]).unwrap();
+        assert!((u0 - (1.0 - t1)).abs() < 1e-12 && u1 == 1.0);
+        let [v0, v1] = clip_to_image(&lin, &cam, [0, 1], [0.2, 0.9]).unwrap();
+        assert!(v0 == 0.2 && (v1 - t1).abs() < 1e-12);
+        // An edge wholly left of the image, and one inside untouched.
+        assert_eq!(clip_to_image(&lin, &cam, [2, 2], [0.0, 1.0]), None);
+        assert_eq!(clip_to_image(&lin, &cam, [0, 1], [0.0, 0.5 * t1]), Some([0.0, 0.5 * t1]));
     }
 
     /// Every measurement's analytic row agrees with central finite
