@@ -273,3 +273,66 @@ fn lowe_gpu_matches_cpu() {
         }
     }
 }
+
+/// The box cut by the image border: frames of `box` at 4 px/frame cropped
+/// to the columns left of 30 % of the box's width on frame 0 (the camera
+/// keeps its intrinsics, the image is narrower), so that most of the box is
+/// outside the image on every frame. The model edges beyond the border are
+/// not part of the visible model, and the matches of the edges the border
+/// cuts count: the tracker holds the box on every frame. Counting the
+/// edges beyond the border, it held 2 of the 80 frames; clipped, but with
+/// matches naming the clipped piece (which moves with the pose), 5.
+#[test]
+fn lowe_holds_a_box_cut_by_the_image_border_cpu() {
+    use pipetrack::image::GrayImage;
+    use pipetrack::io::formats::Visibility;
+    let opts = BoxOptions { kind: BoxKind::Rigid, speed: 4.0, frames: 80, ..BoxOptions::default() };
+    let seq = render_box(&opts).expect("render the box scene");
+    let first = &seq.truth[0].corners;
+    let (left, right) = first.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, r), c| (l.min(c[0]), r.max(c[0])));
+    let width = (left + 0.3 * (right - left)).round() as usize;
+    let height = seq.camera.height as usize;
+    let crop = |frame: &GrayImage| {
+        let mut data = Vec::with_capacity(width * height);
+        for y in 0..height {
+            data.extend_from_slice(&frame.row(y)[..width]);
+        }
+        GrayImage::from_vec(width, height, data).expect("cropped frame")
+    };
+    let frames: Vec<GrayImage> = seq.frames.iter().map(crop).collect();
+    let mut camera = seq.camera;
+    camera.width = width as u32;
+    let mut cut_frames = 0;
+    let truth: Vec<_> = seq
+        .truth
+        .iter()
+        .map(|t| {
+            let mut t = t.clone();
+            let seen: Vec<bool> = t
+                .corners
+                .iter()
+                .enumerate()
+                .map(|(i, c)| t.visible.vertex(i) && c[0] >= 0.0 && c[0] <= width as f64 - 1.0)
+                .collect();
+            cut_frames += usize::from(t.corners.iter().any(|c| c[0] > width as f64 - 1.0));
+            t.visible = Visibility::Vertices(seen);
+            t
+        })
+        .collect();
+    assert_eq!(cut_frames, 80, "the border cuts the box on {cut_frames} of 80 frames");
+    let mut tracker = LoweTracker::new(camera, &seq.model, &seq.init, LoweParams::default()).expect("lowe tracker");
+    let (results, _) = common::track_lost(&mut tracker, &mut CpuBackend::new(), frames, (width, height));
+    let s = score(&truth, &results).expect("score");
+    let stats = s.stats.expect("scored frames");
+    println!(
+        "box cut at x = {width} on {cut_frames} frames: {} of {} frames tracked, mean {:.3} px, max {:.3} px, false tracking {}",
+        s.tracked,
+        s.frames,
+        stats.mean,
+        stats.max,
+        s.false_tracking.len()
+    );
+    assert!(s.tracked >= 78, "{} of 80 frames tracked", s.tracked);
+    assert_eq!(s.false_tracking, Vec::<usize>::new(), "frames reported tracking more than 5 px off");
+    assert!(stats.mean <= 1.0, "mean vertex error {:.3} px", stats.mean);
+}

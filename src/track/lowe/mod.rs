@@ -700,14 +700,16 @@ impl FrameView<'_> {
         let Ok(lin) = Linearised::at(&t.geometry, state, t.centre) else { return };
         let parts = crate::geometry::hidden_lines::visible_edge_parts(&t.geometry, &lin.points, &t.camera);
         for (edge, intervals) in parts.iter().enumerate() {
-            for &interval in intervals {
-                let Some(interval) = projection::clip_to_image(&lin, &t.camera, t.geometry.edges()[edge], interval)
-                else {
+            for &part in intervals {
+                let Some(inside) = projection::clip_to_image(&lin, &t.camera, t.geometry.edges()[edge], part) else {
                     continue;
                 };
-                if let Some(seg) = ModelSegment::new(&lin, &t.camera, t.geometry.edges(), edge, interval)
+                if let Some(mut seg) = ModelSegment::new(&lin, &t.camera, t.geometry.edges(), edge, inside)
                     && seg.length() >= MIN_MODEL_SEGMENT_PX
                 {
+                    // Matches name the visible part, which stays the same
+                    // while the image border cuts it at another place.
+                    seg.interval = part;
                     out.push(seg);
                 }
             }

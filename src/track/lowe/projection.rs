@@ -159,7 +159,11 @@ pub fn project_with_rows(camera: &Camera, p: DVec3, rows: &[Row; 3], n: usize) -
 pub struct ModelSegment {
     /// Index of the model edge.
     pub edge: usize,
-    /// The part's 3-D parameter interval along the edge.
+    /// The part's 3-D parameter interval along the edge, which a match
+    /// names. The tracker's visible model keeps here the part hidden-line
+    /// removal gives, while `a` and `b` are the ends of its piece inside
+    /// the image ([`clip_to_image`]); both lie on one image line, so a fit
+    /// to the match measures the same distances either way.
     pub interval: [f64; 2],
     /// Projected endpoints.
     pub a: [f64; 2],
@@ -349,8 +353,21 @@ mod tests {
         assert!((u0 - (1.0 - t1)).abs() < 1e-12 && u1 == 1.0);
         let [v0, v1] = clip_to_image(&lin, &cam, [0, 1], [0.2, 0.9]).unwrap();
         assert!(v0 == 0.2 && (v1 - t1).abs() < 1e-12);
-        // An edge wholly left of the image, and one inside untouched.
-        assert_eq!(clip_to_image(&lin, &cam, [2, 2], [0.0, 1.0]), None);
+        // An edge crossing the whole image, both ends outside: both ends
+        // clipped onto the borders it crosses.
+        let across = Linearised {
+            n: 6,
+            points: vec![DVec3::new(-2.0, 0.1, 1.5), DVec3::new(3.0, -0.2, 3.0), DVec3::new(-3.0, 0.0, 1.0)],
+            derivatives: vec![[[0.0; MAX_PARAMS]; 3]; 3],
+        };
+        assert!(cam.project(across.points[0])[0] < 0.0 && cam.project(across.points[1])[0] > w);
+        let [c0, c1] = clip_to_image(&across, &cam, [0, 1], [0.0, 1.0]).expect("crosses the image");
+        assert!(c0 > 0.0 && c1 < 1.0 && c0 < c1);
+        let on = |t: f64| cam.project(across.points[0] + (across.points[1] - across.points[0]) * t);
+        assert!(on(c0)[0].abs() < 1e-9 && (on(c1)[0] - w).abs() < 1e-9, "{:?} {:?}", on(c0), on(c1));
+        // Edges wholly outside: one left of the image, and a single point.
+        assert_eq!(clip_to_image(&across, &cam, [2, 0], [0.0, 1.0]), None);
+        assert_eq!(clip_to_image(&across, &cam, [2, 2], [0.0, 1.0]), None);
         assert_eq!(clip_to_image(&lin, &cam, [0, 1], [0.0, 0.5 * t1]), Some([0.0, 0.5 * t1]));
     }
 
