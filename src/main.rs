@@ -114,7 +114,7 @@ enum Command {
         /// Also draw the true projection of the model over every frame with a known pose into this folder.
         #[arg(long)]
         overlay: Option<PathBuf>,
-        /// A further part of the object, as ViSP's load() arguments: FILE.cao (relative to SRC)
+        /// A further part of the object, as ViSP's load() arguments: FILE.cao (relative as --model)
         /// [, t=[x; y; z], tu=[a; b; c] or R=[r11; ...; r33]] (repeatable).
         #[arg(long, value_name = "FILE[, PLACEMENT]")]
         include: Vec<String>,

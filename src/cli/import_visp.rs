@@ -1,5 +1,6 @@
 //! `pipetrack import-visp SRC OUT_DIR`: a ViSP model-based-tracking data set
-//! with ground truth, converted to a sequence folder (SPEC §4).
+//! with ground truth, or a ViSP tracking sequence without it, converted to a
+//! sequence folder (SPEC §4).
 //!
 //! The source folder has the layout of ViSP's test data for its generic
 //! model-based tracker (`mbt-depth/Castle-simu` in the `visp-images` data
@@ -52,8 +53,8 @@
 //! (per frame the pose, the projected vertices and which vertices are in
 //! front of the camera and inside the image; self-occlusion is not
 //! computed) and `meta.json` (where each file came from). It is written
-//! through a [`StagedDir`] and opened as a [`Sequence`] (truth included)
-//! before it appears under its name.
+//! through a [`StagedDir`] and opened as a [`Sequence`] (truth included,
+//! where there is truth) before it appears under its name.
 //!
 //! As a check of the conversion, [`import_visp`] also measures how far the
 //! projected visible model edges lie from the image's edges
@@ -199,7 +200,12 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
     if opts.frames == Some(0) {
         return Err(Error::Parameter("--frames must be at least 1".into()));
     }
-    let Layout { mut images, base, truth: has_truth } = Layout::of(src)?;
+    let Layout { mut images, base, truth: has_truth, name } = Layout::of(src)?;
+    if has_truth && opts.init.is_some() {
+        return Err(Error::Parameter(
+            "--init is for a folder of frames; a data set's poses are CameraPose/Camera_NNN.txt".into(),
+        ));
+    }
     if let Some(n) = opts.frames {
         images.truncate(n);
     }
@@ -209,7 +215,6 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
         let camera_path = choose_camera(src, opts.camera.as_deref(), &model_path)?;
         (model_path, camera_path, poses)
     } else {
-        let name = src.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let model_path = sequence_model(&base, &name, opts.model.as_deref())?;
         let model_name = model_path.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let beside_model = model_path.parent().unwrap_or(&base).to_path_buf();
@@ -353,6 +358,9 @@ struct Layout {
     base: PathBuf,
     /// A data set with every frame's pose, or a tracking sequence.
     truth: bool,
+    /// The name of a tracking sequence's folder (`cube` for `mbt/cube`, also
+    /// when SRC is given as `.`).
+    name: String,
 }
 
 impl Layout {
@@ -361,12 +369,13 @@ impl Layout {
     fn of(src: &Path) -> Result<Self> {
         let images = src.join(IMAGES_DIR);
         if images.exists() {
-            return Ok(Self { images: list_images(&images, IMAGE_PREFIX)?, base: src.to_path_buf(), truth: true });
+            let images = list_images(&images, IMAGE_PREFIX)?;
+            return Ok(Self { images, base: src.to_path_buf(), truth: true, name: String::new() });
         }
-        let base = match src.parent() {
-            Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
+        // `.` or `..` has no name of its own: the folder's full path has.
+        let src = fs::canonicalize(src).map_err(|e| Error::input(src, format!("cannot resolve the folder: {e}")))?;
+        let base = src.parent().map_or_else(|| PathBuf::from("/"), Path::to_path_buf);
+        let src = src.as_path();
         let holds_frames = fs::read_dir(src).map_err(|e| Error::io(src, e))?.filter_map(|e| e.ok()).any(|e| {
             e.file_name().to_str().is_some_and(|name| {
                 name.strip_prefix(SEQUENCE_IMAGE_PREFIX).is_some_and(|rest| {
@@ -380,7 +389,8 @@ impl Layout {
                 "neither a ViSP data set (no Images/ folder) nor a tracking sequence (no frames image0000.png, …)",
             ));
         }
-        Ok(Self { images: list_images(src, SEQUENCE_IMAGE_PREFIX)?, base, truth: false })
+        let name = src.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        Ok(Self { images: list_images(src, SEQUENCE_IMAGE_PREFIX)?, base, truth: false, name })
     }
 }
 

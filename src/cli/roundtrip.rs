@@ -11,6 +11,13 @@
 //! out does not come back onto the forward run's answers by chance. It is
 //! not an error against truth: two runs that make the same mistake agree.
 //!
+//! The frame the backward run starts from is not compared (its answer there
+//! is the forward run's), so a run with nothing before its last tracking
+//! frame has nothing to compare. A condensation `camera_motion` (the known
+//! first motion, in `init.json` or `--config`) is the forward run's: the
+//! backward run starts without one, and `roundtrip` refuses it in `--config`
+//! (it would be applied to the backward run's first interval as well).
+//!
 //! Per frame where both track: the **corner disagreement**, the mean over
 //! the model vertices of the distance between the two runs' corners, in
 //! pixels; and, for trackers with a pose, the distance between the two
@@ -27,7 +34,7 @@ use crate::cli::score::ErrorStats;
 use crate::geometry::Pose;
 use crate::io::formats::{FrameResult, InitState, Status};
 use crate::io::{AtomicFile, Sequence};
-use crate::track::run::{TrackOptions, check_output, track_sequence};
+use crate::track::run::{TrackOptions, check_output, read_config, track_sequence};
 use crate::{Error, Result};
 
 /// How the forward and the backward run agree on one frame (a line of
@@ -38,10 +45,12 @@ pub struct FrameAgreement {
     pub frame: usize,
     /// Status of the forward run.
     pub forward: Status,
-    /// Status of the backward run (lost for the frames after the forward
-    /// run's last tracking frame, which the backward run does not see).
-    pub backward: Status,
-    /// Mean distance between the two runs' corners, px (both tracking).
+    /// Status of the backward run; none for the frames after the forward
+    /// run's last tracking frame, which the backward run does not see.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub backward: Option<Status>,
+    /// Mean distance between the two runs' corners, px (both tracking, not
+    /// the backward run's start).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub corner_px: Option<f64>,
     /// Distance between the two translations, metres (both tracking, with a pose).
@@ -70,10 +79,16 @@ pub struct RoundtripReport {
 }
 
 impl RoundtripReport {
-    /// Frames both runs report tracking.
+    /// Frames compared: both runs report tracking, the backward run's
+    /// start excepted.
     #[must_use]
-    pub fn both_tracked(&self) -> usize {
-        self.per_frame.iter().filter(|f| f.corner_px.is_some()).count()
+    pub fn compared(&self) -> usize {
+        self.per_frame
+            .iter()
+            .filter(|f| {
+                Some(f.frame) != self.start && f.forward == Status::Tracking && f.backward == Some(Status::Tracking)
+            })
+            .count()
     }
 
     /// Figures of the corner disagreement, px.
@@ -102,6 +117,16 @@ pub fn roundtrip(seq: &Sequence, opts: &TrackOptions) -> Result<RoundtripReport>
     if seq.reads_stdin() {
         return Err(Error::Parameter("roundtrip reads the frames twice: give a folder of frames, not stdin".into()));
     }
+    if opts.tracker == "condensation" {
+        let params: crate::track::CondensationParams = read_config(opts.config.as_deref(), &opts.tracker)?;
+        if params.camera_motion.is_some() {
+            let config = opts.config.clone().unwrap_or_default();
+            return Err(Error::input(
+                config,
+                "camera_motion is the forward run's first motion: roundtrip would give it to the backward run too; leave it out (init.json's is used forward only)",
+            ));
+        }
+    }
     let opts = TrackOptions { overlay: None, ..opts.clone() };
     let mut forward = Vec::new();
     track_sequence(seq, &opts, &mut io::sink(), |r| forward.push(r.clone()))?;
@@ -116,7 +141,16 @@ pub fn roundtrip(seq: &Sequence, opts: &TrackOptions) -> Result<RoundtripReport>
             camera_motion: None,
         };
         let reversed = seq.reversed(start + 1, init).ok_or_else(|| Error::Parameter("no frames to reverse".into()))?;
-        track_sequence(&reversed, &opts, &mut io::sink(), |r| backward.push(r.clone()))?;
+        // The forward run read every file; what fails now is the start.
+        track_sequence(&reversed, &opts, &mut io::sink(), |r| backward.push(r.clone())).map_err(|e| {
+            let why = match e {
+                Error::Input { message, .. } => message,
+                other => other.to_string(),
+            };
+            Error::Parameter(format!(
+                "the backward run cannot start from frame {start} at the forward run's answer there: {why}"
+            ))
+        })?;
         backward.reverse();
     }
     Ok(compare(&forward, &backward, start))
@@ -131,7 +165,9 @@ pub fn compare(forward: &[FrameResult], backward: &[FrameResult], start: Option<
         .enumerate()
         .map(|(frame, f)| {
             let b = backward.get(frame);
-            let both = f.status == Status::Tracking && b.is_some_and(|b| b.status == Status::Tracking);
+            let both = Some(frame) != start
+                && f.status == Status::Tracking
+                && b.is_some_and(|b| b.status == Status::Tracking);
             let (corner_px, translation_m, rotation_rad) = match b {
                 Some(b) if both => {
                     let corners = (f.corners.len() == b.corners.len() && !f.corners.is_empty()).then(|| {
@@ -150,7 +186,7 @@ pub fn compare(forward: &[FrameResult], backward: &[FrameResult], start: Option<
             FrameAgreement {
                 frame,
                 forward: f.status,
-                backward: b.map_or(Status::Lost, |b| b.status),
+                backward: b.map(|b| b.status),
                 corner_px,
                 translation_m,
                 rotation_rad,
@@ -174,12 +210,14 @@ fn rotation_angle(a: &Pose, b: &Pose) -> f64 {
 }
 
 /// [`roundtrip`], writing each frame's [`FrameAgreement`] as a JSON line
-/// to `out` (checked before the runs as `track --out` is; the file appears
-/// only when complete).
+/// to `out` (a regular file: checked and created before the runs, it
+/// appears under its name only when complete).
 pub fn roundtrip_to_file(seq: &Sequence, opts: &TrackOptions, out: &Path) -> Result<RoundtripReport> {
     check_output(seq, opts, out)?;
-    let report = roundtrip(seq, opts)?;
+    // Created before the runs, so a place that cannot be written is known
+    // at once; dropped unfinished, it leaves nothing.
     let mut file = AtomicFile::create(out)?;
+    let report = roundtrip(seq, opts)?;
     for line in &report.per_frame {
         serde_json::to_writer(&mut file, line).map_err(|e| Error::io(out, e.into()))?;
         writeln!(file).map_err(|e| Error::io(out, e))?;
@@ -200,7 +238,7 @@ pub fn summary(report: &RoundtripReport) -> String {
         )),
         None => lines.push("backward run: none (the forward run tracked no frame)".into()),
     }
-    lines.push(format!("both tracking: {}", report.both_tracked()));
+    lines.push(format!("frames compared (both tracking, the backward run's start excepted): {}", report.compared()));
     let worst = |key: fn(&FrameAgreement) -> Option<f64>| {
         report.per_frame.iter().filter_map(|f| key(f).map(|v| (f.frame, v))).max_by(|a, b| a.1.total_cmp(&b.1))
     };
@@ -277,18 +315,18 @@ mod tests {
         ];
         let report = compare(&forward, &backward, Some(3));
         assert_eq!((report.frames, report.forward_tracked, report.backward_tracked), (5, 3, 3));
-        assert_eq!(report.both_tracked(), 2, "frames 0 and 3");
+        assert_eq!(report.compared(), 1, "frame 0 (frame 3 is the backward run's start)");
         let f0 = &report.per_frame[0];
         assert!((f0.corner_px.unwrap() - 2.5).abs() < 1e-12, "mean of 5 and 0 px");
         assert!((f0.translation_m.unwrap() - 0.003).abs() < 1e-12);
         assert!((f0.rotation_rad.unwrap() - 0.05).abs() < 1e-9);
-        assert_eq!(report.per_frame[3].corner_px, Some(0.0));
+        assert_eq!(report.per_frame[3].corner_px, None, "the start is not compared");
         assert_eq!((report.per_frame[1].corner_px, report.per_frame[2].corner_px), (None, None));
-        assert_eq!(report.per_frame[4].backward, Status::Lost, "after the start the backward run has no frame");
+        assert_eq!(report.per_frame[4].backward, None, "after the start the backward run has no frame");
         let corners = report.corner_px().unwrap();
-        assert!((corners.mean - 1.25).abs() < 1e-12 && (corners.max - 2.5).abs() < 1e-12);
+        assert!((corners.mean - 2.5).abs() < 1e-12 && (corners.max - 2.5).abs() < 1e-12);
         let text = summary(&report);
-        assert!(text.contains("both tracking: 2"), "{text}");
+        assert!(text.contains("start excepted): 1"), "{text}");
         assert!(text.contains("max 2.500 px (frame 0)"), "{text}");
     }
 
@@ -296,7 +334,7 @@ mod tests {
     fn a_forward_run_that_never_tracks_has_nothing_to_compare() {
         let forward = vec![result(0, Status::Lost, vec![[0.0, 0.0]], None)];
         let report = compare(&forward, &[], None);
-        assert_eq!((report.both_tracked(), report.start), (0, None));
+        assert_eq!((report.compared(), report.start), (0, None));
         assert!(report.corner_px().is_none());
         assert!(summary(&report).contains("the forward run tracked no frame"));
     }

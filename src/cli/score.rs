@@ -35,7 +35,8 @@ use crate::{Error, Result};
 /// (module doc).
 pub const DEFAULT_FALSE_TRACKING_PX: f64 = 5.0;
 
-/// Error figures over the scored frames, in pixels.
+/// Figures over per-frame values: the corner errors of the scored frames,
+/// in pixels, or any other per-frame measure (the units are the values').
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ErrorStats {
     /// Mean of the per-frame corner errors.

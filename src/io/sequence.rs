@@ -99,7 +99,7 @@ impl Sequence {
     /// This sequence's first `count` frames (all when fewer) in reverse
     /// order, starting from `init`; `None` when the frames come from stdin.
     #[must_use]
-    pub fn reversed(&self, count: usize, init: InitState) -> Option<Sequence> {
+    pub(crate) fn reversed(&self, count: usize, init: InitState) -> Option<Sequence> {
         let FrameList::Files(paths) = &self.frames else { return None };
         let frames = FrameList::Files(paths.iter().take(count).rev().cloned().collect());
         Some(Self { init, frames, ..self.clone() })

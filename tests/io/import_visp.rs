@@ -427,3 +427,29 @@ fn a_tracking_sequence_named_unlike_its_model_and_an_init_option() {
     let again: InitState = serde_json::from_str(&std::fs::read_to_string(seq.join("init.json")).unwrap()).unwrap();
     assert_eq!(again.pose, init.pose);
 }
+
+/// A tracking sequence given as `.` from inside its folder is named by the
+/// folder; `--init` with a data set is refused in one line.
+#[test]
+fn a_tracking_sequence_given_as_dot_and_init_with_a_data_set() {
+    let root = crate::common::scratch("import-visp", "dot");
+    let src = visp_tracking_sequence(&root);
+    let seq = root.join("seq");
+    let out = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .args(["import-visp", ".", seq.to_str().unwrap()])
+        .current_dir(&src)
+        .output()
+        .expect("binary runs");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(pipetrack::io::Sequence::open(&seq, false).unwrap().frame_count(), Some(3));
+
+    let root = crate::common::scratch("import-visp", "init-with-data-set");
+    let src = visp_data_set(&root);
+    let seq = root.join("seq");
+    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap(), "--init", "x.pos"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("--init is for a folder of frames"), "{stderr}");
+    assert!(!seq.exists());
+}
