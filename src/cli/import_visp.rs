@@ -88,8 +88,8 @@ pub const MODELS_DIR: &str = "Models";
 pub const IMAGE_PREFIX: &str = "Image_";
 /// Name prefix of a frame file of a tracking sequence (`image0000.png`).
 pub const SEQUENCE_IMAGE_PREFIX: &str = "image";
-/// Extension, after the folder's name, of a tracking sequence's first pose
-/// (`cube.0.pos`).
+/// Extension, after the model's name, of a tracking sequence's first pose
+/// (`cube.0.pos` beside `cube.cao`).
 pub const SEQUENCE_POSE_EXTENSION: &str = "0.pos";
 /// Extensions of frame files.
 pub const IMAGE_EXTENSIONS: [&str; 5] = ["png", "pgm", "ppm", "jpg", "jpeg"];

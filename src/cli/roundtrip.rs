@@ -6,10 +6,12 @@
 //! frame, started from that frame's reported state (pose, joint values and
 //! corners). Where both runs report `tracking`, the two answers for a frame
 //! came from different histories (the backward run has seen the frames
-//! after it, not those before), so their difference bounds what drift and
-//! lag the tracker has there: a tracker that slid off the object on the way
-//! out does not come back onto the forward run's answers by chance. It is
-//! not an error against truth: two runs that make the same mistake agree.
+//! after it, not those before), and their difference is error of one run or
+//! the other: at least half of it lies in one of them. A tracker that slid
+//! off the object on the way out does not come back onto the forward run's
+//! answers by chance. The converse does not hold: two runs that make the
+//! same mistake agree, so a small disagreement is not an error against
+//! truth.
 //!
 //! The frame the backward run starts from is not compared (its answer there
 //! is the forward run's), so a run with nothing before its last tracking
