@@ -167,9 +167,8 @@ pub fn compare(forward: &[FrameResult], backward: &[FrameResult], start: Option<
         .enumerate()
         .map(|(frame, f)| {
             let b = backward.get(frame);
-            let both = Some(frame) != start
-                && f.status == Status::Tracking
-                && b.is_some_and(|b| b.status == Status::Tracking);
+            let both =
+                Some(frame) != start && f.status == Status::Tracking && b.is_some_and(|b| b.status == Status::Tracking);
             let (corner_px, translation_m, rotation_rad) = match b {
                 Some(b) if both => {
                     let corners = (f.corners.len() == b.corners.len() && !f.corners.is_empty()).then(|| {
