@@ -129,9 +129,13 @@ pub fn roundtrip(seq: &Sequence, opts: &TrackOptions) -> Result<RoundtripReport>
             ));
         }
     }
-    let opts = TrackOptions { overlay: None, ..opts.clone() };
+    let mut opts = TrackOptions { overlay: None, ..opts.clone() };
     let mut forward = Vec::new();
-    track_sequence(seq, &opts, &mut io::sink(), |r| forward.push(r.clone()))?;
+    let summary = track_sequence(seq, &opts, &mut io::sink(), |r| forward.push(r.clone()))?;
+    if summary.fallback.is_some() {
+        // The forward run said why there is no GPU; the backward run does not repeat it.
+        opts.backend = crate::backend::BackendKind::Cpu;
+    }
     let start = forward.iter().rposition(|r| r.status == Status::Tracking);
     let mut backward = Vec::new();
     if let Some(start) = start {
