@@ -14,7 +14,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context;
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use pipetrack::backend::BackendKind;
 use pipetrack::io::Sequence;
 use pipetrack::synth;
@@ -35,27 +35,47 @@ struct Cli {
     command: Command,
 }
 
+/// The tracker and how it runs, as `track` and `roundtrip` take them.
+#[derive(Args)]
+struct TrackerArgs {
+    /// Tracker: motion-edge (000), lowe (001), blue (002) or condensation (004).
+    #[arg(long)]
+    tracker: String,
+    /// Early-vision backend.
+    #[arg(long, value_enum, default_value_t = Backend::Gpu)]
+    backend: Backend,
+    /// Tracker parameters (TOML; the tracker's own table, e.g. `[lowe]`, or top-level keys).
+    #[arg(long)]
+    config: Option<PathBuf>,
+}
+
+impl TrackerArgs {
+    /// The run's options, drawing overlays into `overlay`.
+    fn options(self, overlay: Option<PathBuf>) -> TrackOptions {
+        TrackOptions {
+            tracker: self.tracker,
+            backend: self.backend.into(),
+            config: self.config,
+            overlay,
+            progress: true,
+        }
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Track a sequence folder; JSON Lines to stdout (or --out), summary to stderr.
     Track {
         /// Sequence folder (camera.json, model.json, model.cao or model.obj, init.json, frames/).
         seq_dir: PathBuf,
-        /// Tracker: motion-edge (000), lowe (001), blue (002) or condensation (004).
-        #[arg(long)]
-        tracker: String,
-        /// Early-vision backend.
-        #[arg(long, value_enum, default_value_t = Backend::Gpu)]
-        backend: Backend,
+        #[command(flatten)]
+        tracker_args: TrackerArgs,
         /// Write the JSON Lines here instead of stdout (appears only when complete).
         #[arg(long)]
         out: Option<PathBuf>,
         /// Write one overlay PNG per frame into this folder.
         #[arg(long)]
         overlay: Option<PathBuf>,
-        /// Tracker parameters (TOML; the tracker's own table, e.g. `[lowe]`, or top-level keys).
-        #[arg(long)]
-        config: Option<PathBuf>,
         /// `-` reads the frames as a Y4M stream from stdin instead of SEQ_DIR/frames.
         #[arg(long)]
         frames: Option<String>,
@@ -124,15 +144,8 @@ enum Command {
     Roundtrip {
         /// Sequence folder (as for track; truth.jsonl is not read).
         seq_dir: PathBuf,
-        /// Tracker: motion-edge (000), lowe (001), blue (002) or condensation (004).
-        #[arg(long)]
-        tracker: String,
-        /// Early-vision backend.
-        #[arg(long, value_enum, default_value_t = Backend::Gpu)]
-        backend: Backend,
-        /// Tracker parameters (TOML; the tracker's own table, e.g. `[lowe]`, or top-level keys).
-        #[arg(long)]
-        config: Option<PathBuf>,
+        #[command(flatten)]
+        tracker_args: TrackerArgs,
         /// Also write each frame's agreement as JSON Lines here (appears only when complete).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -342,7 +355,7 @@ impl From<Backend> for BackendKind {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Track { seq_dir, tracker, backend, out, overlay, config, frames } => {
+        Command::Track { seq_dir, tracker_args, out, overlay, frames } => {
             let from_stdin = match frames.as_deref() {
                 None => false,
                 Some("-") => true,
@@ -354,7 +367,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
             };
             let seq = Sequence::open(&seq_dir, from_stdin)?;
-            let opts = TrackOptions { tracker, backend: backend.into(), config, overlay, progress: true };
+            let opts = tracker_args.options(overlay);
             let summary = match &out {
                 Some(path) => run::track_to_file(&seq, &opts, path)?,
                 None => run::track_to_stdout(&seq, &opts)?,
@@ -414,10 +427,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             ));
             Ok(())
         }
-        Command::Roundtrip { seq_dir, tracker, backend, config, out } => {
+        Command::Roundtrip { seq_dir, tracker_args, out } => {
             use pipetrack::cli::roundtrip::{roundtrip, roundtrip_to_file, summary};
             let seq = Sequence::open(&seq_dir, false)?;
-            let opts = TrackOptions { tracker, backend: backend.into(), config, overlay: None, progress: true };
+            let opts = tracker_args.options(None);
             let report = match &out {
                 Some(path) => roundtrip_to_file(&seq, &opts, path)?,
                 None => roundtrip(&seq, &opts)?,

@@ -200,30 +200,8 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
     if opts.frames == Some(0) {
         return Err(Error::Parameter("--frames must be at least 1".into()));
     }
-    let Layout { mut images, base, truth: has_truth, name } = Layout::of(src)?;
-    if has_truth && opts.init.is_some() {
-        return Err(Error::Parameter(
-            "--init is for a folder of frames; a data set's poses are CameraPose/Camera_NNN.txt".into(),
-        ));
-    }
-    if let Some(n) = opts.frames {
-        images.truncate(n);
-    }
-    let (model_path, camera_path, poses) = if has_truth {
-        let poses = images.iter().map(|(number, image)| read_pose(src, *number, image)).collect::<Result<Vec<_>>>()?;
-        let model_path = choose_model(src, opts.model.as_deref())?;
-        let camera_path = choose_camera(src, opts.camera.as_deref(), &model_path)?;
-        (model_path, camera_path, poses)
-    } else {
-        let model_path = sequence_model(&base, &name, opts.model.as_deref())?;
-        let model_name = model_path.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let beside_model = model_path.parent().unwrap_or(&base).to_path_buf();
-        let camera_path = sequence_file(&beside_model, &model_name, &base, opts.camera.as_deref(), "xml", "--camera")?;
-        let pose_path =
-            sequence_file(&beside_model, &model_name, &base, opts.init.as_deref(), SEQUENCE_POSE_EXTENSION, "--init")?;
-        let pose = parse_pose(&crate::io::json::read_text(&pose_path)?).map_err(|msg| Error::input(&pose_path, msg))?;
-        (model_path, camera_path, vec![(pose, pose_path)])
-    };
+    let Sources { images, poses, truth: has_truth, model: model_path, camera: camera_path, base } =
+        Sources::of(src, opts)?;
     let first = decode_gray(&images[0].1)?;
     let camera = read_camera(&camera_path, first.width(), first.height())?;
     let parts = opts.include.iter().map(|arg| Part::parse(&base, arg)).collect::<Result<Vec<_>>>()?;
@@ -349,49 +327,93 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
     })
 }
 
-/// Where a source's frames are and how to read the rest.
-struct Layout {
-    /// The frames, `(number, path)`, by number.
+/// The files a source provides, whichever its layout.
+struct Sources {
+    /// The frames, `(number, path)`, by number (the first `--frames`).
     images: Vec<(u64, PathBuf)>,
-    /// The folder that `--model`, `--camera` and `--include` paths are
-    /// relative to: the data set, or the folder holding a tracking sequence.
-    base: PathBuf,
-    /// A data set with every frame's pose, or a tracking sequence.
+    /// Known poses and their files: every frame's (a data set) or the
+    /// first frame's (a tracking sequence).
+    poses: Vec<(Pose, PathBuf)>,
+    /// Whether `poses` is every frame's: the truth.
     truth: bool,
-    /// The name of a tracking sequence's folder (`cube` for `mbt/cube`, also
-    /// when SRC is given as `.`).
-    name: String,
+    /// The model file.
+    model: PathBuf,
+    /// The settings file with the intrinsics.
+    camera: PathBuf,
+    /// The folder that `--model`, `--camera`, `--init` and `--include`
+    /// paths are relative to: the data set, or the folder holding a
+    /// tracking sequence.
+    base: PathBuf,
 }
 
-impl Layout {
-    /// The layout of `src`: a data set when it has `Images/`, else a
+impl Sources {
+    /// The files of `src`: a data set when it has `Images/`, else a
     /// tracking sequence when it holds `imageNNNN` frames.
-    fn of(src: &Path) -> Result<Self> {
-        let images = src.join(IMAGES_DIR);
-        if images.exists() {
-            let images = list_images(&images, IMAGE_PREFIX)?;
-            return Ok(Self { images, base: src.to_path_buf(), truth: true, name: String::new() });
+    fn of(src: &Path, opts: &ImportOptions) -> Result<Self> {
+        if src.join(IMAGES_DIR).exists() { Self::data_set(src, opts) } else { Self::tracking_sequence(src, opts) }
+    }
+
+    fn data_set(src: &Path, opts: &ImportOptions) -> Result<Self> {
+        if opts.init.is_some() {
+            return Err(Error::Parameter(
+                "--init is for a folder of frames; a data set's poses are CameraPose/Camera_NNN.txt".into(),
+            ));
         }
+        let mut images = list_images(&src.join(IMAGES_DIR), IMAGE_PREFIX)?;
+        images.truncate(opts.frames.unwrap_or(usize::MAX));
+        let poses = images.iter().map(|(number, image)| read_pose(src, *number, image)).collect::<Result<Vec<_>>>()?;
+        let model = choose_model(src, opts.model.as_deref())?;
+        let camera = choose_camera(src, opts.camera.as_deref(), &model)?;
+        Ok(Self { images, poses, truth: true, model, camera, base: src.to_path_buf() })
+    }
+
+    fn tracking_sequence(src: &Path, opts: &ImportOptions) -> Result<Self> {
         // `.` or `..` has no name of its own: the folder's full path has.
         let src = fs::canonicalize(src).map_err(|e| Error::input(src, format!("cannot resolve the folder: {e}")))?;
         let base = src.parent().map_or_else(|| PathBuf::from("/"), Path::to_path_buf);
-        let src = src.as_path();
-        let holds_frames = fs::read_dir(src).map_err(|e| Error::io(src, e))?.filter_map(|e| e.ok()).any(|e| {
-            e.file_name().to_str().is_some_and(|name| {
-                name.strip_prefix(SEQUENCE_IMAGE_PREFIX).is_some_and(|rest| {
-                    rest.strip_prefix('_').unwrap_or(rest).starts_with(|c: char| c.is_ascii_digit())
-                })
-            })
-        });
-        if !holds_frames {
+        let name = src.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let found = frame_files(&src, SEQUENCE_IMAGE_PREFIX)?;
+        if found.is_empty() {
             return Err(Error::input(
-                src,
+                &src,
                 "neither a ViSP data set (no Images/ folder) nor a tracking sequence (no frames image0000.png, …)",
             ));
         }
-        let name = src.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        Ok(Self { images: list_images(src, SEQUENCE_IMAGE_PREFIX)?, base, truth: false, name })
+        let mut images = check_numbering(&src, found, SEQUENCE_IMAGE_PREFIX)?;
+        images.truncate(opts.frames.unwrap_or(usize::MAX));
+        let model = sequence_model(&base, &name, opts.model.as_deref())?;
+        // ViSP names a model's settings and first pose after it, beside it.
+        let beside_model = |ext: &str| {
+            let stem = model.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            model.parent().unwrap_or(&base).join(format!("{stem}.{ext}"))
+        };
+        let camera = match opts.camera.as_deref() {
+            Some(given) => given_file(&base, given, "the settings given with --camera")?,
+            None => {
+                existing(beside_model("xml"), "the settings with the <camera> intrinsics (or give them with --camera)")?
+            }
+        };
+        let pose_path = match opts.init.as_deref() {
+            Some(given) => given_file(&base, given, "the pose given with --init")?,
+            None => existing(
+                beside_model(SEQUENCE_POSE_EXTENSION),
+                "the pose of the first frame, ViSP's pose vector or cMo matrix (or give it with --init)",
+            )?,
+        };
+        let pose = parse_pose(&crate::io::json::read_text(&pose_path)?).map_err(|msg| Error::input(&pose_path, msg))?;
+        Ok(Self { images, poses: vec![(pose, pose_path)], truth: false, model, camera, base })
     }
+}
+
+/// `given` taken relative to `base`, when it is a file; else the input
+/// error "missing: `what`" naming it.
+fn given_file(base: &Path, given: &Path, what: &str) -> Result<PathBuf> {
+    existing(base.join(given), what)
+}
+
+/// `path` when it is a file; else the input error "missing: `what`" naming it.
+fn existing(path: PathBuf, what: &str) -> Result<PathBuf> {
+    if path.is_file() { Ok(path) } else { Err(Error::input(path, format!("missing: {what}"))) }
 }
 
 /// The model of a tracking sequence whose frames are in `base/name`:
@@ -399,12 +421,7 @@ impl Layout {
 /// `.cao` in `base`.
 fn sequence_model(base: &Path, name: &str, given: Option<&Path>) -> Result<PathBuf> {
     if let Some(path) = given {
-        let path = base.join(path);
-        return if path.is_file() {
-            Ok(path)
-        } else {
-            Err(Error::input(path, "missing: the model given with --model"))
-        };
+        return given_file(base, path, "the model given with --model");
     }
     let named = base.join(format!("{name}.cao"));
     if named.is_file() {
@@ -422,41 +439,17 @@ fn sequence_model(base: &Path, name: &str, given: Option<&Path>) -> Result<PathB
     }
 }
 
-/// A file of a tracking sequence: `given` (relative to `base`), else
-/// `<model's folder>/<model's name>.<ext>`, as ViSP names a model's settings
-/// and first pose; `option` is the option that gives it.
-fn sequence_file(
-    beside_model: &Path,
-    model_name: &str,
-    base: &Path,
-    given: Option<&Path>,
-    ext: &str,
-    option: &str,
-) -> Result<PathBuf> {
-    if let Some(path) = given {
-        let path = base.join(path);
-        return if path.is_file() {
-            Ok(path)
-        } else {
-            Err(Error::input(path, format!("missing: the file given with {option}")))
-        };
-    }
-    let path = beside_model.join(format!("{model_name}.{ext}"));
-    if path.is_file() {
-        Ok(path)
-    } else {
-        let what = if ext == "xml" {
-            "the settings with the <camera> intrinsics (or give them with --camera)"
-        } else {
-            "the pose of the first frame, ViSP's pose vector or cMo matrix (or give it with --init)"
-        };
-        Err(Error::input(path, format!("missing: {what}")))
-    }
+/// The frames in `images`: `(number, path)` of every `<prefix><digits>.<ext>`
+/// file (also `<prefix>_<digits>`), by number; the numbers must follow each
+/// other without a gap.
+fn list_images(images: &Path, prefix: &str) -> Result<Vec<(u64, PathBuf)>> {
+    let found = frame_files(images, prefix)?;
+    check_numbering(images, found, prefix)
 }
 
-/// The frames in `images`: `(number, path)` of every `<prefix><digits>.<ext>`
-/// file, by number; the numbers must follow each other without a gap.
-fn list_images(images: &Path, prefix: &str) -> Result<Vec<(u64, PathBuf)>> {
+/// The frame files in `images` as [`list_images`] names them, by number
+/// (none is no error here).
+fn frame_files(images: &Path, prefix: &str) -> Result<Vec<(u64, PathBuf)>> {
     let entries = fs::read_dir(images).map_err(|e| {
         if e.kind() == std::io::ErrorKind::NotFound {
             Error::input(images, format!("missing: the frames {prefix}NNNN.png"))
@@ -470,8 +463,7 @@ fn list_images(images: &Path, prefix: &str) -> Result<Vec<(u64, PathBuf)>> {
         let Some(name) = path.file_name().and_then(|n| n.to_str()) else { continue };
         let Some((stem, ext)) = name.rsplit_once('.') else { continue };
         let Some(digits) = stem.strip_prefix(prefix) else { continue };
-        // A tracking sequence's frames may have a `_` before the number (`image_0000`).
-        let digits = if prefix == SEQUENCE_IMAGE_PREFIX { digits.strip_prefix('_').unwrap_or(digits) } else { digits };
+        let digits = digits.strip_prefix('_').unwrap_or(digits);
         if !IMAGE_EXTENSIONS.contains(&ext.to_ascii_lowercase().as_str()) || digits.is_empty() {
             continue;
         }
@@ -479,6 +471,13 @@ fn list_images(images: &Path, prefix: &str) -> Result<Vec<(u64, PathBuf)>> {
         found.push((number, path));
     }
     found.sort();
+    Ok(found)
+}
+
+/// `found` (sorted) when it holds frames numbered without a gap or a
+/// repeat; else the input error naming the folder `images` or the file
+/// after the gap.
+fn check_numbering(images: &Path, found: Vec<(u64, PathBuf)>, prefix: &str) -> Result<Vec<(u64, PathBuf)>> {
     if found.is_empty() {
         return Err(Error::input(
             images,
@@ -563,12 +562,7 @@ fn pose_from_matrix(m: &[f64]) -> std::result::Result<Pose, String> {
 /// in `Models/`, or among several the one named like an `.xml` in `Config/`.
 fn choose_model(src: &Path, given: Option<&Path>) -> Result<PathBuf> {
     if let Some(path) = given {
-        let path = src.join(path);
-        return if path.is_file() {
-            Ok(path)
-        } else {
-            Err(Error::input(path, "missing: the model given with --model"))
-        };
+        return given_file(src, path, "the model given with --model");
     }
     let models = src.join(MODELS_DIR);
     let caos = files_with_extension(&models, "cao")?;
@@ -597,12 +591,7 @@ fn choose_model(src: &Path, given: Option<&Path>) -> Result<PathBuf> {
 /// `Config/<model name>.xml`, or the only `.xml` in `Config/` with a `<camera>`.
 fn choose_camera(src: &Path, given: Option<&Path>, model: &Path) -> Result<PathBuf> {
     if let Some(path) = given {
-        let path = src.join(path);
-        return if path.is_file() {
-            Ok(path)
-        } else {
-            Err(Error::input(path, "missing: the settings given with --camera"))
-        };
+        return given_file(src, path, "the settings given with --camera");
     }
     let config = src.join(CONFIG_DIR);
     if let Some(stem) = model.file_stem() {
@@ -705,10 +694,7 @@ impl Part {
             )));
         }
         let (file, placement) = arg.split_once(',').unwrap_or((arg, ""));
-        let file = src.join(file.trim().trim_matches('"'));
-        if !file.is_file() {
-            return Err(Error::input(&file, "missing: the part given with --include"));
-        }
+        let file = given_file(src, Path::new(file.trim().trim_matches('"')), "the part given with --include")?;
         Ok(Self { file, placement: placement.trim().to_string() })
     }
 }

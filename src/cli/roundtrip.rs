@@ -64,6 +64,9 @@ pub struct FrameAgreement {
     pub rotation_rad: Option<f64>,
 }
 
+/// One of the per-frame figures of a [`FrameAgreement`].
+pub type Measure = fn(&FrameAgreement) -> Option<f64>;
+
 /// What [`roundtrip`] measured.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoundtripReport {
@@ -93,22 +96,11 @@ impl RoundtripReport {
             .count()
     }
 
-    /// Figures of the corner disagreement, px.
+    /// Figures of one measure over the compared frames, e.g.
+    /// `report.stats(|f| f.corner_px)`; `None` when no frame has it.
     #[must_use]
-    pub fn corner_px(&self) -> Option<ErrorStats> {
-        ErrorStats::of(&self.per_frame.iter().filter_map(|f| f.corner_px).collect::<Vec<_>>())
-    }
-
-    /// Figures of the translation disagreement, metres.
-    #[must_use]
-    pub fn translation_m(&self) -> Option<ErrorStats> {
-        ErrorStats::of(&self.per_frame.iter().filter_map(|f| f.translation_m).collect::<Vec<_>>())
-    }
-
-    /// Figures of the rotation disagreement, radians.
-    #[must_use]
-    pub fn rotation_rad(&self) -> Option<ErrorStats> {
-        ErrorStats::of(&self.per_frame.iter().filter_map(|f| f.rotation_rad).collect::<Vec<_>>())
+    pub fn stats(&self, measure: Measure) -> Option<ErrorStats> {
+        ErrorStats::of(&self.per_frame.iter().filter_map(measure).collect::<Vec<_>>())
     }
 }
 
@@ -244,34 +236,19 @@ pub fn summary(report: &RoundtripReport) -> String {
         None => lines.push("backward run: none (the forward run tracked no frame)".into()),
     }
     lines.push(format!("frames compared (both tracking, the backward run's start excepted): {}", report.compared()));
-    let worst = |key: fn(&FrameAgreement) -> Option<f64>| {
-        report.per_frame.iter().filter_map(|f| key(f).map(|v| (f.frame, v))).max_by(|a, b| a.1.total_cmp(&b.1))
-    };
-    if let Some(s) = report.corner_px() {
-        let (frame, _) = worst(|f| f.corner_px).unwrap_or_default();
+    // (name, measure, scale to the printed unit, unit, decimals)
+    let measures: [(&str, Measure, f64, &str, usize); 3] = [
+        ("corner", |f| f.corner_px, 1.0, " px", 3),
+        ("translation", |f| f.translation_m, 1e3, " mm", 2),
+        ("rotation", |f| f.rotation_rad, 180.0 / std::f64::consts::PI, "°", 3),
+    ];
+    for (name, measure, scale, unit, d) in measures {
+        let Some(s) = report.stats(measure) else { continue };
+        let worst = report.per_frame.iter().filter_map(|f| measure(f).map(|v| (f.frame, v)));
+        let (frame, _) = worst.max_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or_default();
+        let [mean, median, p95, max] = [s.mean, s.median, s.p95, s.max].map(|v| v * scale);
         lines.push(format!(
-            "corner disagreement: mean {:.3} px, median {:.3} px, p95 {:.3} px, max {:.3} px (frame {frame})",
-            s.mean, s.median, s.p95, s.max
-        ));
-    }
-    if let Some(s) = report.translation_m() {
-        let (frame, _) = worst(|f| f.translation_m).unwrap_or_default();
-        lines.push(format!(
-            "translation disagreement: mean {:.2} mm, median {:.2} mm, p95 {:.2} mm, max {:.2} mm (frame {frame})",
-            s.mean * 1e3,
-            s.median * 1e3,
-            s.p95 * 1e3,
-            s.max * 1e3
-        ));
-    }
-    if let Some(s) = report.rotation_rad() {
-        let (frame, _) = worst(|f| f.rotation_rad).unwrap_or_default();
-        lines.push(format!(
-            "rotation disagreement: mean {:.3}°, median {:.3}°, p95 {:.3}°, max {:.3}° (frame {frame})",
-            s.mean.to_degrees(),
-            s.median.to_degrees(),
-            s.p95.to_degrees(),
-            s.max.to_degrees()
+            "{name} disagreement: mean {mean:.d$}{unit}, median {median:.d$}{unit}, p95 {p95:.d$}{unit}, max {max:.d$}{unit} (frame {frame})"
         ));
     }
     lines.join("\n")
@@ -284,19 +261,7 @@ mod tests {
     use glam::{DMat3, DVec3};
 
     fn result(frame: usize, status: Status, corners: Vec<[f64; 2]>, pose: Option<Pose>) -> FrameResult {
-        FrameResult {
-            frame,
-            status,
-            corners,
-            pose: pose.map(formats::Pose::from),
-            params: None,
-            covariance: None,
-            velocity_screw: None,
-            effective_sample_size: None,
-            search_branches: None,
-            lost_reason: None,
-            ms: 0.0,
-        }
+        FrameResult { pose: pose.map(formats::Pose::from), ..FrameResult::new(frame, status, corners) }
     }
 
     #[test]
@@ -328,7 +293,7 @@ mod tests {
         assert_eq!(report.per_frame[3].corner_px, None, "the start is not compared");
         assert_eq!((report.per_frame[1].corner_px, report.per_frame[2].corner_px), (None, None));
         assert_eq!(report.per_frame[4].backward, None, "after the start the backward run has no frame");
-        let corners = report.corner_px().unwrap();
+        let corners = report.stats(|f| f.corner_px).unwrap();
         assert!((corners.mean - 2.5).abs() < 1e-12 && (corners.max - 2.5).abs() < 1e-12);
         let text = summary(&report);
         assert!(text.contains("start excepted): 1"), "{text}");
@@ -340,7 +305,7 @@ mod tests {
         let forward = vec![result(0, Status::Lost, vec![[0.0, 0.0]], None)];
         let report = compare(&forward, &[], None);
         assert_eq!((report.compared(), report.start), (0, None));
-        assert!(report.corner_px().is_none());
+        assert!(report.stats(|f| f.corner_px).is_none());
         assert!(summary(&report).contains("the forward run tracked no frame"));
     }
 }

@@ -243,6 +243,27 @@ pub struct FrameResult {
     pub ms: f64,
 }
 
+impl FrameResult {
+    /// The line of frame `frame` with `status` and `corners`, none of the
+    /// optional keys and `ms` 0.
+    #[must_use]
+    pub fn new(frame: usize, status: Status, corners: Vec<[f64; 2]>) -> Self {
+        Self {
+            frame,
+            status,
+            corners,
+            pose: None,
+            params: None,
+            covariance: None,
+            velocity_screw: None,
+            effective_sample_size: None,
+            search_branches: None,
+            lost_reason: None,
+            ms: 0.0,
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------
 // Validation. serde checks the shape of a file; these check what serde cannot
 // (finite numbers, positive focal lengths, indices in range). Each takes the

@@ -188,18 +188,14 @@ impl FrameOutcome {
             Status::Lost if state_finite => self.diagnostics.lost_reason.clone(),
             Status::Lost => Some("the tracker's state is not all finite numbers".to_string()),
         };
+        let corners = if corners_finite { self.corners.clone() } else { Vec::new() };
         FrameResult {
-            frame: self.frame,
-            status,
-            corners: if corners_finite { self.corners.clone() } else { Vec::new() },
             pose,
             params,
             covariance: self.covariance.clone().filter(|c| finite(c)),
-            velocity_screw: None,
-            effective_sample_size: None,
-            search_branches: None,
             lost_reason,
             ms: if ms.is_finite() { ms } else { 0.0 },
+            ..FrameResult::new(self.frame, status, corners)
         }
     }
 }

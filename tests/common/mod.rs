@@ -224,6 +224,11 @@ pub fn texture(ctx: &GpuContext, w: usize, h: usize, format: wgpu::TextureFormat
     t
 }
 
+/// Run the `pipetrack` binary with `args`; its status and output.
+pub fn pipetrack(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
+}
+
 /// A fresh, empty scratch folder for one test: `pipetrack-<prefix>-<pid>-<name>`
 /// under the system temp folder (removed first if a previous run left it).
 pub fn scratch(prefix: &str, name: &str) -> PathBuf {

@@ -6,9 +6,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn pipetrack(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
-}
+use crate::common::pipetrack;
 
 fn text(out: &Output) -> (String, String) {
     (String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())

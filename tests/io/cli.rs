@@ -5,9 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-fn pipetrack(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
-}
+use crate::common::pipetrack;
 
 /// `pipetrack track SEQ --tracker motion-edge --backend cpu` with `extra` arguments.
 fn track_motion_edge_cpu(seq: &Path, extra: &[&str]) -> Output {

@@ -5,13 +5,11 @@
 
 use std::f64::consts::FRAC_PI_2;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use pipetrack::io::formats::{Camera, InitState, TruthFrame};
 
-fn pipetrack(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
-}
+use crate::common::pipetrack;
 
 const WIDTH: u32 = 64;
 const HEIGHT: u32 = 48;
@@ -85,13 +83,17 @@ fn visp_data_set(root: &Path) -> PathBuf {
         };
         std::fs::write(src.join(format!("CameraPose/Camera_{:03}.txt", k + 1)), text).unwrap();
     }
-    let settings = format!(
-        "<?xml version=\"1.0\"?>\n<conf>\n  <ecm><range><tracking>8</tracking></range></ecm>\n  \
-         <camera>\n    <px>{FX}</px>\n    <py>{FY}</py>\n    <u0>{CX}</u0>\n    <v0>{CY}</v0>\n  </camera>\n</conf>\n"
-    );
-    std::fs::write(src.join("Config/tetra.xml"), settings).unwrap();
+    std::fs::write(src.join("Config/tetra.xml"), settings()).unwrap();
     std::fs::write(src.join("Models/tetra.cao"), TETRAHEDRON).unwrap();
     src
+}
+
+/// ViSP tracker settings with the test camera's intrinsics.
+fn settings() -> String {
+    format!(
+        "<?xml version=\"1.0\"?>\n<conf>\n  <ecm><range><tracking>8</tracking></range></ecm>\n  \
+         <camera>\n    <px>{FX}</px>\n    <py>{FY}</py>\n    <u0>{CX}</u0>\n    <v0>{CY}</v0>\n  </camera>\n</conf>\n"
+    )
 }
 
 fn vertices() -> Vec<[f64; 3]> {
@@ -200,8 +202,13 @@ fn the_first_frames_only_and_an_overlay() {
 /// Run the import on `src`, expect exit 2 with one line containing every
 /// `needles`, and neither the sequence folder nor a staging folder left.
 fn expect_refused(root: &Path, src: &Path, needles: &[&str]) {
+    expect_refused_with(root, src, &[], needles);
+}
+
+/// [`expect_refused`] with `extra` arguments after the two folders.
+fn expect_refused_with(root: &Path, src: &Path, extra: &[&str], needles: &[&str]) {
     let seq = root.join("seq");
-    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
+    let out = pipetrack(&[&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()], extra].concat());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     let lines: Vec<&str> = stderr.lines().collect();
@@ -337,11 +344,7 @@ fn visp_tracking_sequence(root: &Path) -> PathBuf {
     let (r, t) = true_poses()[0];
     let row = |i: usize| format!("{} {} {} {}\n", r[i][0], r[i][1], r[i][2], t[i]);
     std::fs::write(root.join("src/tetra.0.pos"), format!("{}{}{}0 0 0 1\n", row(0), row(1), row(2))).unwrap();
-    let settings = format!(
-        "<?xml version=\"1.0\"?>\n<conf>\n  <camera>\n    <px>{FX}</px>\n    <py>{FY}</py>\n    \
-         <u0>{CX}</u0>\n    <v0>{CY}</v0>\n  </camera>\n</conf>\n"
-    );
-    std::fs::write(root.join("src/tetra.xml"), settings).unwrap();
+    std::fs::write(root.join("src/tetra.xml"), settings()).unwrap();
     std::fs::write(root.join("src/tetra.cao"), TETRAHEDRON).unwrap();
     frames
 }
@@ -445,11 +448,5 @@ fn a_tracking_sequence_given_as_dot_and_init_with_a_data_set() {
 
     let root = crate::common::scratch("import-visp", "init-with-data-set");
     let src = visp_data_set(&root);
-    let seq = root.join("seq");
-    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap(), "--init", "x.pos"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert_eq!(stderr.lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("--init is for a folder of frames"), "{stderr}");
-    assert!(!seq.exists());
+    expect_refused_with(&root, &src, &["--init", "x.pos"], &["--init is for a folder of frames"]);
 }

@@ -6,14 +6,12 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use pipetrack::Sequence;
 use pipetrack::io::formats::Model;
 
-fn pipetrack(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
-}
+use crate::common::pipetrack;
 
 fn scratch(name: &str) -> PathBuf {
     crate::common::scratch("model-files", name)

@@ -2,11 +2,8 @@
 //! status strip drawn (not blank), written only when it can be.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn pipetrack(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
-}
+use crate::common::pipetrack;
 
 fn tracked_sequence(root: &Path) -> (String, String) {
     let seq = root.join("seq").to_str().unwrap().to_string();

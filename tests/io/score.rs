@@ -20,19 +20,7 @@ fn truth(frame: usize, visible: bool) -> TruthFrame {
 fn pred(frame: usize, status: Status, dx: f64, dy: f64, extra: f64) -> FrameResult {
     let mut corners: Vec<[f64; 2]> = SQUARE.iter().map(|c| [c[0] + dx, c[1] + dy]).collect();
     corners[2][1] += extra;
-    FrameResult {
-        frame,
-        status,
-        corners,
-        pose: None,
-        params: None,
-        covariance: None,
-        velocity_screw: None,
-        effective_sample_size: None,
-        search_branches: None,
-        lost_reason: None,
-        ms: 1.0,
-    }
+    FrameResult { ms: 1.0, ..FrameResult::new(frame, status, corners) }
 }
 
 /// Six frames: errors 5 (every corner off by (3,4)), 0, 1 (one corner of

@@ -1,13 +1,7 @@
 //! `pipetrack roundtrip`: a sequence tracked forward and back agrees with
 //! itself where the tracker is on target, and the command reads no truth.
 
-use std::process::Command;
-
-use crate::common;
-
-fn pipetrack(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
-}
+use crate::common::{self, pipetrack};
 
 /// The number after `key` on the line that starts with `line`.
 fn figure(stdout: &str, line: &str, key: &str) -> f64 {

@@ -514,20 +514,22 @@ fn condensation_reacquires_after_covers_and_jumps_across_seeds() {
     // with the roll, a third dimension to search: seeds 1–16 take 3–58).
     let (mut tracked, mut frames, mut late) = (0, 0, Vec::new());
     for seed in sweep_seeds() {
-        for scene in ["cover", "roll cover", "jump 15", "jump 30"] {
-            let motion = if scene == "roll cover" { PlaneMotion::Roll } else { PlaneMotion::Translation };
+        // (scene, motion, frames jumped ahead at 60, or covered for 60–79)
+        for (scene, motion, ahead) in [
+            ("cover", PlaneMotion::Translation, None),
+            ("roll cover", PlaneMotion::Roll, None),
+            ("jump 15", PlaneMotion::Translation, Some(15)),
+            ("jump 30", PlaneMotion::Translation, Some(30)),
+        ] {
             let opts = TexturedPlaneOptions { frames: 150, seed, motion, ..TexturedPlaneOptions::default() };
             let mut seq = render_textured_plane(&opts).expect("render");
-            let returns = match scene {
-                "jump 15" => {
-                    jump(&mut seq, 60, 15);
+            // The frame from which the window can be seen again.
+            let returns = match ahead {
+                Some(ahead) => {
+                    jump(&mut seq, 60, ahead);
                     60
                 }
-                "jump 30" => {
-                    jump(&mut seq, 60, 30);
-                    60
-                }
-                _ => {
+                None => {
                     cover(&mut seq, 60..80);
                     80
                 }

@@ -257,6 +257,13 @@ impl CondensationTracker {
         self.window_at(&self.reference)
     }
 
+    /// The corners of the window of sample `screw`, from the reference
+    /// window's `corners` and `depths` (as the samples' windows are made).
+    fn sample_corners(&self, corners: &[[f64; 2]; 4], depths: &[f64; 4], screw: &Screw) -> Vec<[f64; 2]> {
+        let window = steps::project_sample_windows(&self.camera, corners, depths, std::slice::from_ref(screw));
+        window[0].iter().map(|c| [f64::from(c[0]), f64::from(c[1])]).collect()
+    }
+
     fn outcome(&self, frame: usize, status: Status, corners: Vec<[f64; 2]>, reason: Option<String>) -> FrameOutcome {
         FrameOutcome {
             frame,
@@ -307,8 +314,7 @@ impl CondensationTracker {
             Estimate::WeightedMean if self.search.is_none() => steps::weighted_mean(&self.samples, &weights),
             Estimate::Best | Estimate::WeightedMean => best_screw,
         };
-        let window = steps::project_sample_windows(&self.camera, &ref_corners, &ref_depths, &[estimate_screw]);
-        let corners: Vec<[f64; 2]> = window[0].iter().map(|c| [f64::from(c[0]), f64::from(c[1])]).collect();
+        let corners = self.sample_corners(&ref_corners, &ref_depths, &estimate_screw);
         let estimate = steps::screw_motion(&estimate_screw).compose(&self.reference);
         let interval_motion = steps::screw_of_motion(&estimate.compose(&self.estimate.inverse()));
         self.estimate = estimate;
@@ -318,16 +324,16 @@ impl CondensationTracker {
         let residual_of =
             |n: usize| steps::residual_bound(energies.energies[n], energies.intensity_total, HIERARCHIES * side * side);
         let residual = residual_of(best);
-        if residual > self.params.max_residual && self.params.search_spread_px > 0.0 {
-            let reason =
-                format!("best window's residual {residual:.1} grey levels exceeds {}", self.params.max_residual);
+        let lost_reason = (residual > self.params.max_residual)
+            .then(|| format!("best window's residual {residual:.1} grey levels exceeds {}", self.params.max_residual));
+        if let Some(reason) = lost_reason.clone().filter(|_| self.params.search_spread_px > 0.0) {
             // Evidence of the window: the best sample stands out from the
             // frame's typical mismatch, the samples' median residual; it
             // moves the search when it also beats the search's centre
             // (sample 0) clearly.
             let mut all: Vec<f64> = (0..energies.energies.len()).map(residual_of).collect();
-            all.sort_by(f64::total_cmp);
-            let median = all[all.len() / 2];
+            let middle = all.len() / 2;
+            let median = *all.select_nth_unstable_by(middle, f64::total_cmp).1;
             let evidence = residual < self.params.search_evidence_ratio * median;
             let step = match self.search {
                 None => SearchStep::Start,
@@ -335,23 +341,15 @@ impl CondensationTracker {
                 Some(_) if evidence && residual < SEARCH_MIN_IMPROVEMENT * residual_of(0) => SearchStep::MoveTo(best),
                 Some(_) => SearchStep::Widen,
             };
-            return self.search_while_lost(frame, &weights, step, reason);
+            return self.search_while_lost(frame, (&ref_corners, &ref_depths), &weights, step, reason);
         }
         // After a search, the motion before the loss is the prediction, not
         // the jump from the search's centre to the window found.
         let interval_motion = if self.search.take().is_some() { self.velocity } else { interval_motion };
         self.velocity = interval_motion;
-        let (status, reason) = if residual <= self.params.max_residual {
-            self.phase = Phase::Tracking;
-            (Status::Tracking, None)
-        } else {
-            self.phase = Phase::Lost;
-            (
-                Status::Lost,
-                Some(format!("best window's residual {residual:.1} grey levels exceeds {}", self.params.max_residual)),
-            )
-        };
-        let mut outcome = self.outcome(frame, status, corners, reason);
+        let status = if lost_reason.is_none() { Status::Tracking } else { Status::Lost };
+        self.phase = if lost_reason.is_none() { Phase::Tracking } else { Phase::Lost };
+        let mut outcome = self.outcome(frame, status, corners, lost_reason);
         outcome.covariance = Some(screw_covariance(&self.samples, &weights));
         self.extras = FrameExtras {
             velocity_screw: Some(interval_motion),
@@ -390,7 +388,16 @@ impl CondensationTracker {
 impl CondensationTracker {
     /// A lost frame with the search on (module documentation, "Searching
     /// while lost").
-    fn search_while_lost(&mut self, frame: usize, weights: &[f64], step: SearchStep, reason: String) -> FrameOutcome {
+    /// `reference` is the reference window's corners and depths, which the
+    /// search keeps.
+    fn search_while_lost(
+        &mut self,
+        frame: usize,
+        (corners, depths): (&[[f64; 2]; 4], &[f64; 4]),
+        weights: &[f64],
+        step: SearchStep,
+        reason: String,
+    ) -> FrameOutcome {
         self.phase = Phase::Lost;
         let (largest, least) = (self.params.max_search_spread_px, self.params.diffusion_px);
         let (centre, spread_px, coast, found) = match (self.search, step) {
@@ -402,9 +409,7 @@ impl CondensationTracker {
                 (predicted, self.params.search_spread_px, predicted, false)
             }
         };
-        let (corners, depths) = self.reference_window();
-        let window = steps::project_sample_windows(&self.camera, &corners, &depths, &[centre]);
-        let reported: Vec<[f64; 2]> = window[0].iter().map(|c| [f64::from(c[0]), f64::from(c[1])]).collect();
+        let reported = self.sample_corners(corners, depths, &centre);
         self.estimate = steps::screw_motion(&centre).compose(&self.reference);
         let mut outcome = self.outcome(frame, Status::Lost, reported, Some(reason));
         outcome.covariance = Some(screw_covariance(&self.samples, weights));
@@ -418,14 +423,14 @@ impl CondensationTracker {
         // where the evidence is; before, it coasts.
         let (next_centre, next_coast) = (if found { centre } else { coasted(&centre) }, coasted(&coast));
         let component_weights = &self.params.component_weights;
-        let near = steps::component_sigmas(&self.camera, &corners, &depths, spread_px, component_weights);
-        let wide = steps::component_sigmas(&self.camera, &corners, &depths, largest, component_weights);
+        let near = steps::component_sigmas(&self.camera, corners, depths, spread_px, component_weights);
+        let wide = steps::component_sigmas(&self.camera, corners, depths, largest, component_weights);
         let others = self.params.samples - 1;
         let around_centre = others.div_ceil(2);
         let mut next = vec![next_centre];
         next.extend(steps::draw_initial_samples(&next_centre, &near, around_centre, &mut self.rng));
         next.extend(steps::draw_initial_samples(&next_coast, &wide, others - around_centre, &mut self.rng));
-        self.windows = steps::project_sample_windows(&self.camera, &corners, &depths, &next);
+        self.windows = steps::project_sample_windows(&self.camera, corners, depths, &next);
         self.samples = next;
         self.search = Some(Search { spread_px, coast: next_coast, found });
         outcome
