@@ -11,13 +11,14 @@ use std::io::Cursor;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use pipetrack::cli::import_visp::{loaded_files, parse_pose, read_camera};
 use pipetrack::cli::score::{read_predictions, score_file};
 use pipetrack::io::cao::read_cao;
 use pipetrack::io::formats::TruthFrame;
 use pipetrack::io::obj::read_obj;
 use pipetrack::io::y4m::Y4mReader;
 use pipetrack::track::make_tracker;
-use pipetrack::{GrayImage, Sequence};
+use pipetrack::{CpuBackend, GrayImage, Sequence, track_frames};
 
 const CAMERA: &str = r#"{"width":4,"height":3,"fx":100.0,"fy":100.0,"cx":1.5,"cy":1.0}"#;
 const SQUARE: &str = r#"{"name":"square","units":"m",
@@ -26,6 +27,11 @@ const SQUARE: &str = r#"{"name":"square","units":"m",
  "faces":[[0,1,2,3]]}"#;
 const INIT: &str = r#"{"pose":{"rotation":[0,0,0],"translation":[0,0,1]},"corners":[[1,1],[2,1],[2,2],[1,2]]}"#;
 const TRUTH: &str = "{\"frame\":0,\"corners\":[[1,1],[2,1],[2,2],[1,2]]}\n{\"frame\":1,\"visible\":false}\n";
+/// The camera and first state of the config targets' sequence: the 0.1 m
+/// square at 1 m seen 20 px wide, corners (14, 8) to (34, 28).
+const TRACKING_CAMERA: &str = r#"{"width":48,"height":36,"fx":200.0,"fy":200.0,"cx":24.0,"cy":18.0}"#;
+const TRACKING_INIT: &str =
+    r#"{"pose":{"rotation":[0,0,0],"translation":[-0.05,-0.05,1]},"corners":[[14,8],[34,8],[34,28],[14,28]]}"#;
 const SQUARE_CAO: &str = "V1\n4\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0\n0\n1\n4 0 1 2 3\n0\n0\n";
 
 /// Write `data` to `path` as a new file (removing the old one first spares
@@ -112,7 +118,8 @@ pub fn predictions_jsonl(data: &[u8]) {
 }
 
 /// A `.cao` model next to files it may include (`part.cao`,
-/// `sub/part.cao`, which includes `../part.cao`): [`read_cao`].
+/// `sub/part.cao`, which includes `../part.cao`): [`read_cao`], and
+/// [`loaded_files`] (what `import-visp` copies beside the model).
 pub fn cao(data: &[u8]) {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     let dir = DIR.get_or_init(|| {
@@ -125,6 +132,7 @@ pub fn cao(data: &[u8]) {
     let path = dir.join("model.cao");
     put(&path, data);
     let _ = read_cao(&path);
+    let _ = loaded_files(&path);
 }
 
 /// A Wavefront `.obj` model.
@@ -157,27 +165,77 @@ pub fn y4m_frames(data: &[u8]) {
     }
 }
 
+/// A 48×36 sequence of the square model, bright on a dark ground and moving
+/// a pixel a frame, and its three frames: what the config targets track.
+fn tracking_sequence(name: &str) -> (Sequence, Vec<GrayImage>) {
+    let dir = scratch(name);
+    put(&dir.join("camera.json"), TRACKING_CAMERA.as_bytes());
+    put(&dir.join("model.json"), SQUARE.as_bytes());
+    put(&dir.join("init.json"), TRACKING_INIT.as_bytes());
+    let frames: Vec<GrayImage> = (0..3)
+        .map(|k| {
+            GrayImage::from_fn(
+                48,
+                36,
+                |x, y| if (14 + k..34 + k).contains(&x) && (8..28).contains(&y) { 200 } else { 40 },
+            )
+        })
+        .collect();
+    for (k, frame) in frames.iter().enumerate() {
+        let path = dir.join(format!("frames/00000{k}.png"));
+        image::save_buffer(path, frame.data(), 48, 36, image::ExtendedColorType::L8).expect("frame written");
+    }
+    (Sequence::open(&dir, false).expect("the fixture is a good sequence"), frames)
+}
+
 /// A config file for `tracker`: [`make_tracker`] on a good sequence, which
 /// reads the file (`read_config`), checks the parameters and builds the
-/// tracker.
-fn config(cell: &'static OnceLock<(Sequence, PathBuf)>, tracker: &str, data: &[u8]) {
-    let (seq, path) = cell.get_or_init(|| {
-        static DIR: OnceLock<PathBuf> = OnceLock::new();
-        let dir = sequence_dir(&DIR, "config");
-        (Sequence::open(dir, false).expect("the fixture is a good sequence"), dir.join("config.toml"))
-    });
-    put(path, data);
-    let _ = make_tracker(tracker, seq, Some(path));
+/// tracker, then the tracker on the sequence's frames (CPU backend).
+fn config(cell: &'static OnceLock<(Sequence, Vec<GrayImage>)>, tracker: &str, data: &[u8]) {
+    let (seq, frames) = cell.get_or_init(|| tracking_sequence(&format!("config-{tracker}")));
+    let path = seq.dir().join("config.toml");
+    put(&path, data);
+    let Ok(mut tracker) = make_tracker(tracker, seq, Some(&path)) else { return };
+    let size = (seq.camera.width as usize, seq.camera.height as usize);
+    let frames = frames.iter().map(Ok::<_, pipetrack::Error>);
+    let _ = track_frames(tracker.as_mut(), &mut CpuBackend::new(), frames, size, |_, _, _| Ok(()));
 }
 
 /// A motion-edge config file.
 pub fn config_motion_edge(data: &[u8]) {
-    static FIXTURE: OnceLock<(Sequence, PathBuf)> = OnceLock::new();
+    static FIXTURE: OnceLock<(Sequence, Vec<GrayImage>)> = OnceLock::new();
     config(&FIXTURE, "motion-edge", data);
 }
 
 /// A blue config file.
 pub fn config_blue(data: &[u8]) {
-    static FIXTURE: OnceLock<(Sequence, PathBuf)> = OnceLock::new();
+    static FIXTURE: OnceLock<(Sequence, Vec<GrayImage>)> = OnceLock::new();
     config(&FIXTURE, "blue", data);
+}
+
+/// A condensation config file.
+pub fn config_condensation(data: &[u8]) {
+    static FIXTURE: OnceLock<(Sequence, Vec<GrayImage>)> = OnceLock::new();
+    config(&FIXTURE, "condensation", data);
+}
+
+/// A lowe config file.
+pub fn config_lowe(data: &[u8]) {
+    static FIXTURE: OnceLock<(Sequence, Vec<GrayImage>)> = OnceLock::new();
+    config(&FIXTURE, "lowe", data);
+}
+
+/// A ViSP pose file (`import-visp`'s first pose): [`parse_pose`].
+pub fn visp_pose(data: &[u8]) {
+    let _ = parse_pose(&String::from_utf8_lossy(data));
+}
+
+/// ViSP camera settings (`import-visp`'s intrinsics, XML): [`read_camera`]
+/// for 4×3 frames.
+pub fn visp_camera(data: &[u8]) {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    let dir = DIR.get_or_init(|| scratch("visp-camera"));
+    let path = dir.join("camera.xml");
+    put(&path, data);
+    let _ = read_camera(&path, 4, 3);
 }

@@ -72,6 +72,7 @@ use crate::early::sobel::{SobelOutput, sobel};
 use crate::geometry::{ModelGeometry, Pose};
 use crate::image::{FloatImage, GrayImage};
 use crate::io::formats::{Camera, InitState, Status, TruthFrame, Visibility};
+use crate::io::json::one_short_line;
 use crate::io::sequence::{CAMERA_FILE, FRAMES_DIR, INIT_FILE, MODEL_CAO_FILE, TRUTH_FILE};
 use crate::io::{Sequence, StagedDir, decode_gray};
 use crate::{Error, Result};
@@ -400,7 +401,7 @@ impl Sources {
                 "the pose of the first frame, ViSP's pose vector or cMo matrix (or give it with --init)",
             )?,
         };
-        let pose = parse_pose(&crate::io::json::read_text(&pose_path)?).map_err(|msg| Error::input(&pose_path, msg))?;
+        let pose = read_pose_file(&pose_path)?;
         Ok(Self { images, poses: vec![(pose, pose_path)], truth: false, model, camera, base })
     }
 }
@@ -518,13 +519,24 @@ fn read_pose(src: &Path, number: u64, image: &Path) -> Result<(Pose, PathBuf)> {
     Ok((pose, path))
 }
 
+/// The ViSP pose file at `path` ([`parse_pose`]), errors naming it.
+pub fn read_pose_file(path: &Path) -> Result<Pose> {
+    let text = crate::io::json::read_text(path)?;
+    parse_pose(&text).map_err(|msg| Error::input(path, msg))
+}
+
 /// A ViSP pose file: the 4×4 homogeneous matrix cMo, row-major, or the pose
 /// vector `tx ty tz θux θuy θuz` (metres, axis-angle radians), numbers
 /// separated by any white space.
 pub fn parse_pose(text: &str) -> std::result::Result<Pose, String> {
     let numbers = text
         .split_whitespace()
-        .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| format!("{t:?} is not a finite number")))
+        .map(|t| {
+            t.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| one_short_line(&format!("{t:?} is not a finite number")))
+        })
         .collect::<std::result::Result<Vec<_>, _>>()?;
     match numbers.len() {
         16 => pose_from_matrix(&numbers),
@@ -630,7 +642,8 @@ fn files_with_extension(dir: &Path, ext: &str) -> Result<Vec<PathBuf>> {
 /// frames' (`image_width`, `image_height`) are errors.
 pub fn read_camera(path: &Path, width: usize, height: usize) -> Result<Camera> {
     let text = crate::io::json::read_text(path)?;
-    let doc = roxmltree::Document::parse(&text).map_err(|e| Error::input(path, format!("not XML: {e}")))?;
+    let doc =
+        roxmltree::Document::parse(&text).map_err(|e| Error::input(path, one_short_line(&format!("not XML: {e}"))))?;
     let camera = doc
         .descendants()
         .find(|n| n.has_tag_name("camera"))
@@ -638,11 +651,9 @@ pub fn read_camera(path: &Path, width: usize, height: usize) -> Result<Camera> {
     let value = |name: &str| -> Result<Option<f64>> {
         let Some(node) = camera.descendants().find(|n| n.has_tag_name(name)) else { return Ok(None) };
         let text = node.text().unwrap_or("").trim();
-        text.parse::<f64>()
-            .ok()
-            .filter(|v| v.is_finite())
-            .map(Some)
-            .ok_or_else(|| Error::input(path, format!("<camera> <{name}> {text:?} is not a finite number")))
+        text.parse::<f64>().ok().filter(|v| v.is_finite()).map(Some).ok_or_else(|| {
+            Error::input(path, one_short_line(&format!("<camera> <{name}> {text:?} is not a finite number")))
+        })
     };
     let required = |name: &str| -> Result<f64> {
         value(name)?.ok_or_else(|| Error::input(path, format!("<camera> has no <{name}>: px, py, u0, v0 are needed")))
@@ -762,7 +773,7 @@ pub fn loaded_files(top: &Path) -> Result<Vec<(PathBuf, PathBuf)>> {
         let text = crate::io::json::read_text(&path)?;
         for (i, line) in text.lines().enumerate() {
             let Some(target) = loaded_file(line) else { continue };
-            let at = |msg: String| Error::input(&path, format!("line {}: {msg}", i + 1));
+            let at = |msg: String| Error::input(&path, one_short_line(&format!("line {}: {msg}", i + 1)));
             let rel = normalise(&rel_dir.join(&target)).ok_or_else(|| {
                 at(format!("load({target:?}) leaves the model's folder; the sequence cannot hold it"))
             })?;

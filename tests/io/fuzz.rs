@@ -21,12 +21,13 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, mpsc};
 use std::time::{Duration, Instant};
 
+use pipetrack::cli::import_visp::{loaded_files, read_camera, read_pose_file};
 use pipetrack::cli::score::{read_predictions, score_file};
 use pipetrack::io::cao::read_cao;
 use pipetrack::io::formats::TruthFrame;
 use pipetrack::io::y4m::Y4mReader;
 use pipetrack::track::make_tracker;
-use pipetrack::{Error, GrayImage, Sequence};
+use pipetrack::{CpuBackend, Error, GrayImage, Sequence, track_frames};
 use rand::seq::IndexedRandom;
 use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -779,7 +780,9 @@ fn fuzz_cao() {
             let included = [f.dir.join("part.cao"), f.dir.join("sub/part.cao"), f.dir.join("missing.cao")];
             let mut files = vec![f.path.as_path()];
             files.extend(included.iter().map(PathBuf::as_path));
-            check_result(read_cao(&f.path), &files)
+            check_result(read_cao(&f.path), &files)?;
+            // What import-visp copies beside the model: every loaded file.
+            check_result(loaded_files(&f.path), &files)
         },
     });
 }
@@ -919,15 +922,53 @@ fn fuzz_y4m_frames() {
     });
 }
 
+/// A 48×36 sequence of the square model, bright on a dark ground and moving
+/// a pixel a frame, with its three frames and a config file path: what the
+/// config targets build a tracker for and track.
 struct ConfigFixture {
     seq: Sequence,
+    frames: Vec<GrayImage>,
     path: PathBuf,
 }
 
+const TRACKING_CAMERA: &str = r#"{"width":48,"height":36,"fx":200.0,"fy":200.0,"cx":24.0,"cy":18.0}"#;
+/// The 0.1 m square at 1 m, seen 20 px wide: corners (14, 8) to (34, 28).
+const TRACKING_INIT: &str =
+    r#"{"pose":{"rotation":[0,0,0],"translation":[-0.05,-0.05,1]},"corners":[[14,8],[34,8],[34,28],[14,28]]}"#;
+
 fn config_fixture(name: &str) -> ConfigFixture {
-    let f = sequence_fixture(name);
-    let seq = Sequence::open(&f.dir, false).expect("good sequence");
-    ConfigFixture { seq, path: f.dir.join("config.toml") }
+    let dir = scratch(name);
+    fs::create_dir_all(dir.join("frames")).expect("frames folder");
+    fs::write(dir.join("camera.json"), TRACKING_CAMERA).expect("camera");
+    fs::write(dir.join("model.json"), SQUARE).expect("model");
+    fs::write(dir.join("init.json"), TRACKING_INIT).expect("init");
+    let frames: Vec<GrayImage> = (0..3)
+        .map(|k| {
+            GrayImage::from_fn(
+                48,
+                36,
+                |x, y| if (14 + k..34 + k).contains(&x) && (8..28).contains(&y) { 200 } else { 40 },
+            )
+        })
+        .collect();
+    for (k, frame) in frames.iter().enumerate() {
+        let path = dir.join(format!("frames/00000{k}.png"));
+        image::save_buffer(path, frame.data(), 48, 36, image::ExtendedColorType::L8).expect("frame");
+    }
+    let seq = Sequence::open(&dir, false).expect("the fixture is a good sequence");
+    ConfigFixture { seq, frames, path: dir.join("config.toml") }
+}
+
+/// `input` as `tracker`'s config: building the tracker gives `Ok` or an
+/// input error naming the file; a tracker built tracks the fixture's frames
+/// without an error.
+fn check_config(f: &ConfigFixture, tracker: &str, input: &[u8]) -> Result<(), String> {
+    put(&f.path, input)?;
+    let built = make_tracker(tracker, &f.seq, Some(&f.path));
+    let Ok(mut built) = built else { return check_result(built, &[&f.path]) };
+    let frames = f.frames.iter().map(Ok::<_, Error>);
+    track_frames(built.as_mut(), &mut CpuBackend::new(), frames, (48, 36), |_, _, _| Ok(()))
+        .map_err(|e| format!("tracking with an accepted config failed: {e}"))
 }
 
 fn config_seeds<P: serde::Serialize + Default>(tracker: &str, tweaks: &str) -> Vec<Vec<u8>> {
@@ -971,10 +1012,7 @@ fn fuzz_config_motion_edge() {
         ),
         dictionary: dict(TOML_WORDS),
         setup: config_fixture,
-        check: |f, input| {
-            put(&f.path, input)?;
-            check_result(make_tracker("motion-edge", &f.seq, Some(&f.path)), &[&f.path])
-        },
+        check: |f, input| check_config(f, "motion-edge", input),
     });
 }
 
@@ -989,9 +1027,89 @@ fn fuzz_config_blue() {
         ),
         dictionary: dict(TOML_WORDS),
         setup: config_fixture,
-        check: |f, input| {
-            put(&f.path, input)?;
-            check_result(make_tracker("blue", &f.seq, Some(&f.path)), &[&f.path])
+        check: |f, input| check_config(f, "blue", input),
+    });
+}
+
+#[test]
+fn fuzz_config_condensation() {
+    run(Target {
+        name: "config_condensation",
+        rng_seed: 0xC0FF_EE0B,
+        seeds: config_seeds::<pipetrack::track::CondensationParams>(
+            "condensation",
+            "samples = 50\nsearch_spread_px = 2.0\nestimate = \"weighted-mean\"\ncamera_motion = [0.001, 0, 0, 0, 0, 0.002]",
+        ),
+        dictionary: dict(TOML_WORDS),
+        setup: config_fixture,
+        check: |f, input| check_config(f, "condensation", input),
+    });
+}
+
+#[test]
+fn fuzz_config_lowe() {
+    run(Target {
+        name: "config_lowe",
+        rng_seed: 0xC0FF_EE0C,
+        seeds: config_seeds::<pipetrack::track::LoweParams>(
+            "lowe",
+            "max_branches = 10\nmeasurement_sigma_px = 1.5\nrange_doublings = 1\nsearch_after = 2",
+        ),
+        dictionary: dict(TOML_WORDS),
+        setup: config_fixture,
+        check: |f, input| check_config(f, "lowe", input),
+    });
+}
+
+const VISP_WORDS: &[&str] = &[
+    "<camera>",
+    "</camera>",
+    "<px>",
+    "</px>",
+    "<u0>",
+    "<kud>0.1</kud>",
+    "<image_width>4</image_width>",
+    "<image_height>640</image_height>",
+    "<!-- -->",
+    "<![CDATA[1]]>",
+    "&amp;",
+    "&#1114112;",
+    "nan",
+    "inf",
+    "1e400",
+    "-0",
+    "\u{3000}",
+];
+
+#[test]
+fn fuzz_visp_pose() {
+    run(Target {
+        name: "visp_pose",
+        rng_seed: 0xC0FF_EE0D,
+        seeds: seeds(&["0.1 0.02 0.6 0.1 -0.2 0.05\n", "1 0 0 0.1\n0 1 0 0.02\n0 0 1 0.6\n0 0 0 1\n"]),
+        dictionary: dict(VISP_WORDS),
+        setup: |name| scratch(name).join("cube.0.pos"),
+        check: |path, input| {
+            put(path, input)?;
+            check_result(read_pose_file(path), &[path])
+        },
+    });
+}
+
+#[test]
+fn fuzz_visp_camera() {
+    run(Target {
+        name: "visp_camera",
+        rng_seed: 0xC0FF_EE0E,
+        seeds: seeds(&[
+            "<?xml version=\"1.0\"?>\n<conf>\n  <camera>\n    <px>100</px>\n    <py>100</py>\n    <u0>1.5</u0>\n    <v0>1</v0>\n  </camera>\n</conf>\n",
+            "<conf><camera><image_width>4</image_width><image_height>3</image_height><model><px>120.5</px><py>119</py><u0>2</u0><v0>1.5</v0><kud>0</kud></model></camera></conf>\n",
+        ]),
+        dictionary: dict(VISP_WORDS),
+        setup: |name| scratch(name).join("cube.xml"),
+        check: |path, input| {
+            put(path, input)?;
+            check_result(read_camera(path, 4, 3), &[path])
         },
     });
 }
@@ -1123,4 +1241,23 @@ fn messages_quoting_the_file_stay_one_short_line() {
         message.starts_with("unknown variant `last-measureme[[[") && message.ends_with("in `missing`"),
         "{message}"
     );
+
+    // Found by fuzz_visp_pose and fuzz_visp_camera: a long token of a ViSP
+    // pose file, a long value in <camera> and the XML parser's message on a
+    // long name were quoted whole.
+    let pose = dir.join("cube.0.pos");
+    put(&pose, format!("0.1 0.2 0.{long} 0 0 0").as_bytes()).expect("write");
+    let message = input_message("a long pose token", &pose, || read_pose_file(&pose));
+    assert!(message.starts_with("\"0.a.a.") && message.ends_with("is not a finite number"), "{message}");
+    let xml = dir.join("cube.xml");
+    put(&xml, format!("<conf><camera><px>1{long}</px></camera></conf>").as_bytes()).expect("write");
+    let message = input_message("a long camera value", &xml, || read_camera(&xml, 4, 3));
+    assert!(message.starts_with("<camera> <px> \"1a.a.") && message.ends_with("is not a finite number"), "{message}");
+    put(&xml, format!("<conf><c{long}").as_bytes()).expect("write");
+    let message = input_message("a long XML name", &xml, || read_camera(&xml, 4, 3));
+    assert!(message.starts_with("not XML: ") && message.chars().count() < 300, "{message}");
+    // A load() of a long name, in a model import-visp copies.
+    put(&cao, format!("V1\nload(\"{long}.cao\")\n").as_bytes()).expect("write");
+    let message = input_message("a long loaded name", &cao, || loaded_files(&cao));
+    assert!(message.starts_with("line 2: load(\"a.a.") && message.ends_with("is missing"), "{message}");
 }
