@@ -7,7 +7,9 @@
 //! and tokens, huge and non-finite numbers, deep nesting, wrong types, lists
 //! of the wrong length, unicode, splices of two seeds), empty files and
 //! purely random bytes. Each input goes through the library's public entry
-//! point, written to a file where that takes a path. Every input must give
+//! point, written to a file where that takes a path (a tracker's config:
+//! the tracker is built and, when it is, tracks a small sequence, which
+//! must succeed). Every input must give
 //! `Ok` or an [`Error::Input`] naming the file with a short one-line
 //! message, without a panic, and quickly: a case slower than [`SLOW_CASE`]
 //! fails, and a watchdog fails the test with the input when a case runs
