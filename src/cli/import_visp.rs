@@ -72,7 +72,7 @@ use crate::early::sobel::{SobelOutput, sobel};
 use crate::geometry::{ModelGeometry, Pose};
 use crate::image::{FloatImage, GrayImage};
 use crate::io::formats::{Camera, InitState, Status, TruthFrame, Visibility};
-use crate::io::json::one_short_line;
+use crate::io::json::{input_error, one_short_line};
 use crate::io::sequence::{CAMERA_FILE, FRAMES_DIR, INIT_FILE, MODEL_CAO_FILE, TRUTH_FILE};
 use crate::io::{Sequence, StagedDir, decode_gray};
 use crate::{Error, Result};
@@ -642,8 +642,7 @@ fn files_with_extension(dir: &Path, ext: &str) -> Result<Vec<PathBuf>> {
 /// frames' (`image_width`, `image_height`) are errors.
 pub fn read_camera(path: &Path, width: usize, height: usize) -> Result<Camera> {
     let text = crate::io::json::read_text(path)?;
-    let doc =
-        roxmltree::Document::parse(&text).map_err(|e| Error::input(path, one_short_line(&format!("not XML: {e}"))))?;
+    let doc = roxmltree::Document::parse(&text).map_err(|e| input_error(path, format!("not XML: {e}")))?;
     let camera = doc
         .descendants()
         .find(|n| n.has_tag_name("camera"))
@@ -651,9 +650,11 @@ pub fn read_camera(path: &Path, width: usize, height: usize) -> Result<Camera> {
     let value = |name: &str| -> Result<Option<f64>> {
         let Some(node) = camera.descendants().find(|n| n.has_tag_name(name)) else { return Ok(None) };
         let text = node.text().unwrap_or("").trim();
-        text.parse::<f64>().ok().filter(|v| v.is_finite()).map(Some).ok_or_else(|| {
-            Error::input(path, one_short_line(&format!("<camera> <{name}> {text:?} is not a finite number")))
-        })
+        text.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .map(Some)
+            .ok_or_else(|| input_error(path, format!("<camera> <{name}> {text:?} is not a finite number")))
     };
     let required = |name: &str| -> Result<f64> {
         value(name)?.ok_or_else(|| Error::input(path, format!("<camera> has no <{name}>: px, py, u0, v0 are needed")))
@@ -773,7 +774,7 @@ pub fn loaded_files(top: &Path) -> Result<Vec<(PathBuf, PathBuf)>> {
         let text = crate::io::json::read_text(&path)?;
         for (i, line) in text.lines().enumerate() {
             let Some(target) = loaded_file(line) else { continue };
-            let at = |msg: String| Error::input(&path, one_short_line(&format!("line {}: {msg}", i + 1)));
+            let at = |msg: String| input_error(&path, format!("line {}: {msg}", i + 1));
             let rel = normalise(&rel_dir.join(&target)).ok_or_else(|| {
                 at(format!("load({target:?}) leaves the model's folder; the sequence cannot hold it"))
             })?;

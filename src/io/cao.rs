@@ -72,9 +72,9 @@ use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec3};
 
+use crate::Result;
 use crate::io::formats::{DUPLICATE_VERTEX_TOLERANCE, Model, ModelPart, PointGrid, bounding_diagonal};
-use crate::io::json::{one_short_line, read_text};
-use crate::{Error, Result};
+use crate::io::json::{input_error, read_text};
 
 /// Read and convert a `.cao` file and the files it includes.
 pub fn read_cao(path: &Path) -> Result<Model> {
@@ -219,7 +219,7 @@ fn read_part(
     reading: &mut Vec<PathBuf>,
     merged: &mut Merged,
 ) -> Result<()> {
-    let fail = |(line, msg): Failure| Error::input(path, one_short_line(&format!("line {line}: {msg}")));
+    let fail = |(line, msg): Failure| input_error(path, format!("line {line}: {msg}"));
     let records = tokenize(text).map_err(fail)?;
     let mut parser = Parser { records, next: 0, point_fields: 3 };
     parser.header().map_err(fail)?;
@@ -231,7 +231,7 @@ fn read_part(
             p if p.is_absolute() => p.to_path_buf(),
             p => path.parent().unwrap_or(Path::new("")).join(p),
         };
-        let fail = |msg: String| Error::input(path, one_short_line(&format!("line {}: {msg}", include.line)));
+        let fail = |msg: String| input_error(path, format!("line {}: {msg}", include.line));
         if included.is_dir() {
             return Err(fail(format!("load(\"{}\"): is a folder, not a .cao file", include.path)));
         }
@@ -687,6 +687,7 @@ fn close_loop(lines: &[[usize; 2]]) -> Option<Vec<usize>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Error;
 
     const CUBE: &str = "V1
 # A unit cube: faces from points, plus one redundant 3-D line.

@@ -271,15 +271,9 @@ impl FrameResult {
 
 use std::path::Path;
 
-use super::json::one_short_line;
+use super::json::input_error;
+use crate::Result;
 use crate::bounds::short_number;
-use crate::{Error, Result};
-
-/// An input error naming `path`, its message made one short line
-/// ([`one_short_line`]): messages quote names and values from the file.
-fn input_error(path: &Path, message: impl AsRef<str>) -> Error {
-    Error::input(path, one_short_line(message.as_ref()))
-}
 
 fn all_finite(values: &[f64]) -> bool {
     values.iter().all(|v| v.is_finite())
@@ -938,6 +932,7 @@ pub fn model_json_line(text: &str, part: ModelPart) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Error;
 
     const SQUARE: &str = r#"{"name": "sq",
  "vertices": [[0, 0, 0], [1, 0, 0],

@@ -60,7 +60,7 @@ pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
     if let Some(msg) = not_an_object(&text) {
         return Err(Error::input(path, msg));
     }
-    serde_json::from_str(&text).map_err(|e| Error::input(path, one_short_line(&describe_json_error(&text, &e, None))))
+    serde_json::from_str(&text).map_err(|e| input_error(path, describe_json_error(&text, &e, None)))
 }
 
 /// The complaint about a JSON text whose top level is an array: every file
@@ -90,9 +90,8 @@ pub fn read_jsonl<T: DeserializeOwned>(path: &Path) -> Result<Vec<(usize, T)>> {
         if let Some(msg) = not_an_object(&line) {
             return Err(Error::input(path, format!("line {n}: {msg}")));
         }
-        let value = serde_json::from_str(&line).map_err(|e| {
-            Error::input(path, one_short_line(&format!("line {n}: {}", describe_json_error(&line, &e, Some(n)))))
-        })?;
+        let value = serde_json::from_str(&line)
+            .map_err(|e| input_error(path, format!("line {n}: {}", describe_json_error(&line, &e, Some(n)))))?;
         out.push((n, value));
     }
     if out.is_empty() {
@@ -148,6 +147,12 @@ pub(crate) fn one_short_line(message: &str) -> String {
         Some((end, _)) => format!("{}…", &line[..end]),
         None => line,
     }
+}
+
+/// An input error naming `path`, its message made one short line
+/// ([`one_short_line`]): messages quote names and values from the file.
+pub(crate) fn input_error(path: &Path, message: impl AsRef<str>) -> Error {
+    Error::input(path, one_short_line(message.as_ref()))
 }
 
 /// One-line description of a serde_json error in `text`. With `line`

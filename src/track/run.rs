@@ -14,7 +14,7 @@ use crate::backend::{BackendKind, EarlyVision, FrameFeatures, make_backend};
 use crate::geometry::{ModelGeometry, check_simple_polygon};
 use crate::image::{GrayImage, RgbImage};
 use crate::io::formats::{FrameResult, Status};
-use crate::io::json::one_short_line;
+use crate::io::json::input_error;
 use crate::io::sequence::CAMERA_FILE;
 use crate::io::{AtomicFile, Sequence, StagedDir};
 use crate::track::{
@@ -56,7 +56,7 @@ pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>
                 let message = format!(
                     "{key:?} lies outside [{tracker}], which holds this tracker's parameters: move it into the table"
                 );
-                return Err(Error::input(path, one_short_line(&message)));
+                return Err(input_error(path, message));
             }
             None => t,
         },
@@ -78,7 +78,7 @@ fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> Error {
         }
         None => one_line(&e.to_string()),
     };
-    Error::input(path, one_short_line(&message))
+    input_error(path, message)
 }
 
 /// A parameter error blamed on the config file when there is one.

@@ -968,8 +968,9 @@ fn check_config(f: &ConfigFixture, tracker: &str, input: &[u8]) -> Result<(), St
     put(&f.path, input)?;
     let built = make_tracker(tracker, &f.seq, Some(&f.path));
     let Ok(mut built) = built else { return check_result(built, &[&f.path]) };
+    let size = (f.seq.camera.width as usize, f.seq.camera.height as usize);
     let frames = f.frames.iter().map(Ok::<_, Error>);
-    track_frames(built.as_mut(), &mut CpuBackend::new(), frames, (48, 36), |_, _, _| Ok(()))
+    track_frames(built.as_mut(), &mut CpuBackend::new(), frames, size, |_, _, _| Ok(()))
         .map_err(|e| format!("tracking with an accepted config failed: {e}"))
 }
 
