@@ -27,7 +27,7 @@
 //! - *predicted − extracted* (the paper's "distance between the model corners
 //!   and the actual corners", §4): over the frames reported tracking that
 //!   followed a tracking frame, the mean distance between each corner's
-//!   prediction for the frame (eq. 12, or the default's measured-velocity
+//!   prediction for the frame (eq. 12, or the default's measured-motion
 //!   prediction) and the corner extracted from the fitted lines, over the
 //!   corners measured in that frame (at least one of their lines fitted).
 //!   Extracted corners are the lines' intersections before any lag correction:

@@ -1,5 +1,5 @@
 //! Planar polygons in the image: whether corners trace a model's edges as a
-//! simple polygon.
+//! simple polygon, and how an outline moves on as a whole.
 
 /// Two corners closer than this (pixels) are the same point.
 const MIN_CORNER_SEPARATION_PX: f64 = 1e-6;
@@ -73,4 +73,87 @@ pub fn check_simple_polygon(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> std::
         }
     }
     Ok(())
+}
+
+/// The displacement of each of `to`'s points when the least-squares
+/// similarity transform (turn, uniform scale, shift) that takes `from` to
+/// `to` is applied once more: `T(to_i) − to_i`, `T` minimising
+/// Σ‖T(from_i) − to_i‖². `None` when the two lists differ in length, hold
+/// fewer than two points, `from`'s points coincide, or a result is not finite.
+#[must_use]
+pub fn similarity_step(from: &[[f64; 2]], to: &[[f64; 2]]) -> Option<Vec<[f64; 2]>> {
+    if from.len() != to.len() || from.len() < 2 {
+        return None;
+    }
+    let n = from.len() as f64;
+    let centroid = |p: &[[f64; 2]]| {
+        let (sx, sy) = p.iter().fold((0.0, 0.0), |(sx, sy), q| (sx + q[0], sy + q[1]));
+        [sx / n, sy / n]
+    };
+    let (a, b) = (centroid(from), centroid(to));
+    // T(p) = b + [[c, −s], [s, c]](p − a), c = Σ u·v / Σ|u|², s = Σ u×v / Σ|u|²
+    // with u = from_i − a, v = to_i − b.
+    let (mut dot, mut cross, mut norm) = (0.0, 0.0, 0.0);
+    for (p, q) in from.iter().zip(to) {
+        let (u, v) = ([p[0] - a[0], p[1] - a[1]], [q[0] - b[0], q[1] - b[1]]);
+        dot += u[0] * v[0] + u[1] * v[1];
+        cross += u[0] * v[1] - u[1] * v[0];
+        norm += u[0] * u[0] + u[1] * u[1];
+    }
+    if !(norm > MIN_CORNER_SEPARATION_PX * MIN_CORNER_SEPARATION_PX) {
+        return None;
+    }
+    let (c, s) = (dot / norm, cross / norm);
+    let step: Vec<[f64; 2]> = to
+        .iter()
+        .map(|q| {
+            let u = [q[0] - a[0], q[1] - a[1]];
+            [b[0] + c * u[0] - s * u[1] - q[0], b[1] + s * u[0] + c * u[1] - q[1]]
+        })
+        .collect();
+    step.iter().all(|d| d[0].is_finite() && d[1].is_finite()).then_some(step)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn moved(points: &[[f64; 2]], turn: f64, scale: f64, shift: [f64; 2]) -> Vec<[f64; 2]> {
+        let (s, c) = (scale * turn.sin(), scale * turn.cos());
+        points.iter().map(|p| [c * p[0] - s * p[1] + shift[0], s * p[0] + c * p[1] + shift[1]]).collect()
+    }
+
+    #[test]
+    fn similarity_step_repeats_an_exact_similarity() {
+        let from = [[100.0, 50.0], [150.0, 40.0], [160.0, 75.0], [108.0, 83.0]];
+        let to = moved(&from, 0.07, 1.03, [-12.0, 4.5]);
+        let next = moved(&to, 0.07, 1.03, [-12.0, 4.5]);
+        let step = similarity_step(&from, &to).unwrap();
+        for ((q, d), r) in to.iter().zip(&step).zip(&next) {
+            assert!((q[0] + d[0] - r[0]).abs() < 1e-9 && (q[1] + d[1] - r[1]).abs() < 1e-9, "{q:?} + {d:?} ≠ {r:?}");
+        }
+    }
+
+    #[test]
+    fn similarity_step_spreads_one_corners_error_over_the_outline() {
+        // A shift of 10 px to the right with one corner measured 4 px off:
+        // that corner's own displacement is 4 px wrong, the outline's step
+        // for it much less, and no corner's step is as wrong.
+        let from = [[0.0, 0.0], [40.0, 0.0], [40.0, 30.0], [0.0, 30.0]];
+        let mut to = moved(&from, 0.0, 1.0, [10.0, 0.0]);
+        to[2][1] += 4.0;
+        let step = similarity_step(&from, &to).unwrap();
+        for d in &step {
+            let error = (d[0] - 10.0).hypot(d[1]);
+            assert!(error < 2.5, "step {d:?}");
+        }
+    }
+
+    #[test]
+    fn similarity_step_refuses_what_has_no_transform() {
+        assert!(similarity_step(&[[1.0, 1.0]], &[[2.0, 2.0]]).is_none());
+        assert!(similarity_step(&[[1.0, 1.0], [1.0, 1.0]], &[[2.0, 2.0], [3.0, 3.0]]).is_none());
+        assert!(similarity_step(&[[0.0, 0.0], [1.0, 0.0]], &[[2.0, 2.0]]).is_none());
+        assert!(similarity_step(&[[0.0, 0.0], [1.0, 0.0]], &[[f64::NAN, 2.0], [3.0, 3.0]]).is_none());
+    }
 }

@@ -26,8 +26,8 @@
 //!    ε or more from its prediction loses the track.
 //! 6. [`MotionEdgeTracker::update`] feeds each corner to its smoother
 //!    (eq. 10–11) and predicts the next frame with eq. 12 (or, by default,
-//!    from the corner's measured displacement: "Prediction under
-//!    acceleration" below)
+//!    from the outline's measured displacement: "Prediction under
+//!    acceleration" and "The outline moves as one" below)
 //!    ([`crate::estimate::smoothing`]; form used: x̂_{t+1} = a_t + b_t =
 //!    (2 + α/β)·S1_t − (1 + α/β)·S2_t, Brown's double exponential smoothing
 //!    of Montgomery et al. \[17\], which matches the legible coefficients of
@@ -119,7 +119,7 @@
 //!   the pendulum released from rest at 16 px/frame peak accelerates by
 //!   ~2.7 px/frame², the eq. 12 forecast fell 15–20 px behind the band by
 //!   frame 6 and the track was lost at frame 7 (labelling strips around the
-//!   forecast miss the band, then eq. 9 fires). Default
+//!   forecast miss the band, then eq. 9 fires).
 //!   [`Prediction::MeasuredVelocity`]: a corner measured in this and the
 //!   previous frame is predicted at its band centre plus its last measured
 //!   displacement (the displacement the lag correction uses too), which lags
@@ -128,6 +128,23 @@
 //!   tracking, motion resuming after frames without motion pixels, lost).
 //!   [`Prediction::Smoothed`] is eq. 12 throughout. At the paper's speeds
 //!   on the pendulum both give the same errors (within ±0.03 px mean).
+//! - **The outline moves as one** (`prediction`, default
+//!   [`Prediction::MeasuredMotion`]): a corner's own displacement carries
+//!   its measurement noise twice (c_t + (c_t − c_{t−1})), and on a short
+//!   side of a fast turning rectangle a few degrees of fit error grow into
+//!   a predicted side leaning past δ. When every corner was measured in this
+//!   and the previous frame, the step is the least-squares similarity
+//!   transform (turn, scale, shift) between the two measured outlines,
+//!   applied once more ([`crate::geometry::similarity_step`]): the noise of
+//!   one corner is shared by all, and the path bends with the turn, as an
+//!   arc does. Otherwise as `MeasuredVelocity`. On the rotating pendulum at
+//!   20 px/frame, seed 1, a short side's fit 5° off at frame 5 made the
+//!   per-corner prediction lean 12° at frame 6; only the band's trailing
+//!   edge was labelled, the side was put 12 px behind, and the track was
+//!   lost on frames 6–11 and 36–41 (188 of 200 frames); with the outline's
+//!   step all 200 are held, and the mean corner error of each of the 41
+//!   pendulum runs in RESULTS.md falls by 10–24 % (17–24 % at 16 and
+//!   20 px/frame).
 //! - **No motion pixels** (`missing`): default
 //!   [`MissingMeasurement::LastMeasurement`]: no motion pixels means no
 //!   visible motion, so a line that got no points keeps its last fitted
@@ -309,6 +326,7 @@ use crate::early::temporal_diff::TemporalDiffParams;
 use crate::early::{Feature, Window};
 use crate::estimate::line_fit::{Line, LineFit, LineSums, wrap_orientation};
 use crate::estimate::smoothing::DoubleExponentialSmoother;
+use crate::geometry::similarity_step;
 use crate::io::formats::Status;
 use crate::{Error, Result};
 
@@ -1111,33 +1129,41 @@ impl MotionEdgeTracker {
             })
             .try_fold(f64::INFINITY, |slowest, speed| speed.map(|v| slowest.min(v)))
             .filter(|v| v.is_finite());
+        // With `MeasuredMotion` and every corner measured twice in a row: the
+        // outline's displacement, one per corner.
+        let outline_step = (self.params.prediction == Prediction::MeasuredMotion)
+            .then(|| measured.iter().zip(&self.previous_measured).map(|(&m, p)| p.filter(|_| m)).collect())
+            .and_then(|previous: Option<Vec<[f64; 2]>>| similarity_step(&previous?, corners));
         let mut reported = Vec::with_capacity(corners.len());
         for (i, smoother) in self.smoothers.iter().enumerate() {
             let trend = smoother.trend();
             let c = corners[i];
-            let (base, velocity) = match (measured[i], self.previous_measured[i], start_velocity) {
-                // Measured twice in a row: the displacement between the two
-                // band centres is the velocity half a frame before `c`.
-                (true, Some(previous), _) => (c, [c[0] - previous[0], c[1] - previous[1]]),
-                (true, None, Some(start)) => (c, start[i]),
+            // Measured twice in a row: the displacement between the two band
+            // centres (the corner's, or the outline's) is the velocity half a
+            // frame before `c`.
+            let displacement = match (measured[i], self.previous_measured[i], &outline_step) {
+                (true, Some(_), Some(step)) => Some(step[i]),
+                (true, Some(p), None) => Some([c[0] - p[0], c[1] - p[1]]),
+                _ => None,
+            };
+            let (base, velocity) = match (displacement, measured[i], start_velocity) {
+                (Some(v), _, _) => (c, v),
+                (None, true, Some(start)) => (c, start[i]),
                 // Moving again after frames without motion pixels: the band
                 // started at the held position, so it is half a frame's motion.
-                (true, None, None) if holding => {
+                (None, true, None) if holding => {
                     let held = self.last_measured[i];
                     (c, [2.0 * (c[0] - held[0]), 2.0 * (c[1] - held[1])])
                 }
-                (true, None, None) => (c, trend),
+                (None, true, None) => (c, trend),
                 // No motion pixels: at rest where last seen.
-                (false, _, _) if holding => (self.last_measured[i], [0.0; 2]),
-                (false, _, _) => (smoother.level(), trend),
+                (None, false, _) if holding => (self.last_measured[i], [0.0; 2]),
+                (None, false, _) => (smoother.level(), trend),
             };
             reported.push([base[0] + shift * velocity[0], base[1] + shift * velocity[1]]);
-            // With `MeasuredVelocity`, a corner measured in this and the
-            // previous frame moves on by its last measured displacement.
-            let displacement = match (self.params.prediction, measured[i], self.previous_measured[i]) {
-                (Prediction::MeasuredVelocity, true, Some(p)) => Some([c[0] - p[0], c[1] - p[1]]),
-                _ => None,
-            };
+            // With `MeasuredVelocity` or `MeasuredMotion`, a corner measured in
+            // this and the previous frame moves on by that displacement.
+            let displacement = displacement.filter(|_| self.params.prediction != Prediction::Smoothed);
             self.previous_measured[i] = measured[i].then_some(c);
             if measured[i] {
                 self.last_measured[i] = c;

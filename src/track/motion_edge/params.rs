@@ -31,9 +31,16 @@ pub enum Prediction {
     Smoothed,
     /// A corner measured in this and the previous frame moves on by its last
     /// measured displacement; eq. 12 for the others (tracking start, motion
-    /// resuming after frames without motion pixels, lost). Default.
-    #[default]
+    /// resuming after frames without motion pixels, lost).
     MeasuredVelocity,
+    /// When every corner was measured in this and the previous frame, the
+    /// outline moves on as a whole: by the least-squares similarity transform
+    /// (turn, scale, shift) that took the previous measured outline to this
+    /// one ([`crate::geometry::similarity_step`]), which is also the
+    /// displacement the lag correction halves. Otherwise as
+    /// [`Prediction::MeasuredVelocity`]. Default.
+    #[default]
+    MeasuredMotion,
 }
 
 /// How step 3 fits a line to its labelled pixels.
@@ -241,7 +248,7 @@ impl Default for MotionEdgeParams {
             vanished_motion: 1.0,
             refine_iterations: 3,
             line_fit: LineFitMethod::Across,
-            prediction: Prediction::MeasuredVelocity,
+            prediction: Prediction::MeasuredMotion,
             held_line_edges: true,
             verify: true,
             min_support: 0.6,
