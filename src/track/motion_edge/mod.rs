@@ -274,8 +274,9 @@
 //! next prediction of that side leant 16° (second object at 16 px/frame,
 //! seed 3, frame 104); a pendulum turning at 20 px/frame does the same. On
 //! the pendulum, seeds 0–9 (`synth pendulum --frames 200 --speed V --seed
-//! S`, with and without `--set distractor=true --set distractor_y=120`), the
-//! second look raises the frames tracking at 20 px/frame from 166–200 to
+//! S`, with and without `--set distractor=true --set distractor_y=120`), with
+//! corners predicted one by one (`MeasuredVelocity`), the second look raises
+//! the frames tracking at 20 px/frame from 166–200 to
 //! 188–200 and with the second object at 16 px/frame from 187–198 to
 //! 198–200, leaves the frames tracking of the other runs (16 px/frame; the
 //! second object at 1.1 and 3.9 px/frame; 3.9 px/frame) as they were, and
