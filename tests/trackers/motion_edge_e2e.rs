@@ -229,6 +229,32 @@ fn the_outline_moving_as_one_holds_a_fast_turning_rectangle() {
     assert_eq!(outline.tracked, 200, "as one outline: first lost {:?}", outline.first_lost);
 }
 
+/// The third look, from the outline moved on at constant acceleration
+/// (module doc, "A look from the accelerating outline"): at 22 px/frame it
+/// holds most of the frames lost without it, and on a run the first two
+/// looks hold it changes nothing.
+#[test]
+fn a_look_from_the_accelerating_outline_holds_22_px_per_frame() {
+    let without_look = || MotionEdgeParams { acceleration_look: false, ..MotionEdgeParams::default() };
+    let fast = pendulum(22.0);
+    let (_, before) = track_with(&fast, without_look(), &mut CpuBackend::new());
+    let (_, after) = track(&fast, &mut CpuBackend::new());
+    for (name, s) in [("without the look", &before), ("with it", &after)] {
+        println!("22 px/frame {name}: tracked {}/{}, false {:?}", s.tracked, s.frames, s.false_tracking);
+        assert!(s.false_tracking.is_empty(), "{name}: false tracking at {:?}", s.false_tracking);
+    }
+    assert!(before.tracked < 120, "without the look: {} of 200 frames tracking", before.tracked);
+    assert!(after.tracked >= 185, "with the look: {} of 200 frames tracking", after.tracked);
+
+    let held = PendulumOptions { seed: 1, ..pendulum(20.0) };
+    let (lines_without, _) = track_with(&held, without_look(), &mut CpuBackend::new());
+    let (lines_with, s) = track(&held, &mut CpuBackend::new());
+    assert_eq!(s.tracked, 200);
+    for (a, b) in lines_without.iter().zip(&lines_with) {
+        assert_eq!((a.status, &a.corners), (b.status, &b.corners), "frame {}", a.frame);
+    }
+}
+
 #[test]
 fn beyond_20_px_per_frame_frames_are_lost_but_never_falsely_tracked() {
     // Between the turning points the rectangle outruns the strips; each

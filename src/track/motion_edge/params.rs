@@ -172,6 +172,13 @@ pub struct MotionEdgeParams {
     /// the verification included. Only with `verify`; a value at or below
     /// `delta` turns it off. Default 30°. Range: [0, π/2].
     pub retry_delta: f64,
+    /// With `verify` and [`Prediction::MeasuredMotion`], a tracking frame
+    /// about to be lost after both looks above is measured once more from
+    /// the outline moved on at constant acceleration (its last step plus the
+    /// change from the step before; module doc, "A look from the
+    /// accelerating outline"), and kept when that measurement passes every
+    /// test. Frames tracked without it are unchanged. Range: either.
+    pub acceleration_look: bool,
     /// With `verify`, lost frames in a row after which re-acquisition
     /// searches the whole image: the window of interest opens to the full
     /// frame and the last tracked shape is placed on the centroid of the
@@ -255,6 +262,7 @@ impl Default for MotionEdgeParams {
             min_side_support: 0.5,
             reacquire_min_support: 0.85,
             retry_delta: 30f64.to_radians(),
+            acceleration_look: true,
             search_after: 2,
             support_distance: 3.0,
             support_edge_threshold: 80.0,
@@ -270,7 +278,7 @@ impl MotionEdgeParams {
     /// without motion pixels not fitted to the frame's edges, loss by
     /// eq. 9 only (no contradicted-line or vanished-motion loss, no
     /// verification against the image's edges, no second look at a wider
-    /// angle). A corner
+    /// angle, no look from the accelerating outline). A corner
     /// without motion pixels feeds its last measurement to eq. 10–11, so its
     /// predictions slow down (paper §2, Fig. 2).
     ///
@@ -294,6 +302,7 @@ impl MotionEdgeParams {
             held_line_edges: false,
             verify: false,
             retry_delta: 0.0,
+            acceleration_look: false,
             ..Self::default()
         }
     }
