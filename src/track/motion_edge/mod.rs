@@ -390,9 +390,9 @@ pub struct MotionEdgeTracker {
     /// The outline's last step (`Prediction::MeasuredMotion`), per corner,
     /// when every corner was measured in the last two frames.
     outline_step: Option<Vec<[f64; 2]>>,
-    /// The next band's corners and steps at constant acceleration, when the
-    /// outline's last two steps are known (`acceleration_look`).
-    accelerated: Option<(Vec<[f64; 2]>, Vec<[f64; 2]>)>,
+    /// The next band at constant acceleration, when the outline's last two
+    /// steps are known (`acceleration_look`).
+    accelerated: Option<Forecast>,
     /// Per model line: its last fitted position (initially the operator's).
     held_lines: Vec<Option<Line>>,
     /// Per model line: tracking frames in a row up to the last one in which
@@ -1028,8 +1028,8 @@ impl MotionEdgeTracker {
             }
             self.without_frame_data(|t| t.clone_from(&before));
         }
-        if let Some((predicted, steps)) = accelerated {
-            (self.predicted, self.trend) = (predicted, steps);
+        if let Some(forecast) = accelerated {
+            (self.predicted, self.trend) = (forecast.corners, forecast.steps);
             let look = self.track_frame_once(frame, motion);
             if look.status == Status::Tracking {
                 return look;
@@ -1179,8 +1179,8 @@ impl MotionEdgeTracker {
             (Some(step), Some(last)) => {
                 let steps: Vec<[f64; 2]> =
                     step.iter().zip(last).map(|(v, u)| [2.0 * v[0] - u[0], 2.0 * v[1] - u[1]]).collect();
-                let next = corners.iter().zip(&steps).map(|(c, v)| [c[0] + v[0], c[1] + v[1]]).collect();
-                Some((next, steps))
+                let corners = corners.iter().zip(&steps).map(|(c, v)| [c[0] + v[0], c[1] + v[1]]).collect();
+                Some(Forecast { corners, steps })
             }
             _ => None,
         };
@@ -1402,6 +1402,14 @@ fn corner_lines_of(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> Result<Vec<[us
 
 /// The signed turn from orientation `from` to `to` (both undirected, in
 /// [0, π)), in [−π/2, π/2).
+/// Where the next band is forecast: per corner, its centre and the step
+/// that takes it there, px.
+#[derive(Clone, Debug)]
+struct Forecast {
+    corners: Vec<[f64; 2]>,
+    steps: Vec<[f64; 2]>,
+}
+
 fn signed_turn(from: f64, to: f64) -> f64 {
     use std::f64::consts::{FRAC_PI_2, PI};
     (to - from + FRAC_PI_2).rem_euclid(PI) - FRAC_PI_2
