@@ -1003,9 +1003,10 @@ impl MotionEdgeTracker {
     /// A tracking frame: measured from the prediction and, when that would
     /// lose the track, measured again with the orientation tolerance
     /// widened to `retry_delta` (module doc, "A second look at a wider
-    /// angle"); the first attempt's outcome and state stand unless the
-    /// second one is tracking. The state is copied for the second look only
-    /// where it is on.
+    /// angle"), then from the accelerating outline (module doc, "A look from
+    /// the accelerating outline"); the first attempt's outcome and state
+    /// stand unless a later one is tracking. The state is copied only where
+    /// a later look is on.
     fn track_frame(&mut self, frame: usize, motion: &[Feature]) -> FrameOutcome {
         let wider = self.params.verify && self.params.retry_delta > self.params.delta;
         let accelerated =
@@ -1400,8 +1401,6 @@ fn corner_lines_of(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> Result<Vec<[us
         .collect()
 }
 
-/// The signed turn from orientation `from` to `to` (both undirected, in
-/// [0, π)), in [−π/2, π/2).
 /// Where the next band is forecast: per corner, its centre and the step
 /// that takes it there, px.
 #[derive(Clone, Debug)]
@@ -1410,6 +1409,8 @@ struct Forecast {
     steps: Vec<[f64; 2]>,
 }
 
+/// The signed turn from orientation `from` to `to` (both undirected, in
+/// [0, π)), in [−π/2, π/2).
 fn signed_turn(from: f64, to: f64) -> f64 {
     use std::f64::consts::{FRAC_PI_2, PI};
     (to - from + FRAC_PI_2).rem_euclid(PI) - FRAC_PI_2
