@@ -387,9 +387,9 @@ pub struct MotionEdgeTracker {
     measured_speed: Option<f64>,
     /// `measured_speed` of the frame before.
     earlier_measured_speed: Option<f64>,
-    /// The outline's last step (`Prediction::MeasuredMotion`), per corner,
-    /// when every corner was measured in the last two frames.
-    outline_step: Option<Vec<[f64; 2]>>,
+    /// The outline's step into the last frame (`Prediction::MeasuredMotion`),
+    /// per corner, when every corner was measured in it and the frame before.
+    last_outline_step: Option<Vec<[f64; 2]>>,
     /// The next band at constant acceleration, when the outline's last two
     /// steps are known (`acceleration_look`).
     accelerated: Option<Forecast>,
@@ -474,7 +474,7 @@ impl MotionEdgeTracker {
             last_measured: corners.clone(),
             previous_measured: vec![None; n],
             measured_speed: None,
-            outline_step: None,
+            last_outline_step: None,
             accelerated: None,
             earlier_measured_speed: None,
             unfitted_run: vec![0; held_lines.len()],
@@ -1009,9 +1009,8 @@ impl MotionEdgeTracker {
     /// a later look is on.
     fn track_frame(&mut self, frame: usize, motion: &[Feature]) -> FrameOutcome {
         let wider = self.params.verify && self.params.retry_delta > self.params.delta;
-        let accelerated =
-            (self.params.verify && self.params.acceleration_look).then(|| self.accelerated.clone()).flatten();
-        if !wider && accelerated.is_none() {
+        let accelerated = self.params.verify && self.params.acceleration_look && self.accelerated.is_some();
+        if !wider && !accelerated {
             return self.track_frame_once(frame, motion);
         }
         let before = self.without_frame_data(|t| t.clone());
@@ -1029,7 +1028,7 @@ impl MotionEdgeTracker {
             }
             self.without_frame_data(|t| t.clone_from(&before));
         }
-        if let Some(forecast) = accelerated {
+        if accelerated && let Some(forecast) = before.accelerated {
             (self.predicted, self.trend) = (forecast.corners, forecast.steps);
             let look = self.track_frame_once(frame, motion);
             if look.status == Status::Tracking {
@@ -1176,7 +1175,7 @@ impl MotionEdgeTracker {
             .then(|| measured.iter().zip(&self.previous_measured).map(|(&m, p)| p.filter(|_| m)).collect())
             .and_then(|previous: Option<Vec<[f64; 2]>>| similarity_step(&previous?, corners));
         // Constant acceleration: this step plus its change from the last one.
-        self.accelerated = match (&outline_step, &self.outline_step) {
+        self.accelerated = match (&outline_step, &self.last_outline_step) {
             (Some(step), Some(last)) => {
                 let steps: Vec<[f64; 2]> =
                     step.iter().zip(last).map(|(v, u)| [2.0 * v[0] - u[0], 2.0 * v[1] - u[1]]).collect();
@@ -1185,7 +1184,7 @@ impl MotionEdgeTracker {
             }
             _ => None,
         };
-        self.outline_step.clone_from(&outline_step);
+        self.last_outline_step.clone_from(&outline_step);
         let mut reported = Vec::with_capacity(corners.len());
         for (i, smoother) in self.smoothers.iter().enumerate() {
             let trend = smoother.trend();
