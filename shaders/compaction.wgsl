@@ -13,26 +13,40 @@
 //
 // The entry points bind different buffers: each declares its own below, at
 // bindings 1, 2, … in the order src/early/compaction.rs passes them.
-// Kept in sync with `CompactionUniform` and `Header` in
+//
+// Layers: one dispatch compacts a window of each layer of stacked images
+// (workgroup_id.z is the layer), each into its own part of every buffer:
+// its image from element layer · width · height, its block counts and
+// offsets from layer · max_blocks, its full list from layer · list_stride,
+// its capped list from layer · capped_stride, its header at [layer]. Each
+// layer has its own window, threshold, cap and seed (`LayerWindow`).
+// Kept in sync with `CompactionUniform`, `LayerWindow` and `Header` in
 // src/early/compaction.rs and `Feature` in src/early/mod.rs.
 
 const BLOCK: u32 = 256u;
 
 struct Params {
     image_width: u32,
+    image_height: u32,
+    // Workgroups per row of the (2-D) block grid: block = wg.y · grid_x + wg.x.
+    grid_x: u32,
+    max_blocks: u32,
+    list_stride: u32,
+    capped_stride: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+struct LayerWindow {
     x0: u32,
     y0: u32,
     win_width: u32,
     area: u32,
     num_blocks: u32,
-    // Workgroups per row of the (2-D) block grid: block = wg.y · grid_x + wg.x.
-    grid_x: u32,
     // 0xffffffff when there is no cap.
     cap: u32,
     seed: u32,
     threshold: f32,
-    _pad0: u32,
-    _pad1: u32,
 }
 
 struct Feature {
@@ -54,25 +68,29 @@ struct Header {
 @group(0) @binding(0) var<uniform> params: Params;
 
 // count_blocks
-@group(0) @binding(1) var<storage, read> count_select: array<f32>;
-@group(0) @binding(2) var<storage, read_write> count_out: array<u32>;
+@group(0) @binding(1) var<storage, read> count_windows: array<LayerWindow>;
+@group(0) @binding(2) var<storage, read> count_select: array<f32>;
+@group(0) @binding(3) var<storage, read_write> count_out: array<u32>;
 
 // scan_blocks
-@group(0) @binding(1) var<storage, read> scan_counts: array<u32>;
-@group(0) @binding(2) var<storage, read_write> scan_offsets: array<u32>;
-@group(0) @binding(3) var<storage, read_write> scan_header: Header;
+@group(0) @binding(1) var<storage, read> scan_windows: array<LayerWindow>;
+@group(0) @binding(2) var<storage, read> scan_counts: array<u32>;
+@group(0) @binding(3) var<storage, read_write> scan_offsets: array<u32>;
+@group(0) @binding(4) var<storage, read_write> scan_header: array<Header>;
 
 // scatter
-@group(0) @binding(1) var<storage, read> scatter_select: array<f32>;
-@group(0) @binding(2) var<storage, read> scatter_theta: array<f32>;
-@group(0) @binding(3) var<storage, read> scatter_magnitude: array<f32>;
-@group(0) @binding(4) var<storage, read> scatter_offsets: array<u32>;
-@group(0) @binding(5) var<storage, read_write> scatter_list: array<Feature>;
+@group(0) @binding(1) var<storage, read> scatter_windows: array<LayerWindow>;
+@group(0) @binding(2) var<storage, read> scatter_select: array<f32>;
+@group(0) @binding(3) var<storage, read> scatter_theta: array<f32>;
+@group(0) @binding(4) var<storage, read> scatter_magnitude: array<f32>;
+@group(0) @binding(5) var<storage, read> scatter_offsets: array<u32>;
+@group(0) @binding(6) var<storage, read_write> scatter_list: array<Feature>;
 
 // gather
-@group(0) @binding(1) var<storage, read> gather_header: Header;
-@group(0) @binding(2) var<storage, read> gather_list: array<Feature>;
-@group(0) @binding(3) var<storage, read_write> gather_out: array<Feature>;
+@group(0) @binding(1) var<storage, read> gather_windows: array<LayerWindow>;
+@group(0) @binding(2) var<storage, read> gather_header: array<Header>;
+@group(0) @binding(3) var<storage, read> gather_list: array<Feature>;
+@group(0) @binding(4) var<storage, read_write> gather_out: array<Feature>;
 
 var<workgroup> partial: array<u32, BLOCK>;
 
@@ -93,11 +111,16 @@ fn inclusive_scan(lid: u32, value: u32) -> u32 {
     return partial[lid];
 }
 
-// Image coordinates of window pixel number i.
-fn window_xy(i: u32) -> vec2<u32> {
-    let wy = i / params.win_width;
-    let wx = i - wy * params.win_width;
-    return vec2<u32>(params.x0 + wx, params.y0 + wy);
+// Image coordinates of pixel number i of window `win`.
+fn window_xy(win: LayerWindow, i: u32) -> vec2<u32> {
+    let wy = i / win.win_width;
+    let wx = i - wy * win.win_width;
+    return vec2<u32>(win.x0 + wx, win.y0 + wy);
+}
+
+// Index in a stacked image of pixel `xy` of `layer`.
+fn pixel_index(layer: u32, xy: vec2<u32>) -> u32 {
+    return (layer * params.image_height + xy.y) * params.image_width + xy.x;
 }
 
 // lowbias32 (C. Wellons, "hash-prospector"): a 32-bit integer mix.
@@ -128,18 +151,18 @@ fn subsample_rank(j: u32, n: u32, cap: u32, seed: u32) -> u32 {
 // Pass 1: count_out[block] = number of selected pixels in the block.
 @compute @workgroup_size(256)
 fn count_blocks(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let win = count_windows[wg.z];
     let block = wg.y * params.grid_x + wg.x;
     let i = block * BLOCK + lid;
     var flag = 0u;
-    if (block < params.num_blocks && i < params.area) {
-        let xy = window_xy(i);
-        if (count_select[xy.y * params.image_width + xy.x] > params.threshold) {
+    if (block < win.num_blocks && i < win.area) {
+        if (count_select[pixel_index(wg.z, window_xy(win, i))] > win.threshold) {
             flag = 1u;
         }
     }
     let sum = inclusive_scan(lid, flag);
-    if (lid == BLOCK - 1u && block < params.num_blocks) {
-        count_out[block] = sum;
+    if (lid == BLOCK - 1u && block < win.num_blocks) {
+        count_out[wg.z * params.max_blocks + block] = sum;
     }
 }
 
@@ -147,26 +170,25 @@ fn count_blocks(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
 // the workgroup scans the chunk sums, and each invocation writes its chunk's
 // exclusive offsets. The last invocation writes the header.
 @compute @workgroup_size(256)
-fn scan_blocks(@builtin(local_invocation_index) lid: u32) {
-    let chunk = (params.num_blocks + BLOCK - 1u) / BLOCK;
-    let begin = min(lid * chunk, params.num_blocks);
-    let end = min(begin + chunk, params.num_blocks);
+fn scan_blocks(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let win = scan_windows[wg.z];
+    let base = wg.z * params.max_blocks;
+    let chunk = (win.num_blocks + BLOCK - 1u) / BLOCK;
+    let begin = min(lid * chunk, win.num_blocks);
+    let end = min(begin + chunk, win.num_blocks);
     var sum = 0u;
     for (var b = begin; b < end; b++) {
-        sum += scan_counts[b];
+        sum += scan_counts[base + b];
     }
     let inclusive = inclusive_scan(lid, sum);
     var offset = inclusive - sum;
     for (var b = begin; b < end; b++) {
-        let c = scan_counts[b];
-        scan_offsets[b] = offset;
+        let c = scan_counts[base + b];
+        scan_offsets[base + b] = offset;
         offset += c;
     }
     if (lid == BLOCK - 1u) {
-        scan_header.total = inclusive;
-        scan_header.listed = min(inclusive, params.cap);
-        scan_header._pad0 = 0u;
-        scan_header._pad1 = 0u;
+        scan_header[wg.z] = Header(inclusive, min(inclusive, win.cap), 0u, 0u);
     }
 }
 
@@ -174,22 +196,24 @@ fn scan_blocks(@builtin(local_invocation_index) lid: u32) {
 // offset(block) + (its rank in the block).
 @compute @workgroup_size(256)
 fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let win = scatter_windows[wg.z];
     let block = wg.y * params.grid_x + wg.x;
     let i = block * BLOCK + lid;
     var flag = 0u;
     var xy = vec2<u32>(0u, 0u);
     var p = 0u;
-    if (block < params.num_blocks && i < params.area) {
-        xy = window_xy(i);
-        p = xy.y * params.image_width + xy.x;
-        if (scatter_select[p] > params.threshold) {
+    if (block < win.num_blocks && i < win.area) {
+        xy = window_xy(win, i);
+        p = pixel_index(wg.z, xy);
+        if (scatter_select[p] > win.threshold) {
             flag = 1u;
         }
     }
     let inclusive = inclusive_scan(lid, flag);
     if (flag == 1u) {
-        let slot = scatter_offsets[block] + inclusive - 1u;
-        scatter_list[slot] = Feature(xy.x, xy.y, scatter_theta[p], scatter_magnitude[p]);
+        let slot = scatter_offsets[wg.z * params.max_blocks + block] + inclusive - 1u;
+        scatter_list[wg.z * params.list_stride + slot] =
+            Feature(xy.x, xy.y, scatter_theta[p], scatter_magnitude[p]);
     }
 }
 
@@ -197,14 +221,15 @@ fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index
 // When n ≤ cap it copies through; otherwise it takes one rank per stratum.
 @compute @workgroup_size(256)
 fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
+    let win = gather_windows[id.z];
     let j = id.x;
-    let n = gather_header.total;
-    if (j >= min(n, params.cap)) {
+    let n = gather_header[id.z].total;
+    if (j >= min(n, win.cap)) {
         return;
     }
     var rank = j;
-    if (n > params.cap) {
-        rank = subsample_rank(j, n, params.cap, params.seed);
+    if (n > win.cap) {
+        rank = subsample_rank(j, n, win.cap, win.seed);
     }
-    gather_out[j] = gather_list[rank];
+    gather_out[id.z * params.capped_stride + j] = gather_list[id.z * params.list_stride + rank];
 }

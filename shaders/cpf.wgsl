@@ -38,8 +38,8 @@ fn reduce(c0: vec4<f32>, c1: vec4<f32>, c2: vec4<f32>, c3: vec4<f32>) -> vec4<f3
 }
 
 // Store pixel `p` of level `level` in the buffers and at `slot` of the tiles.
-fn store(level: vec4<u32>, p: vec2<u32>, slot: u32, v: vec4<f32>) {
-    let o = level.z + p.y * level.x + p.x;
+fn store(level: vec4<u32>, layer: u32, p: vec2<u32>, slot: u32, v: vec4<f32>) {
+    let o = level_index(level, layer, p);
     h0[o] = v.x;
     h1[o] = v.y;
     h2[o] = v.z;
@@ -54,20 +54,22 @@ fn store(level: vec4<u32>, p: vec2<u32>, slot: u32, v: vec4<f32>) {
 fn cpf_levels(@builtin(local_invocation_id) lid3: vec3<u32>, @builtin(workgroup_id) wg3: vec3<u32>) {
     let lid = lid3.xy;
     let wg = wg3.xy;
+    let layer = wg3.z;
     // First level: children read from the buffers.
     let first = params.dst[0];
     for (var b = 0u; b < 4u; b++) {
         let t = block_pixel(lid, b);
         let p = wg * TILE + t;
         if (p.x < first.x && p.y < first.y) {
-            let i = level_children(p, params.src_width, params.src_height, params.src_offset);
+            let src_offset = params.src_offset + layer * params.src_width * params.src_height;
+            let i = level_children(p, params.src_width, params.src_height, src_offset);
             let v = reduce(
                 vec4<f32>(h0[i.x], h0[i.y], h0[i.z], h0[i.w]),
                 vec4<f32>(h1[i.x], h1[i.y], h1[i.z], h1[i.w]),
                 vec4<f32>(h2[i.x], h2[i.y], h2[i.z], h2[i.w]),
                 vec4<f32>(h3[i.x], h3[i.y], h3[i.z], h3[i.w]),
             );
-            store(first, p, t.y * TILE + t.x, v);
+            store(first, layer, p, t.y * TILE + t.x, v);
         }
     }
     // Deeper levels from the tile.
@@ -84,7 +86,7 @@ fn cpf_levels(@builtin(local_invocation_id) lid3: vec3<u32>, @builtin(workgroup_
                 vec4<f32>(t2[i.x], t2[i.y], t2[i.z], t2[i.w]),
                 vec4<f32>(t3[i.x], t3[i.y], t3[i.z], t3[i.w]),
             );
-            store(cur, at.yz, tile_slot(lid, k), v);
+            store(cur, layer, at.yz, tile_slot(lid, k), v);
         }
     }
 }

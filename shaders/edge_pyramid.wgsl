@@ -21,8 +21,8 @@ fn mean(c: vec4<f32>) -> f32 {
 }
 
 // Store pixel `p` of level `level` in the buffers and at `slot` of the tiles.
-fn store(level: vec4<u32>, p: vec2<u32>, slot: u32, h: f32, v: f32) {
-    let o = level.z + p.y * level.x + p.x;
+fn store(level: vec4<u32>, layer: u32, p: vec2<u32>, slot: u32, h: f32, v: f32) {
+    let o = level_index(level, layer, p);
     edge_h[o] = h;
     edge_v[o] = v;
     th[slot] = h;
@@ -33,16 +33,18 @@ fn store(level: vec4<u32>, p: vec2<u32>, slot: u32, h: f32, v: f32) {
 fn edge_levels(@builtin(local_invocation_id) lid3: vec3<u32>, @builtin(workgroup_id) wg3: vec3<u32>) {
     let lid = lid3.xy;
     let wg = wg3.xy;
+    let layer = wg3.z;
     // First level: children read from the buffers.
     let first = params.dst[0];
     for (var b = 0u; b < 4u; b++) {
         let t = block_pixel(lid, b);
         let p = wg * TILE + t;
         if (p.x < first.x && p.y < first.y) {
-            let i = level_children(p, params.src_width, params.src_height, params.src_offset);
+            let src_offset = params.src_offset + layer * params.src_width * params.src_height;
+            let i = level_children(p, params.src_width, params.src_height, src_offset);
             let h = mean(vec4<f32>(edge_h[i.x], edge_h[i.y], edge_h[i.z], edge_h[i.w]));
             let v = mean(vec4<f32>(edge_v[i.x], edge_v[i.y], edge_v[i.z], edge_v[i.w]));
-            store(first, p, t.y * TILE + t.x, h, v);
+            store(first, layer, p, t.y * TILE + t.x, h, v);
         }
     }
     // Deeper levels from the tile.
@@ -55,7 +57,7 @@ fn edge_levels(@builtin(local_invocation_id) lid3: vec3<u32>, @builtin(workgroup
             let i = tile_children(lid, wg, k, params.dst[k - 1u]);
             let h = mean(vec4<f32>(th[i.x], th[i.y], th[i.z], th[i.w]));
             let v = mean(vec4<f32>(tv[i.x], tv[i.y], tv[i.z], tv[i.w]));
-            store(cur, at.yz, tile_slot(lid, k), h, v);
+            store(cur, layer, at.yz, tile_slot(lid, k), h, v);
         }
     }
 }

@@ -19,6 +19,6 @@ fn frame_sum(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= params.width || id.y >= params.height) {
         return;
     }
-    let i = id.y * params.width + id.x;
+    let i = (id.z * params.height + id.y) * params.width + id.x;
     sum[i] = a[i] + b[i];
 }

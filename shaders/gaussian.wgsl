@@ -25,7 +25,7 @@ fn blur_rows(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= params.width || id.y >= params.height) {
         return;
     }
-    let row = id.y * params.width;
+    let row = (id.z * params.height + id.y) * params.width;
     let last = i32(params.width) - 1;
     let x = i32(id.x);
     var sum = weight(0u) * src[row + id.x];
@@ -44,13 +44,14 @@ fn blur_cols(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let w = params.width;
+    let base = id.z * params.height * w + id.x;
     let last = i32(params.height) - 1;
     let y = i32(id.y);
-    var sum = weight(0u) * src[id.y * w + id.x];
+    var sum = weight(0u) * src[base + id.y * w];
     for (var k = 1u; k <= params.radius; k++) {
         let u = u32(clamp(y - i32(k), 0, last));
         let d = u32(clamp(y + i32(k), 0, last));
-        sum += weight(k) * (src[u * w + id.x] + src[d * w + id.x]);
+        sum += weight(k) * (src[base + u * w] + src[base + d * w]);
     }
-    dst[id.y * w + id.x] = sum;
+    dst[base + id.y * w] = sum;
 }

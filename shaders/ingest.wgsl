@@ -20,7 +20,10 @@ fn from_bytes(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= params.width || id.y >= params.height) {
         return;
     }
+    // Layer id.z: its plane of f32 and its bytes, padded to whole words.
+    let area = params.width * params.height;
     let i = id.y * params.width + id.x;
-    let byte = (packed[i / 4u] >> (8u * (i % 4u))) & 0xffu;
-    dst[i] = f32(byte);
+    let word = id.z * ((area + 3u) / 4u) + i / 4u;
+    let byte = (packed[word] >> (8u * (i % 4u))) & 0xffu;
+    dst[id.z * area + i] = f32(byte);
 }

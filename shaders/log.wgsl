@@ -46,7 +46,7 @@ fn rows(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= params.width || id.y >= params.height) {
         return;
     }
-    let row = id.y * params.width;
+    let row = (id.z * params.height + id.y) * params.width;
     let last = i32(params.width) - 1;
     let x = i32(id.x);
     let centre = src[row + id.x];
@@ -73,12 +73,13 @@ fn cols(@builtin(global_invocation_id) id: vec3<u32>) {
     let w = params.width;
     let last = i32(params.height) - 1;
     let y = i32(id.y);
-    let i = id.y * w + id.x;
+    let base = id.z * params.height * w + id.x;
+    let i = base + id.y * w;
     var sum_dg = d(0u) * tmp_g_in[i];
     var sum_gd = g(0u) * tmp_d_in[i];
     for (var k = 1u; k <= params.radius; k++) {
-        let u = u32(clamp(y - i32(k), 0, last)) * w + id.x;
-        let v = u32(clamp(y + i32(k), 0, last)) * w + id.x;
+        let u = base + u32(clamp(y - i32(k), 0, last)) * w;
+        let v = base + u32(clamp(y + i32(k), 0, last)) * w;
         sum_dg += d(k) * (tmp_g_in[u] + tmp_g_in[v]);
         sum_gd += g(k) * (tmp_d_in[u] + tmp_d_in[v]);
     }

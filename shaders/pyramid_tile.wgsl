@@ -9,6 +9,8 @@
 // Level k of the dispatch lives in half k % 2 of the workgroup's tile
 // arrays (a level is read from one half while the next is written into the
 // other), pixel (x, y) at y · TILE + x of its half.
+// Layers (workgroup_id.z) stack level by level: a level's offset is where
+// the level of layer 0 starts, and layer l's follows l whole levels later.
 // Kept in sync with `LevelsUniform` and `LEVELS_PER_DISPATCH` in
 // src/early/cpf.rs.
 
@@ -16,14 +18,19 @@ const TILE: u32 = 16u;
 const LEVELS: u32 = 5u;
 
 struct Params {
-    // The level read: width, height, offset of its first value.
+    // The level read: width, height, offset of its first value (layer 0).
     src_width: u32,
     src_height: u32,
     src_offset: u32,
     // Levels built by this dispatch (1 ..= LEVELS).
     levels: u32,
-    // Each level built: (width, height, offset, unused).
+    // Each level built: (width, height, offset of layer 0, unused).
     dst: array<vec4<u32>, LEVELS>,
+}
+
+// Buffer index of pixel `p` of `layer` in `level` (width, height, offset).
+fn level_index(level: vec4<u32>, layer: u32, p: vec2<u32>) -> u32 {
+    return level.z + (layer * level.y + p.y) * level.x + p.x;
 }
 
 // Pixel `b` (0..4) of invocation `lid`'s 2×2 block of the first level:

@@ -32,9 +32,10 @@ fn sobel(@builtin(global_invocation_id) id: vec3<u32>) {
     let xc = id.x;
     let xl = select(xc - 1u, 0u, xc == 0u);
     let xr = min(xc + 1u, w - 1u);
-    let up = select(id.y - 1u, 0u, id.y == 0u) * w;
-    let mid = id.y * w;
-    let down = min(id.y + 1u, h - 1u) * w;
+    let base = id.z * h * w;
+    let up = base + select(id.y - 1u, 0u, id.y == 0u) * w;
+    let mid = base + id.y * w;
+    let down = base + min(id.y + 1u, h - 1u) * w;
 
     // gx = [−1 0 1; −2 0 2; −1 0 1]: vertical [1 2 1] sums of the right
     // column minus the left one.

@@ -22,7 +22,7 @@ fn temporal_diff(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= params.width || id.y >= params.height) {
         return;
     }
-    let i = id.y * params.width + id.x;
+    let i = (id.z * params.height + id.y) * params.width + id.x;
     // 000 eq. 1: ∂I/∂t = G*_t − G*_{t+1}, then thresholded on its magnitude.
     let moving = abs(prev[i] - cur[i]) > params.threshold;
     mask[i] = select(0.0, 1.0, moving);
@@ -41,7 +41,7 @@ fn temporal_diff_and_sum(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= params.width || id.y >= params.height) {
         return;
     }
-    let i = id.y * params.width + id.x;
+    let i = (id.z * params.height + id.y) * params.width + id.x;
     let p = fused_prev[i];
     let c = fused_cur[i];
     fused_mask[i] = select(0.0, 1.0, abs(p - c) > params.threshold);

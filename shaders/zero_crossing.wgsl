@@ -49,14 +49,15 @@ fn edgels(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let w = params.width;
-    let i = id.y * w + id.x;
+    let base = id.z * params.height * w;
+    let i = base + id.y * w + id.x;
     let xl = max(id.x, 1u) - 1u;
     let xr = min(id.x + 1u, w - 1u);
     let yu = max(id.y, 1u) - 1u;
     let yd = min(id.y + 1u, params.height - 1u);
     let c = lap[i];
-    let h = axis(lap[id.y * w + xl], c, lap[id.y * w + xr]);
-    let v = axis(lap[yu * w + id.x], c, lap[yd * w + id.x]);
+    let h = axis(lap[base + id.y * w + xl], c, lap[base + id.y * w + xr]);
+    let v = axis(lap[base + yu * w + id.x], c, lap[base + yd * w + id.x]);
     let s = sqrt(h.x * h.x + v.x * v.x);
     strength[i] = s;
     // No edgel: gx = gy = 0 and fast_atan2(0, 0) = 0, as on the CPU.

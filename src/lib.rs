@@ -63,7 +63,7 @@ pub mod synth;
 pub mod testimage;
 pub mod track;
 
-pub use backend::{BackendKind, CpuBackend, EarlyVision, FrameFeatures, FrameRequest, GpuBackend};
+pub use backend::{BackendKind, CpuBackend, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, GpuStack};
 pub use early::ingest::TEXTURE_FORMATS;
 pub use error::{Error, Result};
 pub use gpu::{GpuContext, GpuImage, required_features, required_limits};

@@ -8,10 +8,16 @@
 //! previous frame), and [`GpuBackend::submit_lanes`] records one frame of
 //! each lane into one `queue.submit`. The single-sequence API
 //! ([`EarlyVision`], [`GpuBackend::submit`]) uses lane 0.
+//!
+//! A [`GpuStack`] goes further for sequences of one frame size whose
+//! requests differ only in their lists' windows: their frames are stacked
+//! in the same buffers, layer after layer, and each stage is dispatched once
+//! for all of them, the layer being the grid's third dimension, so the
+//! dispatches per step do not grow with the number of sequences.
 
 use super::plan::{EdgelPart, FramePlan, List, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
 use super::{EarlyVision, FrameFeatures, FrameRequest, WindowRequest};
-use crate::early::compaction::{self, CompactionGpu};
+use crate::early::compaction::{self, CompactionGpu, CompactionParams};
 use crate::early::cpf::{self, CpfGpu};
 use crate::early::edge_pyramid::{self, EdgePyramidGpu};
 use crate::early::sobel::{self, SobelGpu};
@@ -28,6 +34,9 @@ use rayon::prelude::*;
 /// finished; [`GpuBackend::process_stream`] keeps `SLOTS − 1` in flight while
 /// it reads one back.
 const SLOTS: usize = 3;
+/// Frame slots of a [`GpuStack`]: one step on the device while the step
+/// before is read back.
+const STACK_SLOTS: usize = 2;
 /// Features copied back in the frame's own submission at least (at most a
 /// list's cap); a list longer than what was copied costs one more
 /// submission and wait, which on a queue shared by several lanes waits for
@@ -107,19 +116,33 @@ impl Input<'_> {
     }
 }
 
-/// One sequence's frame stream: its ring of slots, and the slot holding its
+/// One sequence's frame stream (or, in a [`GpuStack`], the streams of its
+/// layers, which move together): its ring of slots, and the slot holding its
 /// previous frame's smoothed image with what that image is.
-struct Lane {
+pub(super) struct Lane {
     slots: Vec<Option<Slot>>,
     next_slot: usize,
     previous: Option<(usize, PreviousFrame)>,
-    /// Length of each list in the lane's last finished frame, by [`list_index`].
-    listed: [u32; 3],
+    /// Images stacked in each of the lane's buffers.
+    layers: usize,
+    /// Length of each list in each layer's last finished frame, by [`list_index`].
+    listed: Vec<[u32; 3]>,
 }
 
 impl Lane {
     fn new() -> Self {
-        Self { slots: (0..SLOTS).map(|_| None).collect(), next_slot: 0, previous: None, listed: [0; 3] }
+        Self::layered(1, SLOTS)
+    }
+
+    /// A lane of `layers` stacked sequences with a ring of `slots` slots.
+    pub(super) fn layered(layers: usize, slots: usize) -> Self {
+        Self {
+            slots: (0..slots).map(|_| None).collect(),
+            next_slot: 0,
+            previous: None,
+            layers,
+            listed: vec![[0; 3]; layers],
+        }
     }
 
     fn slot(&self, slot: usize) -> Result<&Slot> {
@@ -131,10 +154,12 @@ impl Lane {
     }
 }
 
-/// Device buffers of one frame slot, allocated on first need.
+/// Device buffers of one frame slot, allocated on first need; each holds a
+/// stack of `layers` images.
 struct Slot {
     width: usize,
     height: usize,
+    layers: usize,
     arena: FrameArena,
     packed: wgpu::Buffer,
     luma: GpuImage,
@@ -157,15 +182,16 @@ struct Slot {
 }
 
 impl Slot {
-    fn new(ctx: &GpuContext, width: usize, height: usize) -> Self {
-        let img = |label| GpuImage::new(ctx, width, height, label);
+    fn new(ctx: &GpuContext, width: usize, height: usize, layers: usize) -> Self {
+        let img = |label| GpuImage::layered(ctx, width, height, layers, label);
         Self {
             width,
             height,
+            layers,
             arena: FrameArena::new(ctx),
             packed: ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("pipetrack.frame_bytes"),
-                size: ((width * height).div_ceil(4).max(1) * 4) as u64,
+                size: (ingest::packed_words(width, height).max(1) * 4 * layers) as u64,
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
@@ -190,33 +216,39 @@ impl Slot {
 
     /// Allocate every buffer `plan` uses that the slot does not have yet.
     fn allocate(&mut self, ctx: &GpuContext, plan: &FramePlan) -> Result<()> {
-        let (w, h) = (self.width, self.height);
+        let (w, h, layers) = (self.width, self.height, self.layers);
+        let img = |label| GpuImage::layered(ctx, w, h, layers, label);
         for step in plan.steps() {
             match *step {
                 Step::Smooth(_) | Step::EmptyList(_) => {}
                 Step::DiffAndSum(_) => {
-                    self.motion_mask.get_or_insert_with(|| GpuImage::new(ctx, w, h, "motion_mask"));
-                    self.sum.get_or_insert_with(|| GpuImage::new(ctx, w, h, "frame_sum"));
+                    self.motion_mask.get_or_insert_with(|| img("motion_mask"));
+                    self.sum.get_or_insert_with(|| img("frame_sum"));
                 }
                 Step::Sobel { output, .. } => {
-                    self.sobel_set_mut(output).get_or_insert_with(|| SobelGpu::new(ctx, w, h));
+                    self.sobel_set_mut(output).get_or_insert_with(|| SobelGpu::layered(ctx, w, h, layers));
                 }
                 Step::Log(_) => {
-                    self.log.get_or_insert_with(|| GpuImage::new(ctx, w, h, "log"));
+                    self.log.get_or_insert_with(|| img("log"));
                 }
                 Step::ZeroCrossings(_) => {
-                    self.edgels.get_or_insert_with(|| EdgelsGpu::new(ctx, w, h));
+                    self.edgels.get_or_insert_with(|| EdgelsGpu::layered(ctx, w, h, layers));
                 }
                 Step::Compact { list, params, .. } => {
                     let scratch = self.list_mut(list);
                     if !scratch.as_ref().is_some_and(|l| l.fits(w * h, params.cap)) {
-                        *scratch = Some(CompactionGpu::new(ctx, w * h, params.cap)?);
+                        *scratch = Some(CompactionGpu::layered(ctx, w * h, params.cap, layers)?);
                     }
                 }
                 Step::Pyramids { .. } => {
-                    self.cpf.get_or_insert_with(|| (CpfGpu::new(ctx, w, h), EdgePyramidGpu::new(ctx, w, h)));
+                    self.cpf.get_or_insert_with(|| {
+                        (CpfGpu::layered(ctx, w, h, layers), EdgePyramidGpu::layered(ctx, w, h, layers))
+                    });
                 }
                 Step::Windows { count, params, energies } => {
+                    if layers > 1 {
+                        return Err(Error::Parameter("sample windows are not computed on stacked frames".into()));
+                    }
                     let (len, features) = (params.window_len(), !energies);
                     if !self.windows.as_ref().is_some_and(|b| b.fits(w * h, count, len, features)) {
                         self.windows = Some(WindowEnergyGpu::new(ctx, w * h, count, len, features));
@@ -453,9 +485,8 @@ impl GpuBackend {
             if frames[..i].iter().any(|&(other, _, _)| other == lane) {
                 return Err(Error::Parameter(format!("lane {lane} given twice in one submission")));
             }
-            if self.lanes.get(lane).is_some_and(|l| l.slots[l.next_slot].as_ref().is_some_and(|s| s.pending.is_some()))
-            {
-                return Err(Error::Gpu(format!("more than {SLOTS} frames in flight: finish a ticket first")));
+            if let Some(l) = self.lanes.get(lane) {
+                l.check_next_slot_free()?;
             }
         }
         let mut recorded = Vec::with_capacity(frames.len());
@@ -464,25 +495,26 @@ impl GpuBackend {
                 self.lanes.push(Lane::new());
             }
             let (w, h) = input.size();
-            let (slot, plan) = self.prepare_slot(lane, w, h, request)?;
+            let (slot, plan) = prepare(&self.ctx, &mut self.lanes[lane], w, h, &[request])?;
             recorded.push((lane, slot, plan, input, request.windows.as_ref()));
         }
         // Each frame records into its own command buffer; several frames in
         // parallel (a single frame stays on the calling thread).
         let (ctx, lanes) = (&self.ctx, &self.lanes);
-        let record_one =
-            |(lane, slot, plan, input, windows): &(usize, usize, FramePlan, Input<'_>, Option<&WindowRequest>)| {
-                record(ctx, &lanes[*lane], *slot, plan, *input, *windows)
-            };
+        let record_one = |(lane, slot, plans, input, windows): &(
+            usize,
+            usize,
+            Vec<FramePlan>,
+            Input<'_>,
+            Option<&WindowRequest>,
+        )| { record(ctx, &lanes[*lane], *slot, plans, &[*input], *windows) };
         let commands: Vec<(wgpu::CommandBuffer, FrameStats)> = if recorded.len() == 1 {
             recorded.iter().map(record_one).collect::<Result<_>>()?
         } else {
             recorded.par_iter().map(record_one).collect::<Result<_>>()?
         };
-        for (lane, slot, plan, ..) in &recorded {
-            let l = &mut self.lanes[*lane];
-            l.previous = plan.next_previous().map(|kept| (*slot, kept));
-            l.next_slot = (slot + 1) % SLOTS;
+        for (lane, slot, plans, ..) in &recorded {
+            self.lanes[*lane].advance(*slot, &plans[0]);
         }
         if let Some((_, stats)) = commands.last() {
             self.stats.dispatches = stats.dispatches;
@@ -490,28 +522,11 @@ impl GpuBackend {
         }
         let submitted = self.ctx.queue.submit(commands.into_iter().map(|(c, _)| c));
         let mut tickets = Vec::with_capacity(recorded.len());
-        for (lane, slot, plan, ..) in recorded {
-            self.lanes[lane].slot_mut(slot)?.pending = Some((plan, submitted.clone()));
+        for (lane, slot, mut plans, ..) in recorded {
+            self.lanes[lane].slot_mut(slot)?.pending = Some((plans.swap_remove(0), submitted.clone()));
             tickets.push(Ticket { lane, slot });
         }
         Ok(tickets)
-    }
-
-    /// Pick `lane`'s next slot, plan the frame, and (re)allocate the slot's
-    /// buffers for this size and plan.
-    fn prepare_slot(&mut self, lane: usize, w: usize, h: usize, request: &FrameRequest) -> Result<(usize, FramePlan)> {
-        let ctx = &self.ctx;
-        let lane = &mut self.lanes[lane];
-        let slot = lane.next_slot;
-        if lane.slots[slot].as_ref().is_none_or(|s| (s.width, s.height) != (w, h)) {
-            lane.slots[slot] = Some(Slot::new(ctx, w, h));
-        }
-        // The ring never puts two consecutive frames in one slot; a previous
-        // frame in this very slot would be overwritten, so it does not count.
-        let previous = lane.previous.filter(|&(p, _)| p != slot).map(|(_, kept)| kept);
-        let plan = FramePlan::new(request, w, h, previous.as_ref());
-        lane.slot_mut(slot)?.allocate(ctx, &plan)?;
-        Ok((slot, plan))
     }
 
     /// Wait for a submitted frame (its own submission only, not other work
@@ -520,7 +535,7 @@ impl GpuBackend {
         let lane = self.lanes.get_mut(ticket.lane).ok_or_else(|| Error::Gpu("lane vanished".into()))?;
         let (features, bytes) = finish_in_lane(&self.ctx, lane, ticket.slot)?;
         self.stats.bytes_read_back = bytes;
-        Ok(features)
+        first_layer(features)
     }
 
     /// [`GpuBackend::finish`] for several tickets at once, as `submit_lanes`
@@ -540,47 +555,204 @@ impl GpuBackend {
             })
             .collect::<Result<_>>()?;
         let ctx = &self.ctx;
-        let read: Vec<(FrameFeatures, u64)> =
+        let read: Vec<(Vec<FrameFeatures>, u64)> =
             work.into_par_iter().map(|(lane, slot)| finish_in_lane(ctx, lane, slot)).collect::<Result<_>>()?;
         if let Some(&(_, bytes)) = read.last() {
             self.stats.bytes_read_back = bytes;
         }
-        Ok(read.into_iter().map(|(features, _)| features).collect())
+        read.into_iter().map(|(features, _)| first_layer(features)).collect()
+    }
+}
+
+impl Lane {
+    /// Make `slot`, just recorded with `plan`, the lane's latest frame.
+    fn advance(&mut self, slot: usize, plan: &FramePlan) {
+        self.previous = plan.next_previous().map(|kept| (slot, kept));
+        self.next_slot = (slot + 1) % self.slots.len();
+    }
+
+    /// Error when the lane's next slot still holds a frame not finished.
+    fn check_next_slot_free(&self) -> Result<()> {
+        if self.slots[self.next_slot].as_ref().is_some_and(|s| s.pending.is_some()) {
+            return Err(Error::Gpu(format!("more than {} frames in flight: finish a ticket first", self.slots.len())));
+        }
+        Ok(())
+    }
+}
+
+/// Pick `lane`'s next slot, plan the frame of each layer (`requests`, one
+/// per layer), check that the plans stack, and (re)allocate the slot's
+/// buffers for this size and these plans.
+fn prepare(
+    ctx: &GpuContext,
+    lane: &mut Lane,
+    w: usize,
+    h: usize,
+    requests: &[&FrameRequest],
+) -> Result<(usize, Vec<FramePlan>)> {
+    if requests.len() != lane.layers {
+        return Err(Error::Parameter(format!("{} frames for a stack of {}", requests.len(), lane.layers)));
+    }
+    let slot = lane.next_slot;
+    if lane.slots[slot].as_ref().is_none_or(|s| (s.width, s.height) != (w, h)) {
+        lane.slots[slot] = Some(Slot::new(ctx, w, h, lane.layers));
+    }
+    // The ring never puts two consecutive frames in one slot; a previous
+    // frame in this very slot would be overwritten, so it does not count.
+    let previous = lane.previous.filter(|&(p, _)| p != slot).map(|(_, kept)| kept);
+    let plans: Vec<FramePlan> = requests.iter().map(|r| FramePlan::new(r, w, h, previous.as_ref())).collect();
+    if let Some(layer) = (1..plans.len()).find(|&l| !plans[l].stacks_with(&plans[0])) {
+        return Err(Error::Parameter(format!(
+            "stacked frame {layer} asks for other stages or parameters than frame 0; stacked frames may differ \
+             only in their lists' windows, thresholds, seeds and caps"
+        )));
+    }
+    let s = lane.slot_mut(slot)?;
+    for plan in &plans {
+        s.allocate(ctx, plan)?;
+    }
+    Ok((slot, plans))
+}
+
+/// A step of a [`GpuStack`] submitted to the GPU whose results are not yet
+/// collected; pass it to [`GpuStack::finish`].
+#[derive(Debug)]
+#[must_use = "a submitted step must be finished to get its features and free its slot"]
+pub struct StackTicket {
+    slot: usize,
+}
+
+/// Early vision on the GPU for several sequences at once, their frames
+/// stacked: every stage is one dispatch for all of them. Each step takes
+/// one frame of every sequence (the *layers* of the stack), all of one
+/// size, with requests that stack ([`FramePlan::stacks_with`]: the same
+/// stages and parameters, each list with its own window, threshold, seed
+/// and cap). The features are those [`GpuBackend`] gives each sequence on
+/// its own. Up to two steps may be in flight; sample windows and textures
+/// are not taken.
+pub struct GpuStack {
+    ctx: GpuContext,
+    lane: Lane,
+    stats: FrameStats,
+}
+
+impl std::fmt::Debug for GpuStack {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuStack")
+            .field("adapter", &self.ctx.adapter_name())
+            .field("layers", &self.lane.layers)
+            .finish()
+    }
+}
+
+impl GpuStack {
+    /// A stack of `layers` sequences (1 to [`MAX_LANES`]) on `ctx`; buffers
+    /// are allocated on the first step.
+    pub fn new(ctx: GpuContext, layers: usize) -> Result<Self> {
+        check_lane_count(layers)?;
+        Ok(Self { ctx, lane: Lane::layered(layers, STACK_SLOTS), stats: FrameStats::default() })
+    }
+
+    /// Sequences in the stack.
+    #[must_use]
+    pub fn layers(&self) -> usize {
+        self.lane.layers
+    }
+
+    /// Dispatch and transfer counts of the last step (bytes read back: its
+    /// last layer's).
+    #[must_use]
+    pub fn last_step_stats(&self) -> FrameStats {
+        self.stats
+    }
+
+    /// Submit the next frame of every sequence, `frames[l]` with its request
+    /// for layer `l`; the GPU starts on them at once. Errors, recording
+    /// nothing, unless there is one frame per layer, all of one size, with
+    /// requests that stack and no sample windows.
+    pub fn submit(&mut self, frames: &[(&GrayImage, &FrameRequest)]) -> Result<StackTicket> {
+        let (w, h) = frames.first().map(|(f, _)| f.size()).unwrap_or_default();
+        for (layer, (frame, request)) in frames.iter().enumerate() {
+            request.validate()?;
+            if request.windows.is_some() {
+                return Err(Error::Parameter(format!("stacked frame {layer}: sample windows are not stacked")));
+            }
+            if frame.size() != (w, h) {
+                let (fw, fh) = frame.size();
+                return Err(Error::Size(format!("stacked frame {layer} is {fw}x{fh}, frame 0 is {w}x{h}")));
+            }
+        }
+        self.lane.check_next_slot_free()?;
+        let requests: Vec<&FrameRequest> = frames.iter().map(|(_, r)| *r).collect();
+        let (slot, mut plans) = prepare(&self.ctx, &mut self.lane, w, h, &requests)?;
+        let inputs: Vec<Input<'_>> = frames.iter().map(|(f, _)| Input::Bytes(f, None)).collect();
+        let (commands, stats) = record(&self.ctx, &self.lane, slot, &plans, &inputs, None)?;
+        self.lane.advance(slot, &plans[0]);
+        self.stats.dispatches = stats.dispatches;
+        self.stats.bytes_uploaded = stats.bytes_uploaded;
+        let submitted = self.ctx.queue.submit([commands]);
+        self.lane.slot_mut(slot)?.pending = Some((plans.swap_remove(0), submitted));
+        Ok(StackTicket { slot })
+    }
+
+    /// Wait for a submitted step (its own submission only) and read back
+    /// every layer's lists, in layer order.
+    pub fn finish(&mut self, ticket: StackTicket) -> Result<Vec<FrameFeatures>> {
+        let (features, bytes) = finish_in_lane(&self.ctx, &mut self.lane, ticket.slot)?;
+        self.stats.bytes_read_back = bytes;
+        Ok(features)
+    }
+
+    /// Forget the previous frames: the next step starts new sequences.
+    pub fn reset(&mut self) {
+        self.lane.previous = None;
     }
 }
 
 /// Wait for the frame submitted in `lane`'s `slot` (its own submission
-/// only) and read back its lists: the features and the bytes that crossed
-/// the bus.
-fn finish_in_lane(ctx: &GpuContext, lane: &mut Lane, slot: usize) -> Result<(FrameFeatures, u64)> {
-    let Lane { slots, listed, .. } = lane;
+/// only) and read back its lists: the features of each layer and the bytes
+/// that crossed the bus for the last layer.
+fn finish_in_lane(ctx: &GpuContext, lane: &mut Lane, slot: usize) -> Result<(Vec<FrameFeatures>, u64)> {
+    let Lane { slots, listed, layers, .. } = lane;
     let s = slots[slot].as_mut().ok_or_else(|| Error::Gpu("slot vanished".into()))?;
     let (plan, submitted) = s.pending.take().ok_or_else(|| Error::Gpu("ticket already finished".into()))?;
     ctx.wait_for(submitted)?;
-    let mut out = FrameFeatures::default();
+    let mut out = vec![FrameFeatures::default(); *layers];
     let mut bytes = 0u64;
     for step in plan.steps() {
         match *step {
             Step::Compact { list, .. } => {
                 let scratch = s.list(list)?;
-                let v = scratch.read(ctx)?;
-                bytes += scratch.bytes_read_back(v.len());
-                listed[list_index(list)] = u32::try_from(v.len()).unwrap_or(u32::MAX);
-                *out.list_mut(list) = Some(v);
+                let lists = scratch.read_layers(ctx)?;
+                for (layer, v) in lists.into_iter().enumerate() {
+                    if layer + 1 == *layers {
+                        bytes += scratch.bytes_read_back_layer(layer, v.len());
+                    }
+                    listed[layer][list_index(list)] = u32::try_from(v.len()).unwrap_or(u32::MAX);
+                    *out[layer].list_mut(list) = Some(v);
+                }
             }
-            Step::EmptyList(list) => *out.list_mut(list) = Some(Vec::new()),
+            Step::EmptyList(list) => {
+                for o in &mut out {
+                    *o.list_mut(list) = Some(Vec::new());
+                }
+            }
             Step::Pyramids { returned: true, .. } => {
                 let (c, e) = opt(&s.cpf)?;
-                let pyr = c.download(ctx)?;
-                let edges = e.download(ctx)?;
-                bytes += 4
-                    * (pyr.hierarchies.iter().flatten().map(|l| l.data().len()).sum::<usize>()
-                        + edges.horizontal.iter().chain(&edges.vertical).map(|l| l.data().len()).sum::<usize>())
-                        as u64;
-                out.pyramids = Some((pyr, edges));
+                let layers = c.download_layers(ctx)?.into_iter().zip(e.download_layers(ctx)?);
+                for (o, (pyr, edges)) in out.iter_mut().zip(layers) {
+                    o.pyramids = Some((pyr, edges));
+                }
+                if let Some((pyr, edges)) = out.last().and_then(|o| o.pyramids.as_ref()) {
+                    bytes += 4
+                        * (pyr.hierarchies.iter().flatten().map(|l| l.data().len()).sum::<usize>()
+                            + edges.horizontal.iter().chain(&edges.vertical).map(|l| l.data().len()).sum::<usize>())
+                            as u64;
+                }
             }
             Step::Windows { count, params, energies } => {
                 let buffers = opt(&s.windows)?;
+                let o = &mut out[0];
                 if energies {
                     let e = if count == 0 {
                         window_energy::normalise_cpu(&[])
@@ -588,11 +760,11 @@ fn finish_in_lane(ctx: &GpuContext, lane: &mut Lane, slot: usize) -> Result<(Fra
                         buffers.read_energies(ctx, count)?
                     };
                     bytes += 4 * (count as u64 + 2);
-                    out.window_energies = Some(e);
+                    o.window_energies = Some(e);
                 } else {
                     let f = if count == 0 { Vec::new() } else { buffers.read_features(ctx, &params, count)? };
                     bytes += 4 * (count * params.window_len()) as u64;
-                    out.window_features = Some(f);
+                    o.window_features = Some(f);
                 }
             }
             _ => {}
@@ -601,48 +773,58 @@ fn finish_in_lane(ctx: &GpuContext, lane: &mut Lane, slot: usize) -> Result<(Fra
     Ok((out, bytes))
 }
 
-/// Upload `input` (bytes, and for sample windows its colour or the grey
-/// frame as colour) and record its ingest and every step of `plan` into
-/// one command buffer, with its dispatches and bytes uploaded (the caller
-/// makes it the lane's previous frame).
+/// Upload each layer's `inputs` (bytes, and for sample windows its colour
+/// or the grey frame as colour; a texture only for a single layer) and
+/// record its ingest and every step of `plans` (one per layer, stacking:
+/// see [`FramePlan::stacks_with`]) into one command buffer, with its
+/// dispatches and bytes uploaded (the caller makes it the lane's previous
+/// frame).
 fn record(
     ctx: &GpuContext,
     l: &Lane,
     slot: usize,
-    plan: &FramePlan,
-    input: Input<'_>,
+    plans: &[FramePlan],
+    inputs: &[Input<'_>],
     windows: Option<&WindowRequest>,
 ) -> Result<(wgpu::CommandBuffer, FrameStats)> {
     let mut stats = FrameStats::default();
+    let plan = plans.first().ok_or_else(|| Error::Gpu("no frame to record".into()))?;
     let previous_slot = l.previous.map(|(p, _)| p).filter(|&p| p != slot && plan.reads_previous());
     let s = l.slot(slot)?;
+    if plans.len() != s.layers || inputs.len() != s.layers {
+        return Err(Error::Gpu(format!("{} plans and {} frames for {} layers", plans.len(), inputs.len(), s.layers)));
+    }
     let previous = previous_slot.and_then(|p| l.slots[p].as_ref()).map(|o| &o.smoothed);
     let images = FrameImages { slot: s, previous };
     let area = s.width * s.height;
 
     let mut rec = Recorder::new(ctx, &s.arena);
-    match input {
-        Input::Bytes(frame, colour) => {
-            let mut uploaded = ingest::write_bytes(ctx, &s.packed, frame.data());
-            if let Some(buffers) = &s.windows
-                && windows.is_some()
-            {
-                let rgb = match colour {
-                    Some(c) => window_energy::pack_rgb(c),
-                    None => window_energy::pack_gray(frame),
-                };
-                buffers.write_frame(ctx, &rgb);
-                uploaded += rgb.len() * 4;
+    let layer_bytes = (ingest::packed_words(s.width, s.height) * 4) as u64;
+    let mut uploaded = 0;
+    for (layer, input) in inputs.iter().enumerate() {
+        match *input {
+            Input::Bytes(frame, colour) => {
+                uploaded += ingest::write_bytes_at(ctx, &s.packed, layer as u64 * layer_bytes, frame.data());
+                if let Some(buffers) = &s.windows
+                    && windows.is_some()
+                {
+                    let rgb = match colour {
+                        Some(c) => window_energy::pack_rgb(c),
+                        None => window_energy::pack_gray(frame),
+                    };
+                    buffers.write_frame(ctx, &rgb);
+                    uploaded += rgb.len() * 4;
+                }
             }
-            stats.bytes_uploaded = uploaded as u64;
-            ingest::encode(&mut rec, &s.packed, &s.luma)?;
-        }
-        Input::Texture(texture) => {
-            stats.bytes_uploaded = 0;
-            ingest::encode_texture(&mut rec, texture, &s.luma)?;
+            Input::Texture(texture) if s.layers == 1 => ingest::encode_texture(&mut rec, texture, &s.luma)?,
+            Input::Texture(_) => return Err(Error::Parameter("stacked frames are uploaded as bytes".into())),
         }
     }
-    for step in plan.steps() {
+    stats.bytes_uploaded = uploaded as u64;
+    if inputs.iter().all(|i| matches!(i, Input::Bytes(..))) {
+        ingest::encode(&mut rec, &s.packed, &s.luma)?;
+    }
+    for (i, step) in plan.steps().iter().enumerate() {
         match *step {
             Step::Smooth(p) => gaussian::encode(&mut rec, &s.luma, &s.tmp, &s.smoothed, &p)?,
             Step::DiffAndSum(p) => {
@@ -656,12 +838,23 @@ fn record(
             Step::ZeroCrossings(p) => {
                 zero_crossing::encode(&mut rec, images.plane(Plane::Log)?, opt(&s.edgels)?, &p)?;
             }
-            Step::Compact { list, select, theta, magnitude, params } => {
+            Step::Compact { list, select, theta, magnitude, .. } => {
                 let scratch = s.list(list)?;
                 let (sel, th, mag) = (images.source(select)?, images.source(theta)?, images.source(magnitude)?);
-                compaction::encode(&mut rec, sel, th, mag, &params, scratch)?;
-                let last = l.listed[list_index(list)];
-                scratch.encode_readback(&mut rec, readback_prefetch(params.cap, area, last));
+                let params: Vec<CompactionParams> = plans
+                    .iter()
+                    .map(|p| match p.steps().get(i) {
+                        Some(Step::Compact { params, .. }) => Ok(*params),
+                        _ => Err(Error::Gpu("stacked plans differ".into())),
+                    })
+                    .collect::<Result<_>>()?;
+                compaction::encode_layers(&mut rec, sel, th, mag, &params, scratch)?;
+                let prefetch: Vec<u32> = params
+                    .iter()
+                    .zip(&l.listed)
+                    .map(|(p, last)| readback_prefetch(p.cap, area, last[list_index(list)]))
+                    .collect();
+                scratch.encode_readback_layers(&mut rec, &prefetch);
             }
             Step::EmptyList(_) => {}
             Step::Pyramids { gradient, .. } => {
@@ -688,6 +881,11 @@ fn record(
     }
     stats.dispatches = rec.dispatch_count();
     Ok((rec.finish(), stats))
+}
+
+fn first_layer(mut features: Vec<FrameFeatures>) -> Result<FrameFeatures> {
+    features.truncate(1);
+    features.pop().ok_or_else(|| Error::Gpu("no layer was read back".into()))
 }
 
 fn first_ticket(mut tickets: Vec<Ticket>) -> Result<Ticket> {

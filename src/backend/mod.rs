@@ -13,7 +13,9 @@ mod gpu;
 pub mod plan;
 
 pub use cpu::CpuBackend;
-pub use gpu::{FrameStats, GpuBackend, LaneFrame, MAX_LANES, Ticket, check_lane_count, lane_groups};
+pub use gpu::{
+    FrameStats, GpuBackend, GpuStack, LaneFrame, MAX_LANES, StackTicket, Ticket, check_lane_count, lane_groups,
+};
 pub use plan::FramePlan;
 
 use crate::early::compaction::{CompactionParams, MAX_CAP};

@@ -344,6 +344,22 @@ impl FramePlan {
         self.next_previous
     }
 
+    /// Whether `other` runs the same steps with the same parameters, its
+    /// lists aside: they may differ in window, threshold, seed and cap
+    /// value, but not in whether they are capped. Frames whose plans stack
+    /// this way can share every dispatch ([`super::gpu::GpuStack`]).
+    #[must_use]
+    pub fn stacks_with(&self, other: &FramePlan) -> bool {
+        self.steps.len() == other.steps.len()
+            && self.steps.iter().zip(&other.steps).all(|(a, b)| match (a, b) {
+                (
+                    Step::Compact { list, select, theta, magnitude, params },
+                    Step::Compact { list: l, select: s, theta: t, magnitude: m, params: p },
+                ) => (list, select, theta, magnitude) == (l, s, t, m) && params.cap.is_some() == p.cap.is_some(),
+                _ => a == b,
+            })
+    }
+
     /// Whether the plan reads the previous frame's smoothed image.
     #[must_use]
     pub fn reads_previous(&self) -> bool {

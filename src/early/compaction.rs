@@ -25,7 +25,8 @@
 //! atomic append gives an unspecified order), see `encode`; only the header
 //! and the final list are read back.
 
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
@@ -45,10 +46,10 @@ pub const SHADER: ShaderDef = ShaderDef {
     source: include_str!("../../shaders/compaction.wgsl"),
     includes: &[],
     entry_points: &[
-        EntryPoint::linear("count_blocks", BLOCK, &[Uniform, ReadOnly, Storage]),
-        EntryPoint::linear("scan_blocks", BLOCK, &[Uniform, ReadOnly, Storage, Storage]),
-        EntryPoint::linear("scatter", BLOCK, &[Uniform, ReadOnly, ReadOnly, ReadOnly, ReadOnly, Storage]),
-        EntryPoint::linear("gather", BLOCK, &[Uniform, ReadOnly, ReadOnly, Storage]),
+        EntryPoint::linear("count_blocks", BLOCK, &[Uniform, ReadOnly, ReadOnly, Storage]),
+        EntryPoint::linear("scan_blocks", BLOCK, &[Uniform, ReadOnly, ReadOnly, Storage, Storage]),
+        EntryPoint::linear("scatter", BLOCK, &[Uniform, ReadOnly, ReadOnly, ReadOnly, ReadOnly, ReadOnly, Storage]),
+        EntryPoint::linear("gather", BLOCK, &[Uniform, ReadOnly, ReadOnly, ReadOnly, Storage]),
     ],
 };
 
@@ -87,17 +88,28 @@ pub struct CompactionParams {
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct CompactionUniform {
     image_width: u32,
+    image_height: u32,
+    grid_x: u32,
+    max_blocks: u32,
+    list_stride: u32,
+    capped_stride: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+/// One layer's window and list parameters; kept in sync with `LayerWindow`
+/// in `compaction.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct LayerWindow {
     x0: u32,
     y0: u32,
     win_width: u32,
     area: u32,
     num_blocks: u32,
-    grid_x: u32,
     cap: u32,
     seed: u32,
     threshold: f32,
-    _pad0: u32,
-    _pad1: u32,
 }
 
 /// The GPU list header; kept in sync with `Header` in `compaction.wgsl`.
@@ -288,7 +300,8 @@ pub fn compaction(
 
 /// GPU scratch of compaction, allocated once and reused every frame: per-block
 /// counts and offsets, the full list, the capped list, the header, and a
-/// `MAP_READ` staging buffer for the header and the list.
+/// `MAP_READ` staging buffer for the header and the list; one part of each
+/// per layer for stacked images ([`CompactionGpu::layered`]).
 #[derive(Debug)]
 pub struct CompactionGpu {
     block_counts: wgpu::Buffer,
@@ -296,13 +309,16 @@ pub struct CompactionGpu {
     full_list: wgpu::Buffer,
     capped_list: wgpu::Buffer,
     header: wgpu::Buffer,
+    windows: wgpu::Buffer,
     staging: wgpu::Buffer,
     max_pixels: usize,
     max_cap: Option<u32>,
+    layers: usize,
     /// Whether the last [`encode`] gathered into `capped_list`.
     last_capped: AtomicBool,
-    /// Features copied to `staging` by the last [`CompactionGpu::encode_readback`].
-    prefetched: AtomicU32,
+    /// Features of each layer copied to `staging` by the last
+    /// [`CompactionGpu::encode_readback`].
+    prefetched: Mutex<Vec<u32>>,
 }
 
 /// `Ok` when a list of up to `max_pixels` features fits a device with
@@ -325,11 +341,19 @@ impl CompactionGpu {
     /// `max_cap` (`None`: uncapped lists only). Errors when `max_cap` exceeds
     /// [`MAX_CAP`] or the lists exceed the device's buffer limits.
     pub fn new(ctx: &GpuContext, max_pixels: usize, max_cap: Option<u32>) -> Result<Self> {
+        Self::layered(ctx, max_pixels, max_cap, 1)
+    }
+
+    /// [`CompactionGpu::new`] for `layers` (at least 1) stacked images, a
+    /// list of each; the device must hold all of them in one buffer.
+    pub fn layered(ctx: &GpuContext, max_pixels: usize, max_cap: Option<u32>, layers: usize) -> Result<Self> {
         if let Some(cap) = max_cap.filter(|&c| c > MAX_CAP) {
             return Err(Error::Parameter(format!("compaction cap {cap} exceeds {MAX_CAP}")));
         }
-        check_list_fits(&ctx.device.limits(), max_pixels)?;
-        let list_bytes = max_pixels.max(1) as u64 * FEATURE_BYTES;
+        let layers = layers.max(1);
+        check_list_fits(&ctx.device.limits(), max_pixels.max(1).saturating_mul(layers))?;
+        let n = layers as u64;
+        let list_bytes = max_pixels.max(1) as u64 * FEATURE_BYTES * n;
         let max_blocks = max_pixels.div_ceil(BLOCK as usize).max(1) as u64;
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
         let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {
@@ -340,25 +364,28 @@ impl CompactionGpu {
                 mapped_at_creation: false,
             })
         };
+        let capped = u64::from(max_cap.unwrap_or(0)).min(max_pixels as u64).max(1);
         Ok(Self {
-            block_counts: buffer("compaction.block_counts", max_blocks * 4, storage),
-            block_offsets: buffer("compaction.block_offsets", max_blocks * 4, storage),
+            block_counts: buffer("compaction.block_counts", max_blocks * 4 * n, storage),
+            block_offsets: buffer("compaction.block_offsets", max_blocks * 4 * n, storage),
             full_list: buffer("compaction.full_list", list_bytes, storage),
-            capped_list: buffer(
-                "compaction.capped_list",
-                u64::from(max_cap.unwrap_or(0)).min(max_pixels as u64).max(1) * FEATURE_BYTES,
-                storage,
+            capped_list: buffer("compaction.capped_list", capped * FEATURE_BYTES * n, storage),
+            header: buffer("compaction.header", HEADER_BYTES * n, storage),
+            windows: buffer(
+                "compaction.windows",
+                std::mem::size_of::<LayerWindow>() as u64 * n,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             ),
-            header: buffer("compaction.header", HEADER_BYTES, storage),
             staging: buffer(
                 "compaction.staging",
-                HEADER_BYTES + list_bytes,
+                HEADER_BYTES * n + list_bytes,
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             ),
             max_pixels,
             max_cap,
+            layers,
             last_capped: AtomicBool::new(false),
-            prefetched: AtomicU32::new(0),
+            prefetched: Mutex::new(vec![0; layers]),
         })
     }
 
@@ -372,28 +399,53 @@ impl CompactionGpu {
             }
     }
 
+    /// Lists this scratch holds, one per layer.
+    #[must_use]
+    pub fn layers(&self) -> usize {
+        self.layers
+    }
+
     /// Features the capped list holds: never more than a window has pixels.
     fn capped_capacity(&self) -> u64 {
         u64::from(self.max_cap.unwrap_or(0)).min(self.max_pixels as u64)
     }
 
-    /// The list the last [`encode`] left, and how many features it can hold.
-    fn list(&self) -> (&wgpu::Buffer, u64) {
+    /// The list the last [`encode`] left, how many features each layer's
+    /// part can hold, and where the next layer's part starts (features).
+    fn list(&self) -> (&wgpu::Buffer, u64, u64) {
         if self.last_capped.load(Ordering::Relaxed) {
-            (&self.capped_list, self.capped_capacity())
+            let capacity = self.capped_capacity();
+            (&self.capped_list, capacity, capacity.max(1))
         } else {
-            (&self.full_list, self.max_pixels as u64)
+            (&self.full_list, self.max_pixels as u64, self.max_pixels.max(1) as u64)
         }
+    }
+
+    fn prefetched(&self) -> std::sync::MutexGuard<'_, Vec<u32>> {
+        self.prefetched.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
     /// Record, in the same submission as [`encode`], copies of the header and
     /// of the first `min(prefetch, capacity)` features into the staging buffer.
     pub(crate) fn encode_readback(&self, rec: &mut Recorder<'_>, prefetch: u32) {
-        let (list, capacity) = self.list();
-        let count = u64::from(prefetch).min(capacity);
-        rec.copy(&self.header, 0, &self.staging, 0, HEADER_BYTES);
-        rec.copy(list, 0, &self.staging, HEADER_BYTES, count * FEATURE_BYTES);
-        self.prefetched.store(count as u32, Ordering::Relaxed);
+        self.encode_readback_layers(rec, &[prefetch]);
+    }
+
+    /// [`CompactionGpu::encode_readback`] for every layer, `prefetch[l]`
+    /// features of layer `l` (0 for a layer not given): the headers in one
+    /// copy, then each layer's features packed one after another.
+    pub(crate) fn encode_readback_layers(&self, rec: &mut Recorder<'_>, prefetch: &[u32]) {
+        let (list, capacity, stride) = self.list();
+        let headers = HEADER_BYTES * self.layers as u64;
+        rec.copy(&self.header, 0, &self.staging, 0, headers);
+        let mut prefetched = self.prefetched();
+        let mut at = headers;
+        for (layer, kept) in prefetched.iter_mut().enumerate() {
+            let count = u64::from(prefetch.get(layer).copied().unwrap_or(0)).min(capacity);
+            rec.copy(list, layer as u64 * stride * FEATURE_BYTES, &self.staging, at, count * FEATURE_BYTES);
+            at += count * FEATURE_BYTES;
+            *kept = count as u32;
+        }
     }
 
     /// Bytes that crossed the bus for a list of `listed` features read by
@@ -401,7 +453,13 @@ impl CompactionGpu {
     /// the remainder's copy when the list was longer.
     #[must_use]
     pub fn bytes_read_back(&self, listed: usize) -> u64 {
-        let prefetched = u64::from(self.prefetched.load(Ordering::Relaxed));
+        self.bytes_read_back_layer(0, listed)
+    }
+
+    /// [`CompactionGpu::bytes_read_back`] of layer `layer`.
+    #[must_use]
+    pub fn bytes_read_back_layer(&self, layer: usize, listed: usize) -> u64 {
+        let prefetched = u64::from(self.prefetched().get(layer).copied().unwrap_or(0));
         HEADER_BYTES + FEATURE_BYTES * prefetched.max(listed as u64)
     }
 
@@ -410,38 +468,66 @@ impl CompactionGpu {
     /// than what was prefetched, one more copy of the remainder is submitted
     /// and mapped, so only `16 + 16·count` bytes ever cross the bus.
     pub fn read(&self, ctx: &GpuContext) -> Result<Vec<Feature>> {
-        let prefetched = u64::from(self.prefetched.load(Ordering::Relaxed));
-        // The header and the prefetched features, decoded straight from the mapping.
-        let (header, mut out) =
-            ctx.read_mapped(&self.staging, 0..HEADER_BYTES + prefetched * FEATURE_BYTES, |bytes| {
-                let header: Header = bytemuck::pod_read_unaligned(&bytes[..HEADER_BYTES as usize]);
-                let head = u64::from(header.listed).min(prefetched);
-                let features: Vec<Feature> = bytemuck::pod_collect_to_vec(
-                    &bytes[HEADER_BYTES as usize..(HEADER_BYTES + head * FEATURE_BYTES) as usize],
-                );
-                (header, features)
-            })?;
-        let (list, capacity) = self.list();
-        let listed = u64::from(header.listed);
-        if listed > capacity || header.listed > header.total {
-            return Err(Error::Gpu(format!(
-                "compaction header lists {} of {} features, capacity {capacity}",
-                header.listed, header.total
-            )));
+        self.read_layers(ctx)?.into_iter().next().ok_or_else(|| Error::Gpu("no compaction layer".into()))
+    }
+
+    /// [`CompactionGpu::read`] for every layer: each layer's list, in layer
+    /// order. The remainders of all lists longer than their prefetch go in
+    /// one more submission.
+    pub fn read_layers(&self, ctx: &GpuContext) -> Result<Vec<Vec<Feature>>> {
+        let prefetched = self.prefetched().clone();
+        let headers_bytes = HEADER_BYTES * self.layers as u64;
+        let prefetched_bytes: u64 = prefetched.iter().map(|&p| u64::from(p) * FEATURE_BYTES).sum();
+        // The headers and the prefetched features, decoded straight from the mapping.
+        let (headers, mut lists) = ctx.read_mapped(&self.staging, 0..headers_bytes + prefetched_bytes, |bytes| {
+            let headers: Vec<Header> = bytemuck::pod_collect_to_vec(&bytes[..headers_bytes as usize]);
+            let mut at = headers_bytes as usize;
+            let lists: Vec<Vec<Feature>> = headers
+                .iter()
+                .zip(&prefetched)
+                .map(|(header, &kept)| {
+                    let head = header.listed.min(kept) as usize;
+                    let features = bytemuck::pod_collect_to_vec(&bytes[at..at + head * FEATURE_BYTES as usize]);
+                    at += kept as usize * FEATURE_BYTES as usize;
+                    features
+                })
+                .collect();
+            (headers, lists)
+        })?;
+        let (list, capacity, stride) = self.list();
+        let mut remainders = Vec::new();
+        let mut at = 0;
+        for (layer, (header, &kept)) in headers.iter().zip(&prefetched).enumerate() {
+            let listed = u64::from(header.listed);
+            if listed > capacity || header.listed > header.total {
+                return Err(Error::Gpu(format!(
+                    "compaction header lists {} of {} features, capacity {capacity}",
+                    header.listed, header.total
+                )));
+            }
+            if listed > u64::from(kept) {
+                let size = (listed - u64::from(kept)) * FEATURE_BYTES;
+                remainders.push((layer, (layer as u64 * stride + u64::from(kept)) * FEATURE_BYTES, at, size));
+                at += size;
+            }
         }
-        if listed > prefetched {
-            let at = HEADER_BYTES + prefetched * FEATURE_BYTES;
-            let size = (listed - prefetched) * FEATURE_BYTES;
+        if !remainders.is_empty() {
             let mut enc = ctx
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("compaction.readback") });
-            enc.copy_buffer_to_buffer(list, prefetched * FEATURE_BYTES, &self.staging, at, size);
+            for &(_, from, to, size) in &remainders {
+                enc.copy_buffer_to_buffer(list, from, &self.staging, to, size);
+            }
             ctx.wait_for(ctx.queue.submit([enc.finish()]))?;
-            ctx.read_mapped(&self.staging, at..at + size, |rest| {
-                out.extend(rest.chunks_exact(FEATURE_BYTES as usize).map(bytemuck::pod_read_unaligned::<Feature>));
+            ctx.read_mapped(&self.staging, 0..at, |rest| {
+                for &(layer, _, to, size) in &remainders {
+                    let part = &rest[to as usize..(to + size) as usize];
+                    lists[layer]
+                        .extend(part.chunks_exact(FEATURE_BYTES as usize).map(bytemuck::pod_read_unaligned::<Feature>));
+                }
             })?;
         }
-        Ok(out)
+        Ok(lists)
     }
 }
 
@@ -467,54 +553,108 @@ pub(crate) fn encode(
     params: &CompactionParams,
     scratch: &CompactionGpu,
 ) -> Result<()> {
+    encode_layers(rec, select, theta, magnitude, &[*params], scratch)
+}
+
+/// [`encode`] over stacked images: layer `l` of `select`, `theta`,
+/// `magnitude` compacted with `params[l]` into list `l` of `scratch`, the
+/// same dispatches covering every layer (their grids sized for the
+/// largest window). The layers' caps may differ, but either all are capped
+/// or none is.
+pub(crate) fn encode_layers(
+    rec: &mut Recorder<'_>,
+    select: &GpuImage,
+    theta: &GpuImage,
+    magnitude: &GpuImage,
+    params: &[CompactionParams],
+    scratch: &CompactionGpu,
+) -> Result<()> {
     let size = select.size();
     check_sizes(size, theta.size(), magnitude.size())?;
-    let win = checked_window(size, params)?;
-    if win.area() > scratch.max_pixels {
+    select.check_same_size(theta, "compaction select/theta")?;
+    select.check_same_size(magnitude, "compaction select/magnitude")?;
+    if params.len() != select.layers() || scratch.layers != select.layers() {
         return Err(Error::Size(format!(
-            "window of {} pixels, compaction scratch holds {}",
-            win.area(),
-            scratch.max_pixels
+            "compaction of {} layers with {} windows into scratch for {} lists",
+            select.layers(),
+            params.len(),
+            scratch.layers
         )));
     }
-    if let Some(cap) = params.cap.filter(|&c| c > scratch.max_cap.unwrap_or(0)) {
-        return Err(Error::Parameter(format!(
-            "cap {cap}, compaction scratch built for caps up to {:?}",
-            scratch.max_cap
-        )));
+    let capped = params.first().is_some_and(|p| p.cap.is_some());
+    if params.iter().any(|p| p.cap.is_some() != capped) {
+        return Err(Error::Parameter("stacked compaction: either every layer has a cap or none has".into()));
     }
-    let area = win.area() as u32;
-    let num_blocks = area.div_ceil(BLOCK);
-    let grid = block_grid(num_blocks);
+    let mut windows = Vec::with_capacity(params.len());
+    for p in params {
+        let win = checked_window(size, p)?;
+        if win.area() > scratch.max_pixels {
+            return Err(Error::Size(format!(
+                "window of {} pixels, compaction scratch holds {}",
+                win.area(),
+                scratch.max_pixels
+            )));
+        }
+        if let Some(cap) = p.cap.filter(|&c| c > scratch.max_cap.unwrap_or(0)) {
+            return Err(Error::Parameter(format!(
+                "cap {cap}, compaction scratch built for caps up to {:?}",
+                scratch.max_cap
+            )));
+        }
+        let area = win.area() as u32;
+        windows.push(LayerWindow {
+            x0: win.x0,
+            y0: win.y0,
+            win_width: win.width(),
+            area,
+            num_blocks: area.div_ceil(BLOCK),
+            cap: p.cap.unwrap_or(u32::MAX),
+            seed: p.seed,
+            threshold: p.threshold,
+        });
+    }
+    let layers = windows.len() as u32;
+    let most_blocks = windows.iter().map(|w| w.num_blocks).max().unwrap_or(0);
+    let [gx, gy, _] = block_grid(most_blocks);
+    let grid = [gx, gy, layers];
+    let s = scratch;
     let u = CompactionUniform {
         image_width: size.0 as u32,
-        x0: win.x0,
-        y0: win.y0,
-        win_width: win.width(),
-        area,
-        num_blocks,
-        grid_x: grid[0],
-        cap: params.cap.unwrap_or(u32::MAX),
-        seed: params.seed,
-        threshold: params.threshold,
+        image_height: size.1 as u32,
+        grid_x: gx,
+        max_blocks: s.max_pixels.div_ceil(BLOCK as usize).max(1) as u32,
+        list_stride: s.max_pixels.max(1) as u32,
+        capped_stride: s.capped_capacity().max(1) as u32,
         _pad0: 0,
         _pad1: 0,
     };
-    let s = scratch;
-    rec.dispatch(&SHADER, "count_blocks", &u, &[&select.buffer, &s.block_counts], grid)?;
-    rec.dispatch(&SHADER, "scan_blocks", &u, &[&s.block_counts, &s.block_offsets, &s.header], [1, 1, 1])?;
+    rec.context().queue.write_buffer(&s.windows, 0, bytemuck::cast_slice(&windows));
+    rec.dispatch(&SHADER, "count_blocks", &u, &[&s.windows, &select.buffer, &s.block_counts], grid)?;
+    rec.dispatch(
+        &SHADER,
+        "scan_blocks",
+        &u,
+        &[&s.windows, &s.block_counts, &s.block_offsets, &s.header],
+        [1, 1, layers],
+    )?;
     rec.dispatch(
         &SHADER,
         "scatter",
         &u,
-        &[&select.buffer, &theta.buffer, &magnitude.buffer, &s.block_offsets, &s.full_list],
+        &[&s.windows, &select.buffer, &theta.buffer, &magnitude.buffer, &s.block_offsets, &s.full_list],
         grid,
     )?;
-    if let Some(cap) = params.cap {
-        let groups = cap.min(area).div_ceil(BLOCK);
-        rec.dispatch(&SHADER, "gather", &u, &[&s.header, &s.full_list, &s.capped_list], [groups, 1, 1])?;
+    if capped {
+        let groups = windows.iter().map(|w| w.cap.min(w.area).div_ceil(BLOCK)).max().unwrap_or(0);
+        rec.dispatch(
+            &SHADER,
+            "gather",
+            &u,
+            &[&s.windows, &s.header, &s.full_list, &s.capped_list],
+            [groups, 1, layers],
+        )?;
     }
-    s.last_capped.store(params.cap.is_some(), Ordering::Relaxed);
+    s.last_capped.store(capped, Ordering::Relaxed);
     Ok(())
 }
 

@@ -363,21 +363,25 @@ pub(super) struct LevelLayout {
     /// Size of each level, finest first.
     pub(super) sizes: Vec<(usize, usize)>,
     /// `offsets[k]`: first element of level k; `offsets[levels]` = total.
+    /// A level holds the images of all layers, layer after layer.
     pub(super) offsets: Vec<usize>,
+    /// Pyramids stacked level by level.
+    pub(super) layers: usize,
 }
 
 impl LevelLayout {
-    /// The layout of a `width`×`height` input's levels.
-    pub(super) fn new(width: usize, height: usize) -> Self {
+    /// The layout of the levels of `layers` (at least 1) `width`×`height` inputs.
+    pub(super) fn new(width: usize, height: usize, layers: usize) -> Self {
+        let layers = layers.max(1);
         let sizes = level_sizes(width, height);
         let mut offsets = Vec::with_capacity(sizes.len() + 1);
         let mut total = 0;
         offsets.push(0);
         for &(w, h) in &sizes {
-            total += w * h;
+            total += w * h * layers;
             offsets.push(total);
         }
-        Self { sizes, offsets }
+        Self { sizes, offsets, layers }
     }
 
     /// Values in all levels together.
@@ -386,10 +390,10 @@ impl LevelLayout {
     }
 
     /// The dispatches that build levels 1.. of the pyramid: for each, the
-    /// uniform and the size of its first level (what its grid covers).
+    /// uniform and its grid (the first level it builds, every layer).
     /// Each builds up to [`LEVELS_PER_DISPATCH`] levels from the last level
     /// the one before it built.
-    pub(super) fn dispatches(&self) -> Result<Vec<(LevelsUniform, (usize, usize))>> {
+    pub(super) fn dispatches(&self) -> Result<Vec<(LevelsUniform, [u32; 3])>> {
         let too_big = || Error::Size(format!("pyramid of {} values exceeds u32 indexing", self.total()));
         let to_u32 = |v: usize| u32::try_from(v).map_err(|_| too_big());
         u32::try_from(self.total()).map_err(|_| too_big())?;
@@ -409,30 +413,39 @@ impl LevelLayout {
                 let (w, h) = self.sizes[k];
                 *slot = [to_u32(w)?, to_u32(h)?, to_u32(self.offsets[k])?, 0];
             }
-            out.push((u, self.sizes[src + 1]));
+            let (w, h) = self.sizes[src + 1];
+            let [x, y, _] = workgroups_2d(w, h);
+            out.push((u, [x, y, to_u32(self.layers)?]));
             src += built;
         }
         Ok(out)
     }
 
-    /// Split a downloaded concatenated buffer (a 1-row image) into its levels.
-    pub(super) fn split(&self, flat: &FloatImage) -> Result<Vec<FloatImage>> {
+    /// Split a downloaded concatenated buffer (a 1-row image) into the
+    /// levels of `layer`.
+    pub(super) fn split(&self, flat: &FloatImage, layer: usize) -> Result<Vec<FloatImage>> {
         let data = flat.data();
         self.sizes
             .iter()
             .enumerate()
-            .map(|(k, &(w, h))| FloatImage::from_vec(w, h, data[self.offsets[k]..self.offsets[k + 1]].to_vec()))
+            .map(|(k, &(w, h))| {
+                let at = self.offsets[k] + layer * w * h;
+                let level = data.get(at..at + w * h).ok_or_else(|| Error::Gpu("pyramid buffer too short".into()))?;
+                FloatImage::from_vec(w, h, level.to_vec())
+            })
             .collect()
     }
 
-    /// Error unless `image` has the size of level 0.
+    /// Error unless `image` has the size and layers of level 0.
     pub(super) fn check_input(&self, image: &GpuImage, what: &str) -> Result<()> {
         let (w, h) = self.sizes[0];
-        if (image.width(), image.height()) != (w, h) {
+        if (image.width(), image.height(), image.layers()) != (w, h, self.layers) {
             return Err(Error::Size(format!(
-                "{what}: {}x{} image for a {w}x{h} pyramid",
+                "{what}: {}x{} image of {} layers for a {w}x{h} pyramid of {}",
                 image.width(),
-                image.height()
+                image.height(),
+                image.layers(),
+                self.layers
             )));
         }
         Ok(())
@@ -456,7 +469,14 @@ impl CpfGpu {
     /// Allocate the buffers for a `width`×`height` input; reuse them across frames.
     #[must_use]
     pub fn new(ctx: &GpuContext, width: usize, height: usize) -> Self {
-        let layout = LevelLayout::new(width, height);
+        Self::layered(ctx, width, height, 1)
+    }
+
+    /// The buffers for a stack of `layers` inputs ([`GpuImage::layered`]),
+    /// stacked level by level.
+    #[must_use]
+    pub fn layered(ctx: &GpuContext, width: usize, height: usize, layers: usize) -> Self {
+        let layout = LevelLayout::new(width, height, layers);
         let total = layout.total();
         let hierarchies = std::array::from_fn(|m| GpuImage::new(ctx, total, 1, &format!("cpf.m{m}")));
         Self { layout, hierarchies }
@@ -483,9 +503,17 @@ impl CpfGpu {
 
     /// Read all levels of the four hierarchies back (tests and benches).
     pub fn download(&self, ctx: &GpuContext) -> Result<CpfPyramids> {
-        let mut out = CpfPyramids::default();
-        for (levels, buffer) in out.hierarchies.iter_mut().zip(&self.hierarchies) {
-            *levels = self.layout.split(&buffer.download(ctx)?)?;
+        self.download_layers(ctx)?.into_iter().next().ok_or_else(|| Error::Gpu("no pyramid layer".into()))
+    }
+
+    /// Read all levels of the four hierarchies of every layer back.
+    pub fn download_layers(&self, ctx: &GpuContext) -> Result<Vec<CpfPyramids>> {
+        let mut out = vec![CpfPyramids::default(); self.layout.layers];
+        for (m, buffer) in self.hierarchies.iter().enumerate() {
+            let flat = buffer.download(ctx)?;
+            for (layer, pyramids) in out.iter_mut().enumerate() {
+                pyramids.hierarchies[m] = self.layout.split(&flat, layer)?;
+            }
         }
         Ok(out)
     }
@@ -504,14 +532,8 @@ pub(crate) fn encode(rec: &mut Recorder<'_>, src: &GpuImage, out: &CpfGpu) -> Re
         rec.copy(&src.buffer, 0, &h.buffer, 0, layout.base_bytes());
     }
     let [h0, h1, h2, h3] = &out.hierarchies;
-    for (u, (w, h)) in layout.dispatches()? {
-        rec.dispatch(
-            &SHADER,
-            "cpf_levels",
-            &u,
-            &[&h0.buffer, &h1.buffer, &h2.buffer, &h3.buffer],
-            workgroups_2d(w, h),
-        )?;
+    for (u, grid) in layout.dispatches()? {
+        rec.dispatch(&SHADER, "cpf_levels", &u, &[&h0.buffer, &h1.buffer, &h2.buffer, &h3.buffer], grid)?;
     }
     Ok(())
 }
@@ -539,11 +561,16 @@ mod tests {
 
     /// The dispatches build every coarser level exactly once, in order, at
     /// most five each, each reading the last level the one before built,
-    /// with its grid over its first level.
+    /// with its grid over its first level and every layer; a level holds
+    /// every layer's image.
     #[test]
     fn dispatches_build_each_level_once_five_at_most() {
-        for (w, h, count) in [(1, 1, 0), (2, 1, 1), (640, 480, 2), (33, 65, 2), (1500, 7, 3), (2049, 1, 3)] {
-            let layout = LevelLayout::new(w, h);
+        let sizes = [(1, 1, 0), (2, 1, 1), (640, 480, 2), (33, 65, 2), (1500, 7, 3), (2049, 1, 3)];
+        for ((w, h, count), layers) in sizes.into_iter().flat_map(|s| [(s, 1), (s, 3)]) {
+            let layout = LevelLayout::new(w, h, layers);
+            for (k, &(lw, lh)) in layout.sizes.iter().enumerate() {
+                assert_eq!(layout.offsets[k + 1] - layout.offsets[k], lw * lh * layers, "{w}x{h}x{layers}");
+            }
             let dispatches = layout.dispatches().unwrap();
             assert_eq!(dispatches.len(), count, "{w}x{h}");
             let mut next = 1;
@@ -556,7 +583,8 @@ mod tests {
                     (u.src_width, u.src_height, u.src_offset),
                     (sw as u32, sh as u32, layout.offsets[src] as u32)
                 );
-                assert_eq!(*grid, layout.sizes[next], "{w}x{h}");
+                let (gw, gh) = layout.sizes[next];
+                assert_eq!(*grid, [gw.div_ceil(16) as u32, gh.div_ceil(16) as u32, layers as u32], "{w}x{h}");
                 for (j, dst) in u.dst.iter().enumerate() {
                     if j < built {
                         let (dw, dh) = layout.sizes[next + j];

@@ -16,12 +16,12 @@
 //! like the CPF hierarchies; one dispatch builds up to five levels of both.
 
 use super::cpf::{LevelLayout, PYRAMID_TILE, level_sizes, reduce_level, reduce_row, shape_levels};
-use crate::Result;
 use crate::gpu::{
     Binding::{Storage, Uniform},
-    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once,
 };
 use crate::image::FloatImage;
+use crate::{Error, Result};
 
 /// The shader of this stage.
 pub const SHADER: ShaderDef = ShaderDef {
@@ -108,7 +108,14 @@ impl EdgePyramidGpu {
     /// Allocate the buffers for `width`×`height` edge images; reuse them across frames.
     #[must_use]
     pub fn new(ctx: &GpuContext, width: usize, height: usize) -> Self {
-        let layout = LevelLayout::new(width, height);
+        Self::layered(ctx, width, height, 1)
+    }
+
+    /// The buffers for a stack of `layers` inputs ([`GpuImage::layered`]),
+    /// stacked level by level.
+    #[must_use]
+    pub fn layered(ctx: &GpuContext, width: usize, height: usize, layers: usize) -> Self {
+        let layout = LevelLayout::new(width, height, layers);
         let total = layout.total();
         let horizontal = GpuImage::new(ctx, total, 1, "edge_pyramid.h");
         let vertical = GpuImage::new(ctx, total, 1, "edge_pyramid.v");
@@ -142,10 +149,17 @@ impl EdgePyramidGpu {
 
     /// Read all levels of both hierarchies back (tests and benches).
     pub fn download(&self, ctx: &GpuContext) -> Result<EdgePyramids> {
-        Ok(EdgePyramids {
-            horizontal: self.layout.split(&self.horizontal.download(ctx)?)?,
-            vertical: self.layout.split(&self.vertical.download(ctx)?)?,
-        })
+        self.download_layers(ctx)?.into_iter().next().ok_or_else(|| Error::Gpu("no pyramid layer".into()))
+    }
+
+    /// Read all levels of both hierarchies of every layer back.
+    pub fn download_layers(&self, ctx: &GpuContext) -> Result<Vec<EdgePyramids>> {
+        let (h, v) = (self.horizontal.download(ctx)?, self.vertical.download(ctx)?);
+        (0..self.layout.layers)
+            .map(|layer| {
+                Ok(EdgePyramids { horizontal: self.layout.split(&h, layer)?, vertical: self.layout.split(&v, layer)? })
+            })
+            .collect()
     }
 }
 
@@ -159,8 +173,8 @@ pub(crate) fn encode(rec: &mut Recorder<'_>, gx: &GpuImage, gy: &GpuImage, out: 
     layout.check_input(gy, "edge pyramid vertical input")?;
     rec.copy(&gx.buffer, 0, &out.horizontal.buffer, 0, layout.base_bytes());
     rec.copy(&gy.buffer, 0, &out.vertical.buffer, 0, layout.base_bytes());
-    for (u, (w, h)) in layout.dispatches()? {
-        rec.dispatch(&SHADER, "edge_levels", &u, &[&out.horizontal.buffer, &out.vertical.buffer], workgroups_2d(w, h))?;
+    for (u, grid) in layout.dispatches()? {
+        rec.dispatch(&SHADER, "edge_levels", &u, &[&out.horizontal.buffer, &out.vertical.buffer], grid)?;
     }
     Ok(())
 }

@@ -12,7 +12,7 @@ use super::rows::for_each_row;
 use crate::Result;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
-    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once,
 };
 use crate::image::FloatImage;
 
@@ -66,7 +66,7 @@ pub(crate) fn encode(rec: &mut Recorder<'_>, a: &GpuImage, b: &GpuImage, out: &G
     a.check_same_size(b, "frame sum a/b")?;
     a.check_same_size(out, "frame sum a/out")?;
     let u = FrameSumUniform { width: w as u32, height: h as u32, _pad: [0; 2] };
-    rec.dispatch(&SHADER, "frame_sum", &u, &[&a.buffer, &b.buffer, &out.buffer], workgroups_2d(w, h))
+    rec.dispatch(&SHADER, "frame_sum", &u, &[&a.buffer, &b.buffer, &out.buffer], a.grid())
 }
 
 /// GPU: `a + b` of two CPU images, read back (tests and benches).

@@ -17,7 +17,7 @@ use crate::Result;
 use crate::bounds::Interval;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
-    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once,
 };
 use crate::image::FloatImage;
 
@@ -465,7 +465,7 @@ pub(crate) fn encode(
     src.check_same_size(dst, "gaussian src/dst")?;
     let (w, h) = src.size();
     let u = GaussianUniform::new(w, h, &half);
-    let groups = workgroups_2d(w, h);
+    let groups = src.grid();
     rec.dispatch(&SHADER, "blur_rows", &u, &[&src.buffer, &tmp.buffer], groups)?;
     rec.dispatch(&SHADER, "blur_cols", &u, &[&tmp.buffer, &dst.buffer], groups)
 }

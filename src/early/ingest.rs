@@ -146,24 +146,36 @@ pub fn ingest_texture_cpu(
 /// four to a u32 word, the first in the low byte (so the bytes go as they
 /// are), the last word zero-padded. Returns the bytes written.
 pub(crate) fn write_bytes(ctx: &GpuContext, buffer: &wgpu::Buffer, bytes: &[u8]) -> usize {
+    write_bytes_at(ctx, buffer, 0, bytes)
+}
+
+/// [`write_bytes`] from byte `offset` (a multiple of 4) of `buffer`.
+pub(crate) fn write_bytes_at(ctx: &GpuContext, buffer: &wgpu::Buffer, offset: u64, bytes: &[u8]) -> usize {
     let whole = bytes.len() / 4 * 4;
     if whole > 0 {
-        ctx.queue.write_buffer(buffer, 0, &bytes[..whole]);
+        ctx.queue.write_buffer(buffer, offset, &bytes[..whole]);
     }
     let tail = &bytes[whole..];
     if !tail.is_empty() {
         let mut word = [0u8; 4];
         word[..tail.len()].copy_from_slice(tail);
-        ctx.queue.write_buffer(buffer, whole as u64, &word);
+        ctx.queue.write_buffer(buffer, offset + whole as u64, &word);
     }
     bytes.len().div_ceil(4) * 4
 }
 
-/// Record `from_bytes`: `packed` (a storage buffer of packed bytes) into `dst`.
+/// Words of packed bytes one layer of a `width`×`height` frame takes.
+#[must_use]
+pub(crate) fn packed_words(width: usize, height: usize) -> usize {
+    (width * height).div_ceil(4)
+}
+
+/// Record `from_bytes`: `packed` (a storage buffer of packed bytes, each
+/// layer's frame from word `layer · packed_words`) into every layer of `dst`.
 pub(crate) fn encode(rec: &mut Recorder<'_>, packed: &wgpu::Buffer, dst: &GpuImage) -> Result<()> {
     let (w, h) = (dst.width(), dst.height());
     let u = IngestUniform { width: w as u32, height: h as u32, kind: 0, _pad: 0 };
-    rec.dispatch(&SHADER, "from_bytes", &u, &[&dst.buffer, packed], workgroups_2d(w, h))
+    rec.dispatch(&SHADER, "from_bytes", &u, &[&dst.buffer, packed], dst.grid())
 }
 
 /// Check that `texture` can be read as a frame: a supported format, a plain

@@ -28,7 +28,7 @@ use super::rows::{RowStore, for_each_row, parallel};
 use crate::bounds::Interval;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
-    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once,
 };
 use crate::image::FloatImage;
 use crate::{Error, Result};
@@ -447,7 +447,7 @@ pub(crate) fn encode(
         src.check_same_size(img, what)?;
     }
     let u = LogUniform::new(w, h, &k);
-    let groups = workgroups_2d(w, h);
+    let groups = src.grid();
     rec.dispatch(&SHADER, "rows", &u, &[&src.buffer, &tmp_g.buffer, &tmp_d.buffer], groups)?;
     rec.dispatch(&SHADER, "cols", &u, &[&tmp_g.buffer, &tmp_d.buffer, &out.buffer], groups)
 }

@@ -48,7 +48,7 @@ use super::rows::for_each_row;
 use crate::Result;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
-    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once,
 };
 use crate::image::FloatImage;
 
@@ -121,12 +121,19 @@ impl SobelGpu {
     /// Allocate five uninitialised `width`×`height` planes on the device.
     #[must_use]
     pub fn new(ctx: &GpuContext, width: usize, height: usize) -> Self {
+        Self::layered(ctx, width, height, 1)
+    }
+
+    /// Five planes of `layers` stacked images each ([`GpuImage::layered`]).
+    #[must_use]
+    pub fn layered(ctx: &GpuContext, width: usize, height: usize, layers: usize) -> Self {
+        let plane = |label| GpuImage::layered(ctx, width, height, layers, label);
         Self {
-            gx: GpuImage::new(ctx, width, height, "sobel.gx"),
-            gy: GpuImage::new(ctx, width, height, "sobel.gy"),
-            magnitude: GpuImage::new(ctx, width, height, "sobel.magnitude"),
-            direction: GpuImage::new(ctx, width, height, "sobel.direction"),
-            theta: GpuImage::new(ctx, width, height, "sobel.theta"),
+            gx: plane("sobel.gx"),
+            gy: plane("sobel.gy"),
+            magnitude: plane("sobel.magnitude"),
+            direction: plane("sobel.direction"),
+            theta: plane("sobel.theta"),
         }
     }
 
@@ -441,7 +448,7 @@ pub(crate) fn encode(rec: &mut Recorder<'_>, src: &GpuImage, out: &SobelGpu) -> 
     let u = SobelUniform { width: w as u32, height: h as u32, _pad: [0; 2] };
     let buffers =
         [&src.buffer, &out.gx.buffer, &out.gy.buffer, &out.magnitude.buffer, &out.direction.buffer, &out.theta.buffer];
-    rec.dispatch(&SHADER, "sobel", &u, &buffers, workgroups_2d(w, h))
+    rec.dispatch(&SHADER, "sobel", &u, &buffers, src.grid())
 }
 
 /// GPU: the five Sobel planes of a CPU image, read back (tests and benches).

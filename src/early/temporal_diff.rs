@@ -13,7 +13,7 @@ use super::Window;
 use super::rows::for_each_row;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
-    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once,
 };
 use crate::image::FloatImage;
 use crate::{Error, Result};
@@ -188,13 +188,7 @@ pub(crate) fn encode(
     params: &TemporalDiffParams,
 ) -> Result<()> {
     let u = checked_uniform(prev, cur, out, params)?;
-    rec.dispatch(
-        &SHADER,
-        "temporal_diff",
-        &u,
-        &[&prev.buffer, &cur.buffer, &out.buffer],
-        workgroups_2d(prev.width(), prev.height()),
-    )
+    rec.dispatch(&SHADER, "temporal_diff", &u, &[&prev.buffer, &cur.buffer, &out.buffer], prev.grid())
 }
 
 /// The uniform block for `prev → cur` into the mask `out`, after checking
@@ -226,7 +220,7 @@ pub(crate) fn encode_with_sum(
     let u = checked_uniform(prev, cur, mask, params)?;
     prev.check_same_size(sum, "temporal difference prev/sum")?;
     let buffers = [&prev.buffer, &cur.buffer, &mask.buffer, &sum.buffer];
-    rec.dispatch(&SHADER, "temporal_diff_and_sum", &u, &buffers, workgroups_2d(prev.width(), prev.height()))
+    rec.dispatch(&SHADER, "temporal_diff_and_sum", &u, &buffers, prev.grid())
 }
 
 /// GPU: the motion mask and the frame sum of two CPU images in one

@@ -40,7 +40,7 @@ use super::rows::for_each_row;
 use crate::Result;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Uniform},
-    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
+    EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once,
 };
 use crate::image::FloatImage;
 
@@ -323,11 +323,18 @@ impl EdgelsGpu {
     /// Allocate (uninitialised) planes of `width`×`height`.
     #[must_use]
     pub fn new(ctx: &GpuContext, width: usize, height: usize) -> Self {
+        Self::layered(ctx, width, height, 1)
+    }
+
+    /// Four planes of `layers` stacked images each ([`GpuImage::layered`]).
+    #[must_use]
+    pub fn layered(ctx: &GpuContext, width: usize, height: usize, layers: usize) -> Self {
+        let plane = |label| GpuImage::layered(ctx, width, height, layers, label);
         Self {
-            strength: GpuImage::new(ctx, width, height, "zero_crossing.strength"),
-            direction: GpuImage::new(ctx, width, height, "zero_crossing.direction"),
-            offset_x: GpuImage::new(ctx, width, height, "zero_crossing.offset_x"),
-            offset_y: GpuImage::new(ctx, width, height, "zero_crossing.offset_y"),
+            strength: plane("zero_crossing.strength"),
+            direction: plane("zero_crossing.direction"),
+            offset_x: plane("zero_crossing.offset_x"),
+            offset_y: plane("zero_crossing.offset_y"),
         }
     }
 
@@ -364,7 +371,7 @@ pub(crate) fn encode(
         "edgels",
         &u,
         &[&log.buffer, &out.strength.buffer, &out.direction.buffer, &out.offset_x.buffer, &out.offset_y.buffer],
-        workgroups_2d(w, h),
+        log.grid(),
     )
 }
 

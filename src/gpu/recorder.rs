@@ -18,26 +18,38 @@ const UNIFORM_STRIDE: u64 = 256;
 pub(crate) const MAX_DISPATCHES: u64 = 128;
 
 /// A `width`×`height` image of 32-bit values (f32 or u32) living on the GPU
-/// in a storage buffer, row-major like [`Image`].
+/// in a storage buffer, row-major like [`Image`]; or a stack of `layers`
+/// such images, one after another in the buffer (layer `l` from element
+/// `l·width·height`), which every stage processes in one dispatch with the
+/// layer as the grid's third dimension.
 #[derive(Debug)]
 pub struct GpuImage {
     pub(crate) buffer: wgpu::Buffer,
     width: usize,
     height: usize,
+    layers: usize,
 }
 
 impl GpuImage {
     /// Allocate an uninitialised image of `width`×`height` 32-bit values.
     #[must_use]
     pub fn new(ctx: &GpuContext, width: usize, height: usize, label: &str) -> Self {
-        let bytes = (width * height).max(1) as u64 * 4;
+        Self::layered(ctx, width, height, 1, label)
+    }
+
+    /// Allocate an uninitialised stack of `layers` (at least 1) images of
+    /// `width`×`height` 32-bit values.
+    #[must_use]
+    pub fn layered(ctx: &GpuContext, width: usize, height: usize, layers: usize, label: &str) -> Self {
+        let layers = layers.max(1);
+        let bytes = (width * height * layers).max(1) as u64 * 4;
         let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: bytes,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        Self { buffer, width, height }
+        Self { buffer, width, height, layers }
     }
 
     /// Upload a CPU image of 32-bit values.
@@ -53,18 +65,19 @@ impl GpuImage {
             contents: &contents,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         });
-        Self { buffer, width, height }
+        Self { buffer, width, height, layers: 1 }
     }
 
     /// Overwrite the contents from a CPU image of the same size.
     pub fn write<T: bytemuck::Pod + Default>(&self, ctx: &GpuContext, image: &Image<T>) -> Result<()> {
-        if image.size() != (self.width, self.height) {
+        if image.size() != (self.width, self.height) || self.layers != 1 {
             return Err(Error::Size(format!(
-                "writing {}x{} into a {}x{} GPU image",
+                "writing {}x{} into a {}x{} GPU image of {} layers",
                 image.width(),
                 image.height(),
                 self.width,
-                self.height
+                self.height,
+                self.layers
             )));
         }
         if !image.data().is_empty() {
@@ -73,10 +86,11 @@ impl GpuImage {
         Ok(())
     }
 
-    /// Copy the image back to the CPU (waits for the GPU). For tests and
+    /// Copy the image back to the CPU (waits for the GPU); a stack comes
+    /// back as one image of its layers one below another. For tests and
     /// benches; the frame path reads back only compact lists.
     pub fn download<T: bytemuck::Pod + Default>(&self, ctx: &GpuContext) -> Result<Image<T>> {
-        let n = self.width * self.height;
+        let n = self.width * self.height * self.layers;
         let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("pipetrack.download"),
             size: (n.max(1) * 4) as u64,
@@ -89,7 +103,7 @@ impl GpuImage {
         ctx.wait_for(ctx.queue.submit([enc.finish()]))?;
         let bytes = ctx.read_buffer(&staging, 0..(n * 4) as u64)?;
         let data: Vec<T> = bytemuck::pod_collect_to_vec(&bytes);
-        Image::from_vec(self.width, self.height, data)
+        Image::from_vec(self.width, self.height * self.layers, data)
     }
 
     /// `(width, height)` in pixels.
@@ -98,8 +112,9 @@ impl GpuImage {
         (self.width, self.height)
     }
 
-    /// [`Error::Size`] unless `other` has this image's size; `what` names
-    /// the pair in the message, as [`Image::check_same_size`] does on the CPU.
+    /// [`Error::Size`] unless `other` has this image's size and layers;
+    /// `what` names the pair in the message, as [`Image::check_same_size`]
+    /// does on the CPU.
     pub fn check_same_size(&self, other: &GpuImage, what: &str) -> Result<()> {
         if self.size() != other.size() {
             return Err(Error::Size(format!(
@@ -107,7 +122,24 @@ impl GpuImage {
                 self.width, self.height, other.width, other.height
             )));
         }
+        if self.layers != other.layers {
+            return Err(Error::Size(format!("{what}: stacks of {} vs {} layers", self.layers, other.layers)));
+        }
         Ok(())
+    }
+
+    /// Images in the stack (1 for a single image).
+    #[must_use]
+    pub fn layers(&self) -> usize {
+        self.layers
+    }
+
+    /// Workgroups covering every layer with 16×16 tiles, one layer per
+    /// step of the grid's third dimension.
+    #[must_use]
+    pub(crate) fn grid(&self) -> [u32; 3] {
+        let [x, y, _] = workgroups_2d(self.width, self.height);
+        [x, y, self.layers as u32]
     }
 
     /// Width in pixels.
@@ -189,6 +221,11 @@ impl<'a> Recorder<'a> {
         let encoder =
             ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pipetrack.frame") });
         Self { ctx, encoder, pass: None, arena, uniforms: Vec::new(), dispatches: 0 }
+    }
+
+    /// The context recorded for.
+    pub(crate) fn context(&self) -> &'a GpuContext {
+        self.ctx
     }
 
     /// Number of compute dispatches recorded so far.

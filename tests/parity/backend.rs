@@ -39,7 +39,7 @@ fn same_lists(what: &str, cpu: &[Feature], gpu: &[Feature]) {
     }
 }
 
-fn same_features(what: &str, cpu: &FrameFeatures, gpu: &FrameFeatures) {
+pub(crate) fn same_features(what: &str, cpu: &FrameFeatures, gpu: &FrameFeatures) {
     for (name, c, g) in [
         ("motion", &cpu.motion, &gpu.motion),
         ("edges", &cpu.edges, &gpu.edges),
@@ -145,15 +145,15 @@ fn too_many_frames_in_flight_is_an_error_not_a_hang() {
 /// Frames of the changing-request scenarios: an awkward size, ≥ 12 frames.
 const CHANGING: (usize, usize) = (57, 43);
 
-fn motion(spec: ListSpec) -> MotionRequest {
+pub(crate) fn motion(spec: ListSpec) -> MotionRequest {
     MotionRequest { diff: TemporalDiffParams::default(), list: spec }
 }
 
-fn edges(smoothed: bool, spec: ListSpec) -> EdgeRequest {
+pub(crate) fn edges(smoothed: bool, spec: ListSpec) -> EdgeRequest {
     EdgeRequest { threshold: 60.0, smoothed, list: spec }
 }
 
-fn crossings(spec: ListSpec) -> ZeroCrossingRequest {
+pub(crate) fn crossings(spec: ListSpec) -> ZeroCrossingRequest {
     ZeroCrossingRequest { log: LogParams::default(), crossings: ZeroCrossingParams::default(), list: spec }
 }
 
