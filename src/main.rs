@@ -606,7 +606,7 @@ fn bench(
     let budget = Duration::from_secs_f64(seconds);
     if !json {
         say(format_args!(
-            "{:<14} {:>10} {:>12} {:>12} {:>9} {:>12}",
+            "{:<18} {:>10} {:>12} {:>12} {:>9} {:>12}",
             "stage", "size", "cpu fps", "gpu fps", "gpu/cpu", "cpu best ms"
         ))?;
     }
@@ -616,7 +616,7 @@ fn bench(
             let gpu = row.gpu_fps.map_or("-".to_string(), |g| format!("{g:.1}"));
             let ratio = row.gpu_over_cpu.map_or("-".to_string(), |r| format!("{r:.2}"));
             write_error = say(format_args!(
-                "{:<14} {:>10} {:>12.1} {:>12} {:>9} {:>12.4}",
+                "{:<18} {:>10} {:>12.1} {:>12} {:>9} {:>12.4}",
                 row.stage,
                 row.size,
                 row.cpu_fps,
@@ -647,7 +647,14 @@ fn bench(
             ))?;
         }
         for c in &report.gpu_lanes {
-            say(format_args!("gpu chain {:>10}, {} in flight: host {:.3} ms per frame", c.size, c.lanes, c.host_ms))?;
+            say(format_args!(
+                "gpu chain {:>10}, {} {}: {} dispatches a step, host {:.3} ms per frame",
+                c.size,
+                c.lanes,
+                if c.stacked { "stacked" } else { "in flight" },
+                c.dispatches_per_step,
+                c.host_ms
+            ))?;
         }
         say(format_args!("adapter: {}\ncpu threads: {}", report.adapter, report.cpu_threads))?;
     }

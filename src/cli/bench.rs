@@ -10,8 +10,8 @@ use crate::backend::plan::PreviousFrame;
 use rayon::prelude::*;
 
 use crate::backend::{
-    CpuBackend, EarlyVision, FramePlan, FrameRequest, FrameStats, GpuBackend, LaneFrame, Ticket, check_lane_count,
-    lane_groups,
+    CpuBackend, EarlyVision, FramePlan, FrameRequest, FrameStats, GpuBackend, GpuStack, LaneFrame, Ticket,
+    check_lane_count, lane_groups,
 };
 use crate::early::compaction::{self, CompactionGpu, CompactionParams};
 use crate::early::cpf::{self, CpfGpu, CpfPyramids};
@@ -353,6 +353,67 @@ pub fn host_time(ctx: &GpuContext, inp: &Inputs, lanes: usize) -> Result<(FrameS
     Ok((backend.last_frame_stats(), per_frame[per_frame.len() / 2], per_frame[0]))
 }
 
+/// The row name of the whole chain with `lanes` sequences stacked
+/// ([`GpuStack`]: each stage one dispatch for all of them).
+#[must_use]
+pub fn stacked_stage(lanes: usize) -> String {
+    format!("chain stacked x{lanes}")
+}
+
+/// The whole chain on `lanes` sequences stacked in one [`GpuStack`]: each
+/// step is one submission of one dispatch per stage for all of them, with
+/// the step before read back while the device works on it. One call is
+/// [`lanes_frames_per_call`] frames, as for [`gpu_lanes_body`].
+pub fn gpu_stacked_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
+    let (w, h) = inp.luma.size();
+    let mut stack = GpuStack::new(ctx.clone(), lanes)?;
+    let request = FrameRequest::full_chain(w, h);
+    Ok(Box::new(move || {
+        let n = inp.frames.len();
+        let mut pending = None;
+        for step in 0..CHAIN_FRAMES {
+            let frames: Vec<(&GrayImage, &FrameRequest)> =
+                (0..lanes).map(|lane| (&inp.frames[(step + lane) % n], &request)).collect();
+            let ticket = stack.submit(&frames)?;
+            if let Some(previous) = pending.replace(ticket) {
+                stack.finish(previous)?;
+            }
+        }
+        if let Some(last) = pending {
+            stack.finish(last)?;
+        }
+        Ok(())
+    }))
+}
+
+/// [`host_time`] for `lanes` sequences stacked in one [`GpuStack`]: the
+/// median and fastest host time per frame (recording and submitting a
+/// step, reading its lists back; the device's work not counted), and the
+/// dispatches of a step.
+pub fn stacked_host_time(ctx: &GpuContext, inp: &Inputs, lanes: usize) -> Result<(u32, f64, f64)> {
+    let (w, h) = inp.luma.size();
+    let mut stack = GpuStack::new(ctx.clone(), lanes)?;
+    let request = FrameRequest::full_chain(w, h);
+    let n = inp.frames.len();
+    let mut per_frame = Vec::with_capacity(HOST_FRAMES);
+    for step in 0..HOST_FRAMES + 2 {
+        let frames: Vec<(&GrayImage, &FrameRequest)> =
+            (0..lanes).map(|lane| (&inp.frames[(step + lane) % n], &request)).collect();
+        let record = Instant::now();
+        let ticket = stack.submit(&frames)?;
+        let recorded = record.elapsed();
+        // Not timed: the device's own work.
+        ctx.wait()?;
+        let readback = Instant::now();
+        stack.finish(ticket)?;
+        if step >= 2 {
+            per_frame.push((recorded + readback.elapsed()).as_secs_f64() * 1e3 / lanes as f64);
+        }
+    }
+    per_frame.sort_by(f64::total_cmp);
+    Ok((stack.last_step_stats().dispatches, per_frame[per_frame.len() / 2], per_frame[0]))
+}
+
 /// Frames' worth of work one call of a lanes body does.
 #[must_use]
 pub fn lanes_frames_per_call(lanes: usize) -> usize {
@@ -450,13 +511,17 @@ pub struct BenchReport {
 }
 
 /// Host time per frame of the whole chain with `lanes` sequences in flight
-/// ([`host_time`]).
+/// ([`host_time`]), or stacked ([`stacked_host_time`]).
 #[derive(Clone, Debug, Serialize)]
 pub struct LanesCost {
     /// `WxH`.
     pub size: String,
     /// Sequences in flight.
     pub lanes: usize,
+    /// Whether they were stacked in one [`GpuStack`].
+    pub stacked: bool,
+    /// Dispatches of one step (every sequence's frame).
+    pub dispatches_per_step: u32,
     /// Host milliseconds per frame, median step.
     pub host_ms: f64,
 }
@@ -532,7 +597,9 @@ pub fn compare(
 }
 
 /// The whole chain at every size with each number of sequences in flight
-/// ([`gpu_lanes_body`], [`cpu_lanes_body`]), CPU and, with `gpu`, GPU.
+/// ([`gpu_lanes_body`], [`cpu_lanes_body`]), CPU and, with `gpu`, GPU; with
+/// a GPU also stacked ([`gpu_stacked_body`], a row beside the CPU figures
+/// of the row before).
 pub fn compare_lanes(
     sizes: &[(usize, usize)],
     lanes: &[usize],
@@ -549,9 +616,17 @@ pub fn compare_lanes(
     for &(w, h) in sizes {
         let inp = Inputs::new(w, h)?;
         for &k in lanes {
+            let size = format!("{w}x{h}");
             if let Some(ctx) = &gpu {
-                let (_, host_ms, _) = host_time(ctx, &inp, k)?;
-                gpu_lanes.push(LanesCost { size: format!("{w}x{h}"), lanes: k, host_ms });
+                let (stats, host_ms, _) = host_time(ctx, &inp, k)?;
+                let dispatches_per_step = stats.dispatches * k as u32;
+                gpu_lanes.push(LanesCost {
+                    size: size.clone(),
+                    lanes: k,
+                    stacked: false,
+                    dispatches_per_step,
+                    host_ms,
+                });
             }
             let row = timed_row(
                 lanes_stage(k),
@@ -562,7 +637,24 @@ pub fn compare_lanes(
                 |ctx| gpu_lanes_body(ctx, &inp, k),
             )?;
             progress(&row);
-            rows.push(row);
+            if let Some(ctx) = &gpu {
+                let (dispatches_per_step, host_ms, _) = stacked_host_time(ctx, &inp, k)?;
+                gpu_lanes.push(LanesCost { size: size.clone(), lanes: k, stacked: true, dispatches_per_step, host_ms });
+                let mut body = gpu_stacked_body(ctx, &inp, k)?;
+                let fps = frames_per_second(&mut body, lanes_frames_per_call(k), budget)?.median_fps;
+                drop(body);
+                let stacked = BenchRow {
+                    stage: stacked_stage(k),
+                    gpu_fps: Some(fps),
+                    gpu_over_cpu: Some(fps / row.cpu_fps),
+                    ..row.clone()
+                };
+                rows.push(row);
+                progress(&stacked);
+                rows.push(stacked);
+            } else {
+                rows.push(row);
+            }
         }
     }
     Ok(BenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows, gpu_chain: Vec::new(), gpu_lanes })
