@@ -4,14 +4,15 @@
 # backend per sequence) when their test binary is given, and the whole
 # chain with K sequences in flight beside the same K stacked
 # (`pipetrack bench --lanes`, rows `chain xK` and `chain stacked xK`), at
-# 640x480, 1280x720 and 1920x1080, then the single-stream stage rows at
-# 640x480.
+# 640x480, 1280x720 and 1920x1080, again with every list capped at 1500
+# features (`--cap 1500`, as the blue tracker caps its list) at the two
+# smaller sizes, then the single-stream stage rows at 640x480.
 #
 #   OUT=results benches/gpu_stack.sh [path/to/pipetrack] [path/to/parity-test-binary]
 #
 # Needs a Vulkan loader (libvulkan1) and the vendor's Vulkan driver; check
 # the adapter printed first. Results go to $OUT (default gpu_results):
-# device.txt, parity.txt, lanes_<size>.json, bench.json and log.txt.
+# device.txt, parity.txt, lanes_<size>[_cap1500].json, bench.json and log.txt.
 set -uo pipefail
 
 BIN=$(realpath "${1:-target/release/pipetrack}")
@@ -36,10 +37,12 @@ if [ -n "$PARITY" ]; then
     tail -n 3 "$OUT/parity.txt" | tee -a "$LOG"
 fi
 
-for run in "640x480 1,8,16,32,64" "1280x720 1,8,64" "1920x1080 1,8,16"; do
+for run in "640x480 1,8,16,32,64" "1280x720 1,8,64" "1920x1080 1,8,16" \
+    "640x480 1,8,16,32,64 1500" "1280x720 1,8,64 1500"; do
     set -- $run
-    say "bench: chain with $2 sequences in flight and stacked at $1"
-    timeout 120 "$BIN" bench --json --lanes "$2" --sizes "$1" --seconds 0.3 >"$OUT/lanes_$1.json" 2>>"$LOG"
+    say "bench: chain with $2 sequences in flight and stacked at $1${3:+, lists capped at $3}"
+    timeout 120 "$BIN" bench --json --lanes "$2" --sizes "$1" ${3:+--cap "$3"} --seconds 0.3 \
+        >"$OUT/lanes_$1${3:+_cap$3}.json" 2>>"$LOG"
     echo "exit status $?" >>"$LOG"
 done
 

@@ -236,6 +236,12 @@ enum Command {
         #[arg(long, value_delimiter = ',', conflicts_with_all = ["windows", "stages"],
               value_parser = clap::value_parser!(u16).range(1..=pipetrack::backend::MAX_LANES as i64))]
         lanes: Vec<u16>,
+        /// With --lanes: cap every list of the chain at this many features
+        /// (a stratified subsample, as the blue tracker caps its list at
+        /// 1500); default: every listed pixel comes back.
+        #[arg(long, requires = "lanes",
+              value_parser = clap::value_parser!(u32).range(1..=i64::from(pipetrack::early::compaction::MAX_CAP)))]
+        cap: Option<u32>,
     },
 }
 
@@ -536,9 +542,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench { windows, json, seconds, cpu_only, .. } if !windows.is_empty() => {
             bench_windows(&windows, json, seconds, !cpu_only)
         }
-        Command::Bench { sizes, json, stages, seconds, cpu_only, lanes, .. } => {
+        Command::Bench { sizes, json, stages, seconds, cpu_only, lanes, cap, .. } => {
             let lanes: Vec<usize> = lanes.into_iter().map(usize::from).collect();
-            bench(&sizes.0, json, &stages, &lanes, seconds, !cpu_only)
+            bench(&sizes.0, json, &stages, (&lanes, cap), seconds, !cpu_only)
         }
     }
 }
@@ -583,7 +589,7 @@ fn bench(
     sizes: &[(usize, usize)],
     json: bool,
     stages: &[String],
-    lanes: &[usize],
+    (lanes, cap): (&[usize], Option<u32>),
     seconds: f64,
     gpu: bool,
 ) -> anyhow::Result<()> {
@@ -630,7 +636,7 @@ fn bench(
     let report = if lanes.is_empty() {
         pipetrack::cli::bench::compare(sizes, &chosen, budget, gpu, print_row)
     } else {
-        pipetrack::cli::bench::compare_lanes(sizes, lanes, budget, gpu, print_row)
+        pipetrack::cli::bench::compare_lanes(sizes, lanes, cap, budget, gpu, print_row)
     }
     .context("benchmark failed")?;
     if let Some(e) = write_error {

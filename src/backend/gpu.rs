@@ -23,7 +23,7 @@ use crate::early::edge_pyramid::{self, EdgePyramidGpu};
 use crate::early::sobel::{self, SobelGpu};
 use crate::early::window_energy::{self, WindowEnergyGpu};
 use crate::early::zero_crossing::{self, EdgelsGpu};
-use crate::early::{gaussian, ingest, log, temporal_diff};
+use crate::early::{Feature, gaussian, ingest, log, temporal_diff};
 use crate::gpu::{FrameArena, GpuContext, GpuImage, Recorder};
 use crate::image::{GrayImage, RgbImage};
 use crate::{Error, Result};
@@ -719,11 +719,25 @@ fn finish_in_lane(ctx: &GpuContext, lane: &mut Lane, slot: usize) -> Result<(Vec
     ctx.wait_for(submitted)?;
     let mut out = vec![FrameFeatures::default(); *layers];
     let mut bytes = 0u64;
+    // The lists of a stack are read back on parallel threads, each list's
+    // layers decoded in parallel too; a single frame's lists one by one.
+    let compacted: Vec<List> = plan
+        .steps()
+        .iter()
+        .filter_map(|step| if let Step::Compact { list, .. } = step { Some(*list) } else { None })
+        .collect();
+    let read = |list: &List| s.list(*list).and_then(|scratch| scratch.read_layers(ctx));
+    let mut read_lists: Vec<Vec<Vec<Feature>>> = if *layers > 1 {
+        compacted.par_iter().map(read).collect::<Result<_>>()?
+    } else {
+        compacted.iter().map(read).collect::<Result<_>>()?
+    };
     for step in plan.steps() {
         match *step {
             Step::Compact { list, .. } => {
                 let scratch = s.list(list)?;
-                let lists = scratch.read_layers(ctx)?;
+                let at = compacted.iter().position(|&l| l == list).ok_or_else(|| Error::Gpu("list not read".into()))?;
+                let lists = std::mem::take(&mut read_lists[at]);
                 for (layer, v) in lists.into_iter().enumerate() {
                     if layer + 1 == *layers {
                         bytes += scratch.bytes_read_back_layer(layer, v.len());

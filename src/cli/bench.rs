@@ -63,6 +63,9 @@ pub struct Inputs {
     pub luma: FloatImage,
     /// The first two frames smoothed with σ = 1.
     pub smoothed: [FloatImage; 2],
+    /// Cap on every list of the whole chain with sequences in flight
+    /// ([`Inputs::chain_request`]); `None`: every listed pixel comes back.
+    pub list_cap: Option<u32>,
 }
 
 impl Inputs {
@@ -74,7 +77,27 @@ impl Inputs {
         let luma = frames[0].to_f32();
         let p = GaussianParams::default();
         let smoothed = [gaussian::gaussian(&luma, &p)?, gaussian::gaussian(&frames[1].to_f32(), &p)?];
-        Ok(Self { frames, luma, smoothed })
+        Ok(Self { frames, luma, smoothed, list_cap: None })
+    }
+
+    /// The request of the whole chain with sequences in flight: every list
+    /// of the frame ([`FrameRequest::full_chain`]), each capped at
+    /// [`Inputs::list_cap`] (a stratified subsample, as 002 caps its list).
+    #[must_use]
+    pub fn chain_request(&self) -> FrameRequest {
+        let (w, h) = self.luma.size();
+        let mut request = FrameRequest::full_chain(w, h);
+        for list in [
+            request.motion.as_mut().map(|m| &mut m.list),
+            request.edges.as_mut().map(|e| &mut e.list),
+            request.zero_crossings.as_mut().map(|z| &mut z.list),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            list.cap = self.list_cap;
+        }
+        request
     }
 }
 
@@ -251,9 +274,8 @@ pub fn lanes_stage(lanes: usize) -> String {
 /// fixed number of steps, [`lanes_frames_per_call`] frames in all.
 pub fn gpu_lanes_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
     check_lane_count(lanes)?;
-    let (w, h) = inp.luma.size();
     let mut backend = GpuBackend::new(ctx.clone());
-    let request = FrameRequest::full_chain(w, h);
+    let request = inp.chain_request();
     let groups = lane_groups(lanes);
     Ok(Box::new(move || {
         let n = inp.frames.len();
@@ -288,9 +310,8 @@ pub fn gpu_lanes_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) ->
 /// step processing one frame of every lane in parallel on the thread pool.
 pub fn cpu_lanes_body<'a>(inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
     check_lane_count(lanes)?;
-    let (w, h) = inp.luma.size();
     let mut backends: Vec<CpuBackend> = (0..lanes).map(|_| CpuBackend::new()).collect();
-    let request = FrameRequest::full_chain(w, h);
+    let request = inp.chain_request();
     Ok(Box::new(move || {
         let n = inp.frames.len();
         for step in 0..CHAIN_FRAMES {
@@ -310,9 +331,8 @@ pub fn cpu_lanes_body<'a>(inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
 /// the fastest of [`HOST_FRAMES`] steps, and the GPU work of the last frame.
 pub fn host_time(ctx: &GpuContext, inp: &Inputs, lanes: usize) -> Result<(FrameStats, f64, f64)> {
     check_lane_count(lanes)?;
-    let (w, h) = inp.luma.size();
     let mut backend = GpuBackend::new(ctx.clone());
-    let request = FrameRequest::full_chain(w, h);
+    let request = inp.chain_request();
     let n = inp.frames.len();
     let mut per_frame = Vec::with_capacity(HOST_FRAMES);
     // Frames go back and forth through the sequence, so each differs from
@@ -365,9 +385,8 @@ pub fn stacked_stage(lanes: usize) -> String {
 /// the step before read back while the device works on it. One call is
 /// [`lanes_frames_per_call`] frames, as for [`gpu_lanes_body`].
 pub fn gpu_stacked_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) -> Result<Body<'a>> {
-    let (w, h) = inp.luma.size();
     let mut stack = GpuStack::new(ctx.clone(), lanes)?;
-    let request = FrameRequest::full_chain(w, h);
+    let request = inp.chain_request();
     Ok(Box::new(move || {
         let n = inp.frames.len();
         let mut pending = None;
@@ -391,9 +410,8 @@ pub fn gpu_stacked_body<'a>(ctx: &'a GpuContext, inp: &'a Inputs, lanes: usize) 
 /// step, reading its lists back; the device's work not counted), and the
 /// dispatches of a step.
 pub fn stacked_host_time(ctx: &GpuContext, inp: &Inputs, lanes: usize) -> Result<(u32, f64, f64)> {
-    let (w, h) = inp.luma.size();
     let mut stack = GpuStack::new(ctx.clone(), lanes)?;
-    let request = FrameRequest::full_chain(w, h);
+    let request = inp.chain_request();
     let n = inp.frames.len();
     let mut per_frame = Vec::with_capacity(HOST_FRAMES);
     for step in 0..HOST_FRAMES + 2 {
@@ -599,10 +617,12 @@ pub fn compare(
 /// The whole chain at every size with each number of sequences in flight
 /// ([`gpu_lanes_body`], [`cpu_lanes_body`]), CPU and, with `gpu`, GPU; with
 /// a GPU also stacked ([`gpu_stacked_body`], a row beside the CPU figures
-/// of the row before).
+/// of the row before). With `list_cap` every list is capped
+/// ([`Inputs::chain_request`]) and the rows' names say so.
 pub fn compare_lanes(
     sizes: &[(usize, usize)],
     lanes: &[usize],
+    list_cap: Option<u32>,
     budget: Duration,
     gpu: bool,
     mut progress: impl FnMut(&BenchRow),
@@ -614,7 +634,8 @@ pub fn compare_lanes(
     let mut rows = Vec::new();
     let mut gpu_lanes = Vec::new();
     for &(w, h) in sizes {
-        let inp = Inputs::new(w, h)?;
+        let inp = Inputs { list_cap, ..Inputs::new(w, h)? };
+        let capped = |name: String| list_cap.map_or(name.clone(), |c| format!("{name} cap {c}"));
         for &k in lanes {
             let size = format!("{w}x{h}");
             if let Some(ctx) = &gpu {
@@ -629,7 +650,7 @@ pub fn compare_lanes(
                 });
             }
             let row = timed_row(
-                lanes_stage(k),
+                capped(lanes_stage(k)),
                 (w, h),
                 budget,
                 (cpu_lanes_body(&inp, k)?, lanes_frames_per_call(k)),
@@ -644,7 +665,7 @@ pub fn compare_lanes(
                 let fps = frames_per_second(&mut body, lanes_frames_per_call(k), budget)?.median_fps;
                 drop(body);
                 let stacked = BenchRow {
-                    stage: stacked_stage(k),
+                    stage: capped(stacked_stage(k)),
                     gpu_fps: Some(fps),
                     gpu_over_cpu: Some(fps / row.cpu_fps),
                     ..row.clone()
@@ -691,11 +712,13 @@ mod tests {
         for k in [0, MAX_LANES + 1] {
             let message = cpu_lanes_body(&inputs, k).err().unwrap().to_string();
             assert!(message.contains(&format!("1 to {MAX_LANES}")), "{message}");
-            assert!(compare_lanes(&[(13, 9)], &[k], Duration::from_millis(1), false, |_| {}).is_err());
+            assert!(compare_lanes(&[(13, 9)], &[k], None, Duration::from_millis(1), false, |_| {}).is_err());
         }
-        let report = compare_lanes(&[(13, 9)], &[2], Duration::from_millis(1), false, |_| {}).unwrap();
+        let report = compare_lanes(&[(13, 9)], &[2], None, Duration::from_millis(1), false, |_| {}).unwrap();
         assert_eq!(report.rows.len(), 1);
         assert_eq!(report.rows[0].stage, "chain x2");
+        let capped = compare_lanes(&[(13, 9)], &[2], Some(7), Duration::from_millis(1), false, |_| {}).unwrap();
+        assert_eq!(capped.rows[0].stage, "chain x2 cap 7");
         assert!(report.rows[0].cpu_fps > 0.0 && report.rows[0].gpu_fps.is_none());
     }
 }

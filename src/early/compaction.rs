@@ -472,8 +472,8 @@ impl CompactionGpu {
     }
 
     /// [`CompactionGpu::read`] for every layer: each layer's list, in layer
-    /// order. The remainders of all lists longer than their prefetch go in
-    /// one more submission.
+    /// order, decoded on parallel threads. The remainders of all lists
+    /// longer than their prefetch go in one more submission.
     pub fn read_layers(&self, ctx: &GpuContext) -> Result<Vec<Vec<Feature>>> {
         let prefetched = self.prefetched().clone();
         let headers_bytes = HEADER_BYTES * self.layers as u64;
@@ -481,17 +481,23 @@ impl CompactionGpu {
         // The headers and the prefetched features, decoded straight from the mapping.
         let (headers, mut lists) = ctx.read_mapped(&self.staging, 0..headers_bytes + prefetched_bytes, |bytes| {
             let headers: Vec<Header> = bytemuck::pod_collect_to_vec(&bytes[..headers_bytes as usize]);
+            // Where each layer's prefetched features start, and how many of them it listed.
             let mut at = headers_bytes as usize;
-            let lists: Vec<Vec<Feature>> = headers
+            let parts: Vec<(usize, usize)> = headers
                 .iter()
                 .zip(&prefetched)
                 .map(|(header, &kept)| {
-                    let head = header.listed.min(kept) as usize;
-                    let features = bytemuck::pod_collect_to_vec(&bytes[at..at + head * FEATURE_BYTES as usize]);
+                    let part = (at, header.listed.min(kept) as usize * FEATURE_BYTES as usize);
                     at += kept as usize * FEATURE_BYTES as usize;
-                    features
+                    part
                 })
                 .collect();
+            let decode = |&(at, len): &(usize, usize)| bytemuck::pod_collect_to_vec(&bytes[at..at + len]);
+            let lists: Vec<Vec<Feature>> = if parts.len() > 1 {
+                parts.par_iter().map(decode).collect()
+            } else {
+                parts.iter().map(decode).collect()
+            };
             (headers, lists)
         })?;
         let (list, capacity, stride) = self.list();

@@ -19,6 +19,13 @@ use pipetrack::testimage::natural;
 
 /// Angle and magnitude tolerance of listed features (Sobel/LoG rounding).
 const FEATURE_ATOL: f32 = 1e-3;
+/// Gradient error (grey levels) a device's f32 arithmetic may leave in a
+/// feature's gradient: a device that fuses multiply-adds (an NVIDIA H200
+/// left up to 3.7e-4) rounds differently from the CPU twins. A feature's
+/// angle is the gradient's direction, so it may differ by about this over
+/// the gradient's magnitude, which matters only where the gradient is
+/// nearly flat.
+const GRADIENT_ATOL: f32 = 1e-3;
 
 fn sequence(w: usize, h: usize, n: usize) -> Vec<GrayImage> {
     let scene = natural(w + 3 * n, h, 99);
@@ -31,7 +38,14 @@ fn same_lists(what: &str, cpu: &[Feature], gpu: &[Feature]) {
         assert_eq!((c.x, c.y), (g.x, g.y), "{what}: element {i} at a different pixel");
         let dt = (c.theta - g.theta).abs();
         let dt = dt.min((dt - std::f32::consts::TAU).abs());
-        assert!(dt <= FEATURE_ATOL, "{what}: element {i} theta {} vs {}", c.theta, g.theta);
+        let angle_tolerance = FEATURE_ATOL + GRADIENT_ATOL / c.magnitude.abs();
+        assert!(
+            dt <= angle_tolerance,
+            "{what}: element {i} theta {} vs {} (gradient magnitude {})",
+            c.theta,
+            g.theta,
+            c.magnitude
+        );
         assert!(
             (c.magnitude - g.magnitude).abs() <= FEATURE_ATOL * c.magnitude.abs().max(1.0),
             "{what}: element {i} magnitude"
