@@ -612,7 +612,7 @@ fn bench(
     let budget = Duration::from_secs_f64(seconds);
     if !json {
         say(format_args!(
-            "{:<18} {:>10} {:>12} {:>12} {:>9} {:>12}",
+            "{:<26} {:>10} {:>12} {:>12} {:>9} {:>12}",
             "stage", "size", "cpu fps", "gpu fps", "gpu/cpu", "cpu best ms"
         ))?;
     }
@@ -622,7 +622,7 @@ fn bench(
             let gpu = row.gpu_fps.map_or("-".to_string(), |g| format!("{g:.1}"));
             let ratio = row.gpu_over_cpu.map_or("-".to_string(), |r| format!("{r:.2}"));
             write_error = say(format_args!(
-                "{:<18} {:>10} {:>12.1} {:>12} {:>9} {:>12.4}",
+                "{:<26} {:>10} {:>12.1} {:>12} {:>9} {:>12.4}",
                 row.stage,
                 row.size,
                 row.cpu_fps,
