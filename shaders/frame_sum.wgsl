@@ -1,6 +1,8 @@
 // Sum of two consecutive smoothed frames G*_t + G*_{t+1}: 000 extracts edge
 // orientation from it so that edges of a moving object are dense in both frames.
 // Kept in sync with `FrameSumUniform` in src/early/frame_sum.rs.
+// Stacked images (a stack of layers, each width×height after the one
+// before) are one dispatch: the grid's z is the layer (`id.z`).
 
 struct Params {
     width: u32,

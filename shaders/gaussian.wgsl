@@ -1,6 +1,8 @@
 // Separable Gaussian smoothing (000 eq. 1: G* applied to each frame; 001).
 // Two entry points, one per 1-D pass; clamp-to-edge borders.
 // Kept in sync with `GaussianUniform` in src/early/gaussian.rs.
+// Stacked images (a stack of layers, each width×height after the one
+// before) are one dispatch: the grid's z is the layer (`id.z`).
 
 struct Params {
     width: u32,

@@ -6,6 +6,8 @@
 // them); each pipeline's layout is built from its entry point's declared
 // bindings in src/early/log.rs, so the two sets do not collide.
 // Kept in sync with `LogUniform` in src/early/log.rs.
+// Stacked images (a stack of layers, each width×height after the one
+// before) are one dispatch: the grid's z is the layer (`id.z`).
 
 struct Params {
     width: u32,

@@ -5,6 +5,8 @@
 // src/early/sobel.rs and mirrored there step by step. PI, HALF_PI and
 // fast_atan_quotient come from shaders/angle.wgsl, appended to this file when the
 // module is built. Kept in sync with `SobelUniform` in src/early/sobel.rs.
+// Stacked images (a stack of layers, each width×height after the one
+// before) are one dispatch: the grid's z is the layer (`id.z`).
 
 struct Params {
     width: u32,

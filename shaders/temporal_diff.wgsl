@@ -4,6 +4,8 @@
 // declares its own buffers at bindings 1, 2, … in the order
 // src/early/temporal_diff.rs passes them.
 // Kept in sync with `TemporalDiffUniform` in src/early/temporal_diff.rs.
+// Stacked images (a stack of layers, each width×height after the one
+// before) are one dispatch: the grid's z is the layer (`id.z`).
 
 struct Params {
     width: u32,

@@ -7,6 +7,8 @@
 // src/early/zero_crossing.rs, and with its CPU twin `axis` / `edgel`.
 // fast_atan2 comes from shaders/angle.wgsl, appended to this file when the
 // module is built.
+// Stacked images (a stack of layers, each width×height after the one
+// before) are one dispatch: the grid's z is the layer (`id.z`).
 
 struct Params {
     width: u32,
