@@ -629,11 +629,14 @@ pub struct StackTicket {
 /// stages and parameters, each list with its own window, threshold, seed
 /// and cap). The features are those [`GpuBackend`] gives each sequence on
 /// its own. Up to two steps may be in flight; sample windows and textures
-/// are not taken.
+/// are not taken. One sequence may end and another take its layer
+/// ([`GpuStack::reset_layer`]) while the others go on.
 pub struct GpuStack {
     ctx: GpuContext,
     lane: Lane,
     stats: FrameStats,
+    /// Layers whose next frame starts a new sequence.
+    fresh: Vec<bool>,
 }
 
 impl std::fmt::Debug for GpuStack {
@@ -650,7 +653,12 @@ impl GpuStack {
     /// are allocated on the first step.
     pub fn new(ctx: GpuContext, layers: usize) -> Result<Self> {
         check_lane_count(layers)?;
-        Ok(Self { ctx, lane: Lane::layered(layers, STACK_SLOTS), stats: FrameStats::default() })
+        Ok(Self {
+            ctx,
+            lane: Lane::layered(layers, STACK_SLOTS),
+            stats: FrameStats::default(),
+            fresh: vec![false; layers],
+        })
     }
 
     /// Sequences in the stack.
@@ -685,6 +693,13 @@ impl GpuStack {
         self.lane.check_next_slot_free()?;
         let requests: Vec<&FrameRequest> = frames.iter().map(|(_, r)| *r).collect();
         let (slot, mut plans) = prepare(&self.ctx, &mut self.lane, w, h, &requests)?;
+        // A layer starting a new sequence differences against another
+        // sequence's frame: its motion list is compacted from no window.
+        for (plan, fresh) in plans.iter_mut().zip(&self.fresh) {
+            if *fresh {
+                plan.empty_list(List::Motion);
+            }
+        }
         let inputs: Vec<Input<'_>> = frames.iter().map(|(f, _)| Input::Bytes(f, None)).collect();
         let (commands, stats) = record(&self.ctx, &self.lane, slot, &plans, &inputs, None)?;
         self.lane.advance(slot, &plans[0]);
@@ -692,6 +707,7 @@ impl GpuStack {
         self.stats.bytes_uploaded = stats.bytes_uploaded;
         let submitted = self.ctx.queue.submit([commands]);
         self.lane.slot_mut(slot)?.pending = Some((plans.swap_remove(0), submitted));
+        self.fresh.fill(false);
         Ok(StackTicket { slot })
     }
 
@@ -706,6 +722,18 @@ impl GpuStack {
     /// Forget the previous frames: the next step starts new sequences.
     pub fn reset(&mut self) {
         self.lane.previous = None;
+        self.fresh.fill(false);
+    }
+
+    /// Forget the previous frame of `layer` only: its next frame starts a
+    /// new sequence (no motion on it), the other layers go on.
+    pub fn reset_layer(&mut self, layer: usize) -> Result<()> {
+        let fresh = self
+            .fresh
+            .get_mut(layer)
+            .ok_or_else(|| Error::Parameter(format!("layer {layer} out of range (a stack of {})", self.lane.layers)))?;
+        *fresh = true;
+        Ok(())
     }
 }
 

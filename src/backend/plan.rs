@@ -360,6 +360,18 @@ impl FramePlan {
             })
     }
 
+    /// Compact `list` from an empty window: the list comes back empty, as
+    /// on a sequence's first frame, while every step still runs.
+    pub(crate) fn empty_list(&mut self, list: List) {
+        for step in &mut self.steps {
+            if let Step::Compact { list: l, params, .. } = step
+                && *l == list
+            {
+                params.window = crate::early::Window { x0: 0, y0: 0, x1: 0, y1: 0 };
+            }
+        }
+    }
+
     /// Whether the plan reads the previous frame's smoothed image.
     #[must_use]
     pub fn reads_previous(&self) -> bool {

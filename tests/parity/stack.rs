@@ -2,7 +2,8 @@
 //! layer, what the CPU backend gives each sequence alone — on an odd frame
 //! size, with a different window, cap and seed per layer (one window empty,
 //! one a single column at the border), pyramids handed back, two steps in
-//! flight and a reset; and requests that cannot stack are refused.
+//! flight, one layer starting a new sequence while the others go on, and a
+//! reset of all; and requests that cannot stack are refused.
 use crate::backend::{crossings, edges, motion, same_features};
 use crate::common;
 
@@ -22,21 +23,23 @@ fn frame(scene: &GrayImage, layer: usize, i: usize) -> GrayImage {
 }
 
 /// The request of `layer` at step `step`: the whole chain with pyramids
-/// handed back; every list has its own window, and edges and crossings
-/// their own caps and seeds.
+/// handed back; every list has its own window (layer 1's motion reaching
+/// past the right border, layer 2's motion empty and its edges a single
+/// column at that border), and edges and crossings their own caps and seeds.
 fn request(layer: usize, step: usize) -> FrameRequest {
     let (w, h) = SIZE;
     let (wu, hu) = (w as u32, h as u32);
     let window = match layer {
         0 => Window::full(w, h),
-        1 => Window { x0: wu - 1, y0: 0, x1: wu + 5, y1: hu },
+        1 => Window { x0: wu - 40, y0: 0, x1: wu + 5, y1: hu },
         _ => Window { x0: 10 + step as u32, y0: 5, x1: 10 + step as u32, y1: 40 },
     };
     let mut r = FrameRequest::full_chain(w, h);
-    let spec = ListSpec {
-        window: Window { x0: 3 * layer as u32, y0: layer as u32, x1: wu - 2, y1: hu },
-        ..ListSpec::full(w, h)
+    let list_window = match layer {
+        2 => Window { x0: wu - 1, y0: 0, x1: wu + 5, y1: hu },
+        _ => Window { x0: 3 * layer as u32, y0: layer as u32, x1: wu - 2, y1: hu },
     };
+    let spec = ListSpec { window: list_window, ..ListSpec::full(w, h) };
     r.motion = Some(motion(ListSpec { window, ..spec }));
     r.edges = Some(edges(layer == 0, ListSpec { cap: Some(40 + 300 * layer as u32), seed: step as u32, ..spec }));
     r.zero_crossings = Some(crossings(ListSpec { cap: Some(5 + 7 * layer as u32), seed: layer as u32, ..spec }));
@@ -68,12 +71,20 @@ fn stacked_sequences_equal_the_cpu_per_sequence() {
         for (layer, (c, g)) in expected.iter().zip(&read).enumerate() {
             same_features(&format!("layer{layer}/step{step}"), c, g);
         }
-        // The empty window lists nothing; the one-column window at most its column.
+        // The empty window lists nothing; the others only their own pixels.
         assert!(read[2].motion.as_ref().unwrap().is_empty());
-        assert!(read[1].motion.as_ref().unwrap().iter().all(|f| f.x == SIZE.0 as u32 - 1));
+        assert!(read[2].edges.as_ref().unwrap().iter().all(|f| f.x == SIZE.0 as u32 - 1));
+        assert!(read[1].motion.as_ref().unwrap().iter().all(|f| f.x >= SIZE.0 as u32 - 40));
     };
     let mut sequence_start = 0;
+    let mut offset = [0usize; LAYERS];
     for step in 0..7 {
+        if step == 2 {
+            // Layer 1 alone starts a new sequence, elsewhere in the scene.
+            stack.reset_layer(1).unwrap();
+            cpu[1].reset();
+            offset[1] = 11;
+        }
         if step == 4 {
             // A new sequence in every layer: no motion on its first frame.
             if let Some((s, t)) = pending.take() {
@@ -83,13 +94,15 @@ fn stacked_sequences_equal_the_cpu_per_sequence() {
             cpu.iter_mut().for_each(EarlyVision::reset);
             sequence_start = step;
         }
-        let frames: Vec<GrayImage> = (0..LAYERS).map(|l| frame(&scene, l, step + 7 * (step / 4))).collect();
+        let frames: Vec<GrayImage> = (0..LAYERS).map(|l| frame(&scene, l, step + offset[l] + 7 * (step / 4))).collect();
         let reqs = requests(step);
         let batch: Vec<(&GrayImage, &FrameRequest)> = frames.iter().zip(&reqs).collect();
         let ticket = stack.submit(&batch).unwrap();
         let c: Vec<FrameFeatures> = cpu.iter_mut().zip(&batch).map(|(b, (f, r))| b.process(f, r).unwrap()).collect();
         let moving = c[0].motion.as_ref().unwrap();
         assert_eq!(moving.is_empty(), step == sequence_start, "step {step}: motion only after a first frame");
+        let restarted = c[1].motion.as_ref().unwrap();
+        assert_eq!(restarted.is_empty(), step == sequence_start || step == 2, "layer 1, step {step}");
         expected.push(c);
         if let Some((s, t)) = pending.replace((step, ticket)) {
             check(s, stack.finish(t).unwrap(), &expected[s]);
@@ -125,6 +138,7 @@ fn requests_that_do_not_stack_are_refused() {
     let small = GrayImage::from_fn(SIZE.0 - 1, SIZE.1, |x, _| x as u8);
     refused(&mut stack, &[all[0], &small, all[2]], &plain, "stacked frame 1 is 130x67");
     assert!(GpuStack::new(ctx.clone(), 0).is_err());
+    assert!(stack.reset_layer(LAYERS).is_err());
     // Two steps in flight, not three.
     let batch: Vec<(&GrayImage, &FrameRequest)> = all.iter().copied().zip(&plain).collect();
     let first = stack.submit(&batch).unwrap();
