@@ -12,6 +12,16 @@
 //! A tracker that reads colour gets colour frames here too: its lane's
 //! frames carry their colour for the sample windows.
 //!
+//! Within a group, sequences whose frames stack (one frame size, requests
+//! that differ only in their lists' windows, thresholds, seeds and caps:
+//! [`FramePlan::stacks_with`]) run as the layers of one [`GpuStack`], every
+//! stage one dispatch for all of them. A sequence joins the stack on its
+//! first frame when it matches the sequences already there (or the stack is
+//! empty) and stays for its whole run, so its previous frame is always where
+//! its next one is computed; the others run in their own lanes. A layer
+//! without a sequence is given a copy of another layer's frame, and its
+//! features are dropped.
+//!
 //! On the CPU, K threads each track one sequence at a time with
 //! [`run::track_to_file_with`].
 //!
@@ -28,8 +38,10 @@ use rayon::prelude::*;
 
 use super::Tracker;
 use super::run::{self, RunSummary, TrackOptions, make_tracker, track_features, write_result_line};
+use crate::backend::plan::PreviousFrame;
 use crate::backend::{
-    BackendKind, EarlyVision, FrameFeatures, FrameRequest, GpuBackend, LaneFrame, Ticket, check_lane_count, lane_groups,
+    BackendKind, EarlyVision, FrameFeatures, FramePlan, FrameRequest, GpuBackend, GpuStack, LaneFrame, StackTicket,
+    Ticket, check_lane_count, lane_groups,
 };
 use crate::image::{GrayImage, RgbImage};
 use crate::io::formats::Status;
@@ -120,6 +132,9 @@ struct Running<'j> {
     /// The frame submitted this step (grey, or the luma of the colour frame
     /// beside it), with the tracker's request for it and when it was taken.
     current: Option<(GrayImage, Option<RgbImage>, FrameRequest, Instant)>,
+    /// Whether the sequence runs in its group's stack (decided on its first
+    /// frame), or in its own lane.
+    stacked: Option<bool>,
 }
 
 /// A sequence's frames as its tracker reads them ([`Tracker::wants_colour`]).
@@ -146,7 +161,18 @@ impl<'j> Running<'j> {
         } else {
             LaneFrames::Gray(seq.frames())
         };
-        Ok(Self { job, seq, tracker, frames, out, index: 0, tracked: 0, started: Instant::now(), current: None })
+        Ok(Self {
+            job,
+            seq,
+            tracker,
+            frames,
+            out,
+            index: 0,
+            tracked: 0,
+            started: Instant::now(),
+            current: None,
+            stacked: None,
+        })
     }
 
     /// Read the next frame and take the tracker's request for it: `Ok(true)`
@@ -205,6 +231,15 @@ pub fn run_batch_on_gpu(
 ) -> Result<Vec<Result<RunSummary>>> {
     check_lane_count(lanes)?;
     let lanes = lanes.min(jobs.len()).max(1);
+    let groups = lane_groups(lanes);
+    let stacks = groups
+        .iter()
+        .map(|group| {
+            let stack =
+                if group.len() > 1 { Some(GpuStack::new(backend.context().clone(), group.len())?) } else { None };
+            Ok(stack.map(|stack| GroupStack { stack, shape: None }))
+        })
+        .collect::<Result<_>>()?;
     let mut batch = Lanes {
         jobs,
         running: (0..lanes).map(|_| None).collect(),
@@ -212,15 +247,15 @@ pub fn run_batch_on_gpu(
         next_job: 0,
         backend_name: backend.name(),
         progress,
+        stacks,
     };
-    let groups = lane_groups(lanes);
-    let mut pending: Vec<Vec<(usize, Ticket)>> = groups.iter().map(|_| Vec::new()).collect();
+    let mut pending: Vec<Submitted> = groups.iter().map(|_| Submitted::default()).collect();
     loop {
         let mut busy = false;
-        for (group, submitted) in groups.iter().zip(&mut pending) {
-            batch.track_submitted(backend, std::mem::take(submitted))?;
+        for (g, (group, submitted)) in groups.iter().zip(&mut pending).enumerate() {
+            batch.track_submitted(g, backend, std::mem::take(submitted))?;
             batch.read_next_frames(group, backend);
-            *submitted = batch.submit(group, backend)?;
+            *submitted = batch.submit(g, group, backend)?;
             busy |= !submitted.is_empty();
         }
         if !busy {
@@ -239,14 +274,49 @@ struct Lanes<'j, 'p> {
     next_job: usize,
     backend_name: String,
     progress: &'p (dyn Fn(BatchProgress) + Sync),
+    /// Each group's stack (none for a group of one lane).
+    stacks: Vec<Option<GroupStack>>,
+}
+
+/// A group's stack, layer `l` for the group's `l`-th lane, and what the
+/// frames of the sequences in it share while it has any.
+struct GroupStack {
+    stack: GpuStack,
+    shape: Option<((usize, usize), FramePlan)>,
+}
+
+/// What one group's step submitted: frames in their own lanes, and the
+/// stack's step with the lane of each layer (`None`: a copied frame).
+#[derive(Default)]
+struct Submitted {
+    lanes: Vec<(usize, Ticket)>,
+    stack: Option<(Vec<Option<usize>>, StackTicket)>,
+}
+
+impl Submitted {
+    fn is_empty(&self) -> bool {
+        self.lanes.is_empty() && self.stack.is_none()
+    }
+}
+
+/// The plan a frame of `size` with `request` runs once its sequence has a
+/// previous frame: what frames must share to stack.
+fn stacking_shape((w, h): (usize, usize), request: &FrameRequest) -> FramePlan {
+    FramePlan::new(request, w, h, Some(&PreviousFrame { width: w, height: h, smoothing: request.smoothing }))
 }
 
 impl<'j> Lanes<'j, '_> {
     /// Collect a group's submission and run its trackers in parallel, one
     /// sequence per thread; a sequence whose output cannot be written fails.
-    fn track_submitted(&mut self, backend: &mut GpuBackend, submitted: Vec<(usize, Ticket)>) -> Result<()> {
-        let (lanes_of, tickets): (Vec<usize>, Vec<Ticket>) = submitted.into_iter().unzip();
-        let features: Vec<(usize, FrameFeatures)> = lanes_of.into_iter().zip(backend.finish_lanes(tickets)?).collect();
+    fn track_submitted(&mut self, g: usize, backend: &mut GpuBackend, submitted: Submitted) -> Result<()> {
+        let (lanes_of, tickets): (Vec<usize>, Vec<Ticket>) = submitted.lanes.into_iter().unzip();
+        let mut features: Vec<(usize, FrameFeatures)> =
+            lanes_of.into_iter().zip(backend.finish_lanes(tickets)?).collect();
+        if let Some((layers, ticket)) = submitted.stack {
+            let stack = self.stacks[g].as_mut().ok_or_else(|| Error::Gpu("group has no stack".into()))?;
+            let read = stack.stack.finish(ticket)?;
+            features.extend(layers.into_iter().zip(read).filter_map(|(lane, f)| Some((lane?, f))));
+        }
         let mut lanes: Vec<Option<&mut Running<'j>>> = self.running.iter_mut().map(Option::as_mut).collect();
         let work: Vec<(usize, &mut Running<'j>, FrameFeatures)> =
             features.into_iter().filter_map(|(lane, f)| Some((lane, lanes[lane].take()?, f))).collect();
@@ -326,20 +396,94 @@ impl<'j> Lanes<'j, '_> {
         }
     }
 
-    /// Record the frames read in `group`'s lanes into one submission.
-    fn submit(&self, group: &[usize], backend: &mut GpuBackend) -> Result<Vec<(usize, Ticket)>> {
+    /// Record the frames read in `group`'s lanes: the stacked sequences'
+    /// as one step of the group's stack, the others into one submission of
+    /// their lanes.
+    fn submit(&mut self, g: usize, group: &[usize], backend: &mut GpuBackend) -> Result<Submitted> {
+        self.join_stack(g, group)?;
+        let in_stack = |r: &Running<'_>| r.stacked == Some(true);
         let frames: Vec<LaneFrame<'_>> = group
             .iter()
             .filter_map(|&lane| {
-                let (frame, colour, request, _) = self.running[lane].as_ref()?.current.as_ref()?;
+                let r = self.running[lane].as_ref().filter(|r| !in_stack(r))?;
+                let (frame, colour, request, _) = r.current.as_ref()?;
                 Some(LaneFrame { lane, frame, colour: colour.as_ref(), request })
             })
             .collect();
-        if frames.is_empty() {
-            return Ok(Vec::new());
+        let mut submitted = Submitted::default();
+        if !frames.is_empty() {
+            let tickets = backend.submit_lanes(&frames)?;
+            submitted.lanes = frames.iter().map(|f| f.lane).zip(tickets).collect();
         }
-        let tickets = backend.submit_lanes(&frames)?;
-        Ok(frames.iter().map(|f| f.lane).zip(tickets).collect())
+        let layers: Vec<Option<(usize, &GrayImage, &FrameRequest)>> = group
+            .iter()
+            .map(|&lane| {
+                let r = self.running[lane].as_ref().filter(|r| in_stack(r))?;
+                let (frame, _, request, _) = r.current.as_ref()?;
+                Some((lane, frame, request))
+            })
+            .collect();
+        if let (Some(stack), Some(&(_, filler, filler_request))) =
+            (self.stacks[g].as_mut(), layers.iter().flatten().next())
+        {
+            let batch: Vec<(&GrayImage, &FrameRequest)> =
+                layers.iter().map(|l| l.map_or((filler, filler_request), |(_, f, r)| (f, r))).collect();
+            let ticket = stack.stack.submit(&batch)?;
+            submitted.stack = Some((layers.iter().map(|l| l.map(|(lane, ..)| lane)).collect(), ticket));
+        }
+        Ok(submitted)
+    }
+
+    /// Decide, for each sequence of `group` on its first frame, whether it
+    /// runs in the group's stack: when its frame stacks with the frames of
+    /// the sequences already there, or there are none. A sequence that
+    /// joins starts a new sequence in its layer. A sequence in the stack
+    /// whose frame no longer stacks fails alone.
+    fn join_stack(&mut self, g: usize, group: &[usize]) -> Result<()> {
+        let Some(stack) = self.stacks[g].as_ref() else { return Ok(()) };
+        let strayed: Vec<(usize, usize)> = group
+            .iter()
+            .filter_map(|&lane| {
+                let r = self.running[lane].as_ref().filter(|r| r.stacked == Some(true))?;
+                let (frame, _, request, _) = r.current.as_ref()?;
+                let (size, plan) = stack.shape.as_ref()?;
+                let fits = *size == frame.size() && stacking_shape(frame.size(), request).stacks_with(plan);
+                (!fits).then_some((lane, r.index))
+            })
+            .collect();
+        for (lane, index) in strayed {
+            let message = format!(
+                "frame {index} asks for other early-vision stages than the sequences stacked beside it; track it \
+                 alone or with --jobs 1"
+            );
+            self.end(lane, Err(Error::Parameter(message)));
+        }
+        let Some(stack) = self.stacks[g].as_mut() else { return Ok(()) };
+        if !group.iter().any(|&lane| self.running[lane].as_ref().is_some_and(|r| r.stacked == Some(true))) {
+            stack.shape = None;
+        }
+        for (layer, &lane) in group.iter().enumerate() {
+            let Some(r) = self.running[lane].as_mut() else { continue };
+            let Some((frame, colour, request, _)) = r.current.as_ref() else { continue };
+            if r.stacked.is_some() {
+                continue;
+            }
+            let joins = colour.is_none() && request.windows.is_none() && {
+                let shape = stacking_shape(frame.size(), request);
+                match &stack.shape {
+                    None => {
+                        stack.shape = Some((frame.size(), shape));
+                        true
+                    }
+                    Some((size, plan)) => *size == frame.size() && shape.stacks_with(plan),
+                }
+            };
+            if joins {
+                stack.stack.reset_layer(layer)?;
+            }
+            r.stacked = Some(joins);
+        }
+        Ok(())
     }
 
     /// End the sequence in `lane` with `result` (after an error its partial
