@@ -667,6 +667,14 @@ impl GpuStack {
         self.lane.layers
     }
 
+    /// `Ok` when the device holds a step of `width`×`height` frames: every
+    /// layer's list of every pixel in one buffer (the largest the stack
+    /// makes); otherwise the error of [`compaction::check_list_fits`].
+    pub fn check_frame_size(&self, width: usize, height: usize) -> Result<()> {
+        let pixels = width.saturating_mul(height).saturating_mul(self.lane.layers);
+        compaction::check_list_fits(&self.ctx.device.limits(), pixels)
+    }
+
     /// Dispatch and transfer counts of the last step (bytes read back: its
     /// last layer's).
     #[must_use]

@@ -436,7 +436,8 @@ impl<'j> Lanes<'j, '_> {
 
     /// Decide, for each sequence of `group` on its first frame, whether it
     /// runs in the group's stack: when its frame stacks with the frames of
-    /// the sequences already there, or there are none. A sequence that
+    /// the sequences already there, or there are none, and the device holds
+    /// a stack of such frames. A sequence that
     /// joins starts a new sequence in its layer. A sequence in the stack
     /// whose frame no longer stacks fails alone.
     fn join_stack(&mut self, g: usize, group: &[usize]) -> Result<()> {
@@ -468,7 +469,8 @@ impl<'j> Lanes<'j, '_> {
             if r.stacked.is_some() {
                 continue;
             }
-            let joins = colour.is_none() && request.windows.is_none() && {
+            let fits = stack.stack.check_frame_size(frame.width(), frame.height()).is_ok();
+            let joins = fits && colour.is_none() && request.windows.is_none() && {
                 let shape = stacking_shape(frame.size(), request);
                 match &stack.shape {
                     None => {

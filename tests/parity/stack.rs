@@ -139,6 +139,9 @@ fn requests_that_do_not_stack_are_refused() {
     refused(&mut stack, &[all[0], &small, all[2]], &plain, "stacked frame 1 is 130x67");
     assert!(GpuStack::new(ctx.clone(), 0).is_err());
     assert!(stack.reset_layer(LAYERS).is_err());
+    stack.check_frame_size(SIZE.0, SIZE.1).unwrap();
+    let too_large = stack.check_frame_size(100_000, 100_000).unwrap_err().to_string();
+    assert!(too_large.contains("buffer limit"), "{too_large}");
     // Two steps in flight, not three.
     let batch: Vec<(&GrayImage, &FrameRequest)> = all.iter().copied().zip(&plain).collect();
     let first = stack.submit(&batch).unwrap();
