@@ -763,25 +763,23 @@ fn finish_in_lane(ctx: &GpuContext, lane: &mut Lane, slot: usize) -> Result<(Vec
         .filter_map(|step| if let Step::Compact { list, .. } = step { Some(*list) } else { None })
         .collect();
     let read = |list: &List| s.list(*list).and_then(|scratch| scratch.read_layers(ctx));
-    let mut read_lists: Vec<Vec<Vec<Feature>>> = if *layers > 1 {
+    let read_lists: Vec<Vec<Vec<Feature>>> = if *layers > 1 {
         compacted.par_iter().map(read).collect::<Result<_>>()?
     } else {
         compacted.iter().map(read).collect::<Result<_>>()?
     };
+    for (&list, lists) in compacted.iter().zip(read_lists) {
+        let scratch = s.list(list)?;
+        for (layer, v) in lists.into_iter().enumerate() {
+            if layer + 1 == *layers {
+                bytes += scratch.bytes_read_back_layer(layer, v.len());
+            }
+            listed[layer][list_index(list)] = u32::try_from(v.len()).unwrap_or(u32::MAX);
+            *out[layer].list_mut(list) = Some(v);
+        }
+    }
     for step in plan.steps() {
         match *step {
-            Step::Compact { list, .. } => {
-                let scratch = s.list(list)?;
-                let at = compacted.iter().position(|&l| l == list).ok_or_else(|| Error::Gpu("list not read".into()))?;
-                let lists = std::mem::take(&mut read_lists[at]);
-                for (layer, v) in lists.into_iter().enumerate() {
-                    if layer + 1 == *layers {
-                        bytes += scratch.bytes_read_back_layer(layer, v.len());
-                    }
-                    listed[layer][list_index(list)] = u32::try_from(v.len()).unwrap_or(u32::MAX);
-                    *out[layer].list_mut(list) = Some(v);
-                }
-            }
             Step::EmptyList(list) => {
                 for o in &mut out {
                     *o.list_mut(list) = Some(Vec::new());

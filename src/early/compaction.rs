@@ -399,12 +399,6 @@ impl CompactionGpu {
             }
     }
 
-    /// Lists this scratch holds, one per layer.
-    #[must_use]
-    pub fn layers(&self) -> usize {
-        self.layers
-    }
-
     /// Features the capped list holds: never more than a window has pixels.
     fn capped_capacity(&self) -> u64 {
         u64::from(self.max_cap.unwrap_or(0)).min(self.max_pixels as u64)
@@ -577,12 +571,12 @@ pub(crate) fn encode_layers(
 ) -> Result<()> {
     let size = select.size();
     check_sizes(size, theta.size(), magnitude.size())?;
-    select.check_same_size(theta, "compaction select/theta")?;
-    select.check_same_size(magnitude, "compaction select/magnitude")?;
-    if params.len() != select.layers() || scratch.layers != select.layers() {
+    let layers = select.layers();
+    if [theta.layers(), magnitude.layers(), params.len(), scratch.layers].iter().any(|&n| n != layers) {
         return Err(Error::Size(format!(
-            "compaction of {} layers with {} windows into scratch for {} lists",
-            select.layers(),
+            "compaction of {layers} layers (theta {}, magnitude {}) with {} windows into scratch for {} lists",
+            theta.layers(),
+            magnitude.layers(),
             params.len(),
             scratch.layers
         )));
@@ -619,7 +613,7 @@ pub(crate) fn encode_layers(
             threshold: p.threshold,
         });
     }
-    let layers = windows.len() as u32;
+    let layers = layers as u32;
     let most_blocks = windows.iter().map(|w| w.num_blocks).max().unwrap_or(0);
     let [gx, gy, _] = block_grid(most_blocks);
     let grid = [gx, gy, layers];
