@@ -15,7 +15,8 @@
 //! `--false-tracking-px` says otherwise), or that is reported `tracking`
 //! while truth shows no vertex of the object at all: the tracker claims the
 //! object where it is not. Counted over the whole run and reported with its
-//! fraction of the tracking frames and of all frames.
+//! fraction of the tracking frames and of all frames, and the frames listed
+//! as runs of consecutive frames (the first 20 runs, the rest counted).
 //!
 //! **Frame agreement.** The tracker writes one line per frame, so the
 //! predictions must list exactly the truth's frames, in the same order:
@@ -305,6 +306,28 @@ pub fn read_predictions(path: &Path) -> Result<Vec<FrameResult>> {
     read_frame_lines(path, |p: &FrameResult| p.frame, |p, line| p.validate(path, line))
 }
 
+/// Most runs of frames the summary lists before it counts the rest.
+const MAX_LISTED_RANGES: usize = 20;
+
+/// Ascending frame numbers as comma-separated runs (`3, 7–9, 12`), the
+/// first `max_ranges` runs only, the rest counted (`… and 5 more frames`).
+fn frame_ranges(frames: &[usize], max_ranges: usize) -> String {
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    for &frame in frames {
+        match runs.last_mut() {
+            Some((_, last)) if *last + 1 == frame => *last = frame,
+            _ => runs.push((frame, frame)),
+        }
+    }
+    let mut text: Vec<String> =
+        runs.iter().take(max_ranges).map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}–{b}") }).collect();
+    let rest: usize = runs.iter().skip(max_ranges).map(|(a, b)| b - a + 1).sum();
+    if rest > 0 {
+        text.push(format!("… and {rest} more frames"));
+    }
+    text.join(", ")
+}
+
 impl fmt::Display for Score {
     /// The summary the `score` command prints, one figure per line.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -327,6 +350,9 @@ impl fmt::Display for Score {
             100.0 * self.false_tracking_fraction(),
             self.false_tracking_px
         )?;
+        if !self.false_tracking.is_empty() {
+            writeln!(f, "false tracking at:   {}", frame_ranges(&self.false_tracking, MAX_LISTED_RANGES))?;
+        }
         if let Some(e) = &self.pose_errors {
             writeln!(
                 f,
@@ -345,5 +371,19 @@ impl fmt::Display for Score {
             Some(frame) => write!(f, "first lost frame:    {frame}"),
             None => write!(f, "first lost frame:    none"),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::frame_ranges;
+
+    #[test]
+    fn frame_ranges_joins_consecutive_frames_and_counts_what_it_leaves_out() {
+        assert_eq!(frame_ranges(&[], 3), "");
+        assert_eq!(frame_ranges(&[7], 3), "7");
+        assert_eq!(frame_ranges(&[0, 4, 5, 6, 9, 11, 12], 10), "0, 4–6, 9, 11–12");
+        // Three runs listed; the fourth, frames 11–12, counted.
+        assert_eq!(frame_ranges(&[0, 4, 5, 6, 9, 11, 12], 3), "0, 4–6, 9, … and 2 more frames");
     }
 }

@@ -74,7 +74,10 @@ fn false_tracking_counts_tracking_frames_off_by_more_than_the_threshold() {
         text.contains("false tracking:      1 (20.0 % of tracked, 16.7 % of all frames; tracking with error > 5 px"),
         "{text}"
     );
-    assert_eq!(score_with(&truth, &preds, 1.5).unwrap().false_tracking, vec![0, 4, 5]);
+    assert!(text.contains("false tracking at:   4\n"), "{text}");
+    let at_1_5 = score_with(&truth, &preds, 1.5).unwrap();
+    assert_eq!(at_1_5.false_tracking, vec![0, 4, 5]);
+    assert!(at_1_5.to_string().contains("false tracking at:   0, 4–5\n"), "{at_1_5}");
     assert_eq!(score_with(&truth, &preds, 0.5).unwrap().false_tracking, vec![0, 2, 4, 5]);
     // A lost frame is never false tracking, however far off (frame 3: 70 px).
     assert!(!score_with(&truth, &preds, 0.0).unwrap().false_tracking.contains(&3));
@@ -95,6 +98,7 @@ fn score_with_nothing_to_score_says_so() {
     assert!(s.to_string().contains("n/a"));
     let s = score(&truth, &[pred(0, Status::Tracking, 0.0, 0.0, 0.0)]).unwrap();
     assert!(s.to_string().ends_with("first lost frame:    none"));
+    assert!(!s.to_string().contains("false tracking at"), "{s}");
 }
 
 #[test]
