@@ -49,6 +49,14 @@
 //!    matches: at 20 px/frame with noise σ 8 the first range fitted a
 //!    closing lid 11–17° off (47–56 % support, 19–22 matches) on four
 //!    frames where the doubled range had it within 3° (72–83 %, 26).
+//!    While tracking, when no range gives a solution with
+//!    `confident_support`, the search runs again from two slower
+//!    predictions (our addition, `search_slower_predictions`): the last
+//!    solution itself and the last solution moved by half its velocity. At
+//!    an abrupt reversal the extrapolated prediction lies twice the last
+//!    step from the object, and the search there either fails or fits
+//!    clutter; a confident solution from a slower prediction, with more of
+//!    its outline supported and no fewer matches, replaces it.
 //! 7. **Verification**: the frame is `tracking` only when a set was
 //!    accepted (its residual passes), locking on added at least one match
 //!    to the node's (a node of ⌊n/2⌋ + 1 matches leaves one or two redundant
@@ -439,6 +447,42 @@ impl LoweTracker {
             }
         }
         verified.or(accepted)
+    }
+
+    /// The second look of step 6 (module doc): when `found`, the search's
+    /// result at the velocity-extrapolated prediction, is not a verified
+    /// solution with `confident_support`, the search runs again from the
+    /// last solution itself, then from it moved by half its velocity (the
+    /// motion may have turned round or slowed), each at the frame's first
+    /// range. A solution found there replaces `found`
+    /// when it is verified with `confident_support`, more of its outline
+    /// supported than `found` and no fewer matches than a verified `found`.
+    fn search_slower(&self, view: &FrameView<'_>, found: Option<Found>, diag: &mut LoweDiagnostics) -> Option<Found> {
+        let confident = self.params.confident_support;
+        let fraction = |found: &Found| found.support.map_or(0.0, support::fraction);
+        if found.as_ref().is_some_and(|f| fraction(f) >= confident) {
+            return found;
+        }
+        let mut best = found;
+        let mut half_step = self.prediction.deviation_from(&self.last, self.centre);
+        for value in &mut half_step[..self.n()] {
+            *value *= 0.5;
+        }
+        let slower = [self.last.clone(), self.last.corrected(&half_step[..self.n()], self.centre, &self.limits)];
+        let mut segs = Vec::new();
+        for start in &slower {
+            view.visible_segments(start, &mut segs);
+            let Some(other) = self.search_at(view, start, &segs, self.first_doubling, confident, diag) else {
+                continue;
+            };
+            let better = best.as_ref().is_none_or(|b| {
+                fraction(&other) > fraction(b) && (!b.verified() || other.matches.len() >= b.matches.len())
+            });
+            if other.verified() && fraction(&other) >= confident && better {
+                best = Some(other);
+            }
+        }
+        best
     }
 
     /// Whether `state` puts the model's centre inside the image at a depth
@@ -1053,6 +1097,9 @@ impl Tracker for LoweTracker {
             self.params.confident_support,
             &mut diag,
         );
+        if self.params.search_slower_predictions && self.lost_frames == 0 && self.before_last.is_some() {
+            accepted = self.search_slower(&view, accepted, &mut diag);
+        }
         let verified_here = accepted.as_ref().is_some_and(Found::verified);
         if !verified_here && self.lost_frames >= self.params.search_after {
             if let Some(found) = self.search_image(&view, &mut diag) {
