@@ -437,9 +437,9 @@ impl<'j> Lanes<'j, '_> {
     /// Decide, for each sequence of `group` on its first frame, whether it
     /// runs in the group's stack: when its frame stacks with the frames of
     /// the sequences already there, or there are none, and the device holds
-    /// a stack of such frames. A sequence that
-    /// joins starts a new sequence in its layer. A sequence in the stack
-    /// whose frame no longer stacks fails alone.
+    /// a stack of such frames. A sequence that joins starts a new sequence
+    /// in its layer. A sequence in the stack whose frame no longer stacks
+    /// fails alone.
     fn join_stack(&mut self, g: usize, group: &[usize]) -> Result<()> {
         let Some(stack) = self.stacks[g].as_ref() else { return Ok(()) };
         let strayed: Vec<(usize, usize)> = group
