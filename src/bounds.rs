@@ -136,7 +136,16 @@ impl Interval {
         if self.contains(v) {
             Ok(())
         } else {
-            Err(Error::Parameter(format!("{who}: {name} must be in {self}{unit}, got {}", short_number(v))))
+            // A value just past a bound would read as the bound, or as a
+            // value inside: then it is shown with every digit.
+            let mut shown = short_number(v);
+            if shown == short_number(self.lo)
+                || shown == short_number(self.hi)
+                || shown.parse::<f64>().is_ok_and(|s| self.contains(s))
+            {
+                shown = format!("{v}");
+            }
+            Err(Error::Parameter(format!("{who}: {name} must be in {self}{unit}, got {shown}")))
         }
     }
 }
@@ -193,5 +202,11 @@ mod tests {
         assert!(Interval::closed(0.0, f64::INFINITY).contains(f64::INFINITY));
         assert!(!Interval::open(0.0, 1.0).contains(1.0));
         assert!(check_count("m", "n", 7, 0, 6).unwrap_err().to_string().contains("0 ..= 6, got 7"));
+        // Just past a bound, the value is not shown as the bound itself.
+        let msg = Interval::closed(0.5, 4.0).check("lowe", "log_sigma", f64::from(4.000_000_5_f32), "").unwrap_err();
+        assert!(msg.to_string().ends_with("must be in [0.5, 4], got 4.000000476837158"), "{msg}");
+        let past_pi = f64::from_bits(std::f64::consts::PI.to_bits() + 1);
+        let msg = Interval::open_closed(0.0, std::f64::consts::PI).check("t", "a", past_pi, " rad").unwrap_err();
+        assert!(msg.to_string().ends_with("must be in (0, 3.1416] rad, got 3.1415926535897936"), "{msg}");
     }
 }

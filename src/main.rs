@@ -446,6 +446,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Score { seq_dir, pred, false_tracking_px, plot, plot_size } => {
             let seq = Sequence::open(&seq_dir, false)?;
+            if let Some(png) = &plot {
+                let mut inputs = seq.input_files();
+                inputs.push(pred.clone());
+                pipetrack::cli::plot::check_plot_path(png, &inputs)?;
+            }
             let truth = seq.read_truth()?;
             let (score, predictions) = pipetrack::cli::score::score_file_read(&truth, &pred, false_tracking_px)?;
             if let Some(png) = plot {

@@ -3,7 +3,7 @@
 //! as a PNG (atomically). Text uses the DejaVu Sans font built into the
 //! binary, so no system font is needed.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 use plotters::prelude::*;
@@ -60,6 +60,24 @@ pub fn plot_score(score: &Score, predictions: &[FrameResult], path: &Path, size:
     )
     .map_err(|e| Error::input(path, format!("cannot encode the plot: {e}")))?;
     AtomicFile::write_all_to(path, &png)
+}
+
+/// Check `--plot` before anything is read or written: it must not be a
+/// folder nor one of `inputs` (the sequence's files and the predictions),
+/// which the plot would overwrite. Errors name `path`.
+pub fn check_plot_path(path: &Path, inputs: &[PathBuf]) -> Result<()> {
+    if path.is_dir() {
+        return Err(Error::input(path, "is a folder: --plot takes a file name"));
+    }
+    // Only an existing file can be an input; compare resolved paths so that
+    // `./seq/../seq/truth.jsonl` and links are caught.
+    let Ok(plot) = std::fs::canonicalize(path) else { return Ok(()) };
+    match inputs.iter().find(|p| std::fs::canonicalize(p).is_ok_and(|p| p == plot)) {
+        Some(input) => {
+            Err(Error::input(path, format!("is the input file {}: write the plot elsewhere", input.display())))
+        }
+        None => Ok(()),
+    }
 }
 
 type DrawResult = std::result::Result<(), Box<dyn std::error::Error>>;

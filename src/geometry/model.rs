@@ -91,7 +91,8 @@ impl ModelGeometry {
         for (f, face) in model.faces.iter().enumerate() {
             for (a, &i) in face.iter().enumerate() {
                 let j = face[(a + 1) % face.len()];
-                for (k, &[ei, ej]) in model.edges.iter().enumerate() {
+                for &k in &vertex_edges[i] {
+                    let [ei, ej] = model.edges[k];
                     if (ei, ej) == (i, j) || (ei, ej) == (j, i) {
                         edge_faces[k].push(f);
                     }

@@ -12,14 +12,52 @@ use crate::{Error, Result};
 
 pub(crate) const MISSING: &str = "missing";
 
-/// A whole text file; missing, non-UTF-8 and unreadable files are input
-/// errors naming it.
+/// Largest text input read whole (a model, a camera, an `init.json`):
+/// 256 MiB, far above a model at the bounds of [`crate::bounds`].
+pub const MAX_TEXT_BYTES: u64 = 256 << 20;
+/// Longest line of a JSON Lines file: 64 MiB, far above one frame's record.
+pub const MAX_LINE_BYTES: u64 = 64 << 20;
+
+/// Open an input file for reading: a folder or a device (`/dev/zero`,
+/// which would never end) is an input error naming `path`, as is a missing
+/// or unreadable file. A pipe is read as it comes.
+pub(crate) fn open_input(path: &Path) -> Result<File> {
+    use std::os::unix::fs::FileTypeExt;
+    if let Ok(meta) = fs::metadata(path) {
+        let kind = meta.file_type();
+        if kind.is_dir() {
+            return Err(Error::input(path, "is a folder, not a file"));
+        }
+        if kind.is_char_device() || kind.is_block_device() || kind.is_socket() {
+            return Err(Error::input(path, "is a device, not a file"));
+        }
+    }
+    File::open(path).map_err(|e| open_error(path, &e))
+}
+
+/// A whole text file of at most [`MAX_TEXT_BYTES`]; missing, non-UTF-8,
+/// unreadable and larger files are input errors naming it.
 pub(crate) fn read_text(path: &Path) -> Result<String> {
-    fs::read_to_string(path).map_err(|e| match e.kind() {
-        io::ErrorKind::NotFound => Error::input(path, MISSING),
+    read_text_at_most(path, MAX_TEXT_BYTES)
+}
+
+/// [`read_text`] with a limit of `max` bytes.
+fn read_text_at_most(path: &Path, max: u64) -> Result<String> {
+    use std::io::Read;
+    let mut text = String::new();
+    open_input(path)?.take(max + 1).read_to_string(&mut text).map_err(|e| match e.kind() {
         io::ErrorKind::InvalidData => Error::input(path, "not a text file (invalid UTF-8)"),
         _ => Error::input(path, format!("cannot read: {e}")),
-    })
+    })?;
+    if text.len() as u64 > max {
+        return Err(Error::input(path, format!("too large: more than {}", byte_size(max))));
+    }
+    Ok(text)
+}
+
+/// `bytes` as MiB when a whole number of them, else as bytes.
+fn byte_size(bytes: u64) -> String {
+    if bytes >= 1 << 20 && bytes % (1 << 20) == 0 { format!("{} MiB", bytes >> 20) } else { format!("{bytes} bytes") }
 }
 
 /// A JSON Lines file of per-frame records (`truth.jsonl`, a tracker's
@@ -76,22 +114,36 @@ fn not_an_object(text: &str) -> Option<String> {
 /// [`read_json`] refuses it). Errors name `path` and the line. An empty file
 /// is an error.
 pub fn read_jsonl<T: DeserializeOwned>(path: &Path) -> Result<Vec<(usize, T)>> {
-    let file = File::open(path).map_err(|e| open_error(path, &e))?;
+    read_jsonl_lines_at_most(path, MAX_LINE_BYTES)
+}
+
+/// [`read_jsonl`] with lines of at most `max_line` bytes.
+fn read_jsonl_lines_at_most<T: DeserializeOwned>(path: &Path, max_line: u64) -> Result<Vec<(usize, T)>> {
+    use std::io::Read;
+    let mut reader = BufReader::new(open_input(path)?);
     let mut out = Vec::new();
-    for (i, line) in BufReader::new(file).lines().enumerate() {
-        let n = i + 1;
-        let line = line.map_err(|e| match e.kind() {
+    let mut line = String::new();
+    for n in 1.. {
+        line.clear();
+        let read = (&mut reader).take(max_line + 1).read_line(&mut line).map_err(|e| match e.kind() {
             io::ErrorKind::InvalidData => Error::input(path, format!("line {n}: not text (invalid UTF-8)")),
             _ => Error::input(path, format!("line {n}: cannot read: {e}")),
         })?;
+        if read == 0 {
+            break;
+        }
+        if read as u64 > max_line {
+            return Err(Error::input(path, format!("line {n}: too long: more than {}", byte_size(max_line))));
+        }
+        let line = line.trim_end_matches(['\n', '\r']);
         if line.trim().is_empty() {
             continue;
         }
-        if let Some(msg) = not_an_object(&line) {
+        if let Some(msg) = not_an_object(line) {
             return Err(Error::input(path, format!("line {n}: {msg}")));
         }
-        let value = serde_json::from_str(&line)
-            .map_err(|e| input_error(path, format!("line {n}: {}", describe_json_error(&line, &e, Some(n)))))?;
+        let value = serde_json::from_str(line)
+            .map_err(|e| input_error(path, format!("line {n}: {}", describe_json_error(line, &e, Some(n)))))?;
         out.push((n, value));
     }
     if out.is_empty() {
@@ -231,6 +283,33 @@ fn find_non_json_number(text: &str) -> Option<(String, usize, usize)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Devices and folders are refused before a byte is read, and a file
+    /// or a line longer than the limit is refused once the limit is passed:
+    /// no input is read without end.
+    #[test]
+    fn inputs_are_files_of_bounded_size() {
+        let dev_zero = Path::new("/dev/zero");
+        let e = read_text(dev_zero).unwrap_err().to_string();
+        assert!(e.contains("/dev/zero") && e.contains("is a device"), "{e}");
+        let e = read_jsonl::<serde_json::Value>(dev_zero).unwrap_err().to_string();
+        assert!(e.contains("is a device"), "{e}");
+        let dir = std::env::temp_dir();
+        let e = read_text(&dir).unwrap_err().to_string();
+        assert!(e.contains("is a folder"), "{e}");
+        let e = read_jsonl::<serde_json::Value>(&dir).unwrap_err().to_string();
+        assert!(e.contains("is a folder"), "{e}");
+
+        let path = dir.join(format!("pipetrack-bounded-{}.jsonl", std::process::id()));
+        fs::write(&path, "{\"frame\": 0}\n{\"frame\": 1, \"pad\": \"xxxxxxxxxxxxxxxxxxxx\"}\n").unwrap();
+        assert_eq!(read_text_at_most(&path, 64).unwrap().len(), 57);
+        let e = read_text_at_most(&path, 56).unwrap_err().to_string();
+        assert!(e.contains("too large: more than 56 bytes"), "{e}");
+        assert_eq!(read_jsonl_lines_at_most::<serde_json::Value>(&path, 44).unwrap().len(), 2);
+        let e = read_jsonl_lines_at_most::<serde_json::Value>(&path, 43).unwrap_err().to_string();
+        assert!(e.contains("line 2: too long: more than 43 bytes"), "{e}");
+        fs::remove_file(&path).unwrap();
+    }
 
     #[test]
     fn finds_nan_and_infinity_outside_strings() {

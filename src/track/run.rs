@@ -134,6 +134,18 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
         "lowe" => {
             let params: LoweParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
+            // What the model alone decides is the model file's error.
+            let joints = seq.model.joints.len();
+            if joints > crate::track::lowe::params::MAX_JOINTS {
+                let most = crate::track::lowe::params::MAX_JOINTS;
+                return Err(Error::input(
+                    seq.model_path(),
+                    format!("lowe tracks at most {most} joints; the model has {joints}"),
+                ));
+            }
+            if seq.model.edges.is_empty() {
+                return Err(Error::input(seq.model_path(), "lowe needs a model with edges"));
+            }
             let tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, params)
                 .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
             Ok(Box::new(tracker))

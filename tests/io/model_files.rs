@@ -329,3 +329,45 @@ fn lowe_refuses_a_start_pose_behind_the_camera() {
         assert!(!out_file.exists(), "z = {z}: nothing written");
     }
 }
+
+/// What the model alone decides (too many joints) names the model file;
+/// a start joint value outside its joint's limits names init.json. Neither
+/// is tracked.
+#[test]
+fn lowe_names_the_file_at_fault_for_joints() {
+    let root = scratch("joints");
+    let seq = root.join("seq");
+    synth("hinged-box", &seq, "2");
+    let out_file = root.join("out.jsonl");
+
+    let init_path = seq.join("init.json");
+    let mut init: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&init_path).unwrap()).unwrap();
+    init["params"] = serde_json::json!([5.0]);
+    std::fs::write(&init_path, init.to_string()).unwrap();
+    let out = track_cpu(&seq, "lowe", &out_file);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("init.json: ") && stderr.contains("outside its joint's limits"), "{stderr}");
+    assert!(!out_file.exists());
+    // No start joint values: each joint starts at 0.
+    init.as_object_mut().unwrap().remove("params");
+    std::fs::write(&init_path, init.to_string()).unwrap();
+
+    let model_path = seq.join("model.json");
+    let mut model: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model_path).unwrap()).unwrap();
+    let joint = model["joints"][0].clone();
+    let joints = (0..11)
+        .map(|k| {
+            let mut j = joint.clone();
+            j["name"] = serde_json::json!(format!("lid {k}"));
+            j
+        })
+        .collect();
+    model["joints"] = serde_json::Value::Array(joints);
+    std::fs::write(&model_path, model.to_string()).unwrap();
+    let out = track_cpu(&seq, "lowe", &out_file);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("model.json: ") && stderr.contains("at most 10 joints"), "{stderr}");
+    assert!(!out_file.exists());
+}

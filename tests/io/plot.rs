@@ -47,3 +47,26 @@ fn score_plot_errors_are_bad_input() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("plot size 20x20"));
     assert!(!small.exists());
 }
+
+/// The plot never overwrites what it plots: the sequence's truth, a frame,
+/// or the predictions named as `--plot` are refused, and left as they were.
+#[test]
+fn score_plot_refuses_to_overwrite_its_inputs() {
+    let root = crate::common::scratch("plot", "inputs");
+    let (seq, pred) = tracked_sequence(&root);
+    let truth = Path::new(&seq).join("truth.jsonl");
+    let frame = Path::new(&seq).join("frames/000000.png");
+    let through_dots = Path::new(&seq).join("../seq/truth.jsonl");
+    for target in [truth.clone(), frame.clone(), Path::new(&pred).to_path_buf(), through_dots] {
+        let before = std::fs::read(&target).unwrap();
+        let out = pipetrack(&["score", &seq, &pred, "--plot", target.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{}: {stderr}", target.display());
+        assert!(stderr.contains("is the input file"), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert_eq!(std::fs::read(&target).unwrap(), before, "{} was changed", target.display());
+    }
+    let out = pipetrack(&["score", &seq, &pred, "--plot", &seq]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is a folder"));
+}

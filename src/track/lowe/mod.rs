@@ -248,8 +248,8 @@ impl LoweTracker {
     /// A tracker of `model` seen by `camera`, starting at `init`'s pose and
     /// joint values. Errors on a model the tracker cannot use (too many
     /// joints, no edges) and on an `init` without a pose, with the wrong
-    /// number of joint values, or whose pose puts the model's centre at or
-    /// behind the camera.
+    /// number of joint values or one outside its joint's limits, or whose
+    /// pose puts the model's centre at or behind the camera.
     pub fn new(camera: Camera, model: &Model, init: &InitState, params: LoweParams) -> Result<Self> {
         params.validate()?;
         let geometry = ModelGeometry::new(model)?;
@@ -271,6 +271,16 @@ impl LoweTracker {
                 joint_values.len(),
                 geometry.joint_count()
             )));
+        }
+        for (k, (&value, [min, max])) in joint_values.iter().zip(geometry.joint_limits()).enumerate() {
+            if !(min..=max).contains(&value) {
+                return Err(Error::Parameter(format!(
+                    "\"params\" value {k} is {}, outside its joint's limits [{}, {}]",
+                    crate::bounds::short_number(value),
+                    crate::bounds::short_number(min),
+                    crate::bounds::short_number(max)
+                )));
+            }
         }
         let state = State { pose: Pose::from(pose), params: joint_values };
         let depth = state.pose.apply(geometry.centroid()).z;
