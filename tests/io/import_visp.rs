@@ -250,6 +250,17 @@ fn a_bad_pose_or_a_gap_in_the_frames_is_refused_by_name() {
     std::fs::write(src.join("CameraPose/Camera_002.txt"), "1e308\n1e308\n1e308\n0\n0\n0\n").unwrap();
     expect_refused(&root, &src, &["Camera_002.txt", "model vertex 0 projects to no finite pixel"]);
 
+    // The first frame's pose is where a tracker starts: the model behind
+    // the camera there is refused (a later frame may leave the view).
+    let root = crate::common::scratch("import-visp", "behind");
+    let src = visp_data_set(&root);
+    std::fs::write(src.join("CameraPose/Camera_001.txt"), "0 0 -1 0 0 0\n").unwrap();
+    expect_refused(
+        &root,
+        &src,
+        &["Camera_001.txt", "the first frame's pose puts model vertex", "in front of the camera"],
+    );
+
     let root = crate::common::scratch("import-visp", "gap");
     let src = visp_data_set(&root);
     std::fs::remove_file(src.join("Images/Image_0002.png")).unwrap();

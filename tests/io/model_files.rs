@@ -318,7 +318,9 @@ fn lowe_refuses_a_start_pose_behind_the_camera() {
     synth("box", &seq, "2");
     let init_path = seq.join("init.json");
     let mut init: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&init_path).unwrap()).unwrap();
-    for z in [-1.0, -0.3, 0.0] {
+    // The centre behind the camera, at it, and in front of it with the
+    // camera inside the box (its nearest vertices behind).
+    for z in [-1.0, -0.3, 0.0, 0.05] {
         init["pose"]["translation"] = serde_json::json!([0.0, 0.0, z]);
         std::fs::write(&init_path, init.to_string()).unwrap();
         let out_file = root.join("out.jsonl");

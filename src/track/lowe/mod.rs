@@ -249,7 +249,7 @@ impl LoweTracker {
     /// joint values. Errors on a model the tracker cannot use (too many
     /// joints, no edges) and on an `init` without a pose, with the wrong
     /// number of joint values or one outside its joint's limits, or whose
-    /// pose puts the model's centre at or behind the camera.
+    /// pose puts the model's centre or any vertex at or behind the camera.
     pub fn new(camera: Camera, model: &Model, init: &InitState, params: LoweParams) -> Result<Self> {
         params.validate()?;
         let geometry = ModelGeometry::new(model)?;
@@ -288,6 +288,15 @@ impl LoweTracker {
             return Err(Error::Parameter(format!(
                 "the pose puts the model's centre at depth {}: it must lie in front of the camera (depth > 0)",
                 crate::bounds::short_number(depth)
+            )));
+        }
+        // Every vertex must project: a vertex at or behind the camera has no
+        // image, and the model no outline to match.
+        let points = geometry.camera_vertices(&state.pose, &state.params)?;
+        if let Some((k, p)) = points.iter().enumerate().find(|(_, p)| camera.project_in_front(**p).is_none()) {
+            return Err(Error::Parameter(format!(
+                "the pose puts model vertex {k} at depth {}: the whole model must lie in front of the camera",
+                crate::bounds::short_number(p.z)
             )));
         }
         let segment_params = params.segments.clone();
