@@ -162,8 +162,8 @@ enum Command {
         /// Also draw the per-frame corner error and status over time into this PNG.
         #[arg(long)]
         plot: Option<PathBuf>,
-        /// Size of the plot in pixels, WxH.
-        #[arg(long, default_value = "1000x500", value_parser = parse_size)]
+        /// Size of the plot in pixels, WxH, each side 200 to 8192.
+        #[arg(long, default_value = "1000x500", value_parser = parse_plot_size)]
         plot_size: (usize, usize),
     },
     /// Track every sequence of a manifest into OUT/<name>.jsonl, skipping complete outputs.
@@ -248,19 +248,28 @@ enum Command {
 #[derive(Clone, Debug)]
 struct Sizes(Vec<(usize, usize)>);
 
-fn parse_size(s: &str) -> Result<(usize, usize), String> {
-    parse_sizes(s).and_then(|sizes| match sizes.0[..] {
-        [one] => Ok(one),
-        _ => Err(format!("{s:?} is not one WxH size")),
-    })
+fn parse_plot_size(s: &str) -> Result<(usize, usize), String> {
+    let (w, h) = parse_wxh(s)?;
+    let range = pipetrack::cli::plot::PLOT_SIDE_RANGE;
+    if range.contains(&w) && range.contains(&h) {
+        Ok((w, h))
+    } else {
+        Err(format!("plot size {w}x{h}: each side must be {} to {} pixels", range.start(), range.end()))
+    }
+}
+
+/// One `WxH` (or `WXH`), any sizes.
+fn parse_wxh(part: &str) -> Result<(usize, usize), String> {
+    let (w, h) = part.trim().split_once(['x', 'X']).ok_or_else(|| format!("size {part:?} is not WxH"))?;
+    let w: usize = w.parse().map_err(|_| format!("bad width in {part:?}"))?;
+    let h: usize = h.parse().map_err(|_| format!("bad height in {part:?}"))?;
+    Ok((w, h))
 }
 
 fn parse_sizes(s: &str) -> Result<Sizes, String> {
     s.split(',')
         .map(|part| {
-            let (w, h) = part.trim().split_once(['x', 'X']).ok_or_else(|| format!("size {part:?} is not WxH"))?;
-            let w: usize = w.parse().map_err(|_| format!("bad width in {part:?}"))?;
-            let h: usize = h.parse().map_err(|_| format!("bad height in {part:?}"))?;
+            let (w, h) = parse_wxh(part)?;
             if w == 0 || h == 0 || w > 16384 || h > 16384 {
                 return Err(format!("size {part:?} out of range 1..=16384"));
             }
