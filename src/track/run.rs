@@ -135,6 +135,15 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             let params: LoweParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
             // What the model alone decides is the model file's error.
+            if seq.model.units != "m" {
+                return Err(Error::input(
+                    seq.model_path(),
+                    format!(
+                        "lowe tracks a 3-D model in metres (\"units\": \"m\"); this one is in {:?}",
+                        seq.model.units
+                    ),
+                ));
+            }
             let joints = seq.model.joints.len();
             if joints > crate::track::lowe::params::MAX_JOINTS {
                 let most = crate::track::lowe::params::MAX_JOINTS;

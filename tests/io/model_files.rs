@@ -332,9 +332,9 @@ fn lowe_refuses_a_start_pose_behind_the_camera() {
     }
 }
 
-/// What the model alone decides (too many joints) names the model file;
-/// a start joint value outside its joint's limits names init.json. Neither
-/// is tracked.
+/// What the model alone decides (pixel units, too many joints) names the
+/// model file; a start joint value outside its joint's limits names
+/// init.json. None is tracked.
 #[test]
 fn lowe_names_the_file_at_fault_for_joints() {
     let root = scratch("joints");
@@ -357,6 +357,14 @@ fn lowe_names_the_file_at_fault_for_joints() {
 
     let model_path = seq.join("model.json");
     let mut model: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model_path).unwrap()).unwrap();
+    let good_model = model.clone();
+    model["units"] = serde_json::json!("px");
+    std::fs::write(&model_path, model.to_string()).unwrap();
+    let out = track_cpu(&seq, "lowe", &out_file);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("model.json: ") && stderr.contains("in metres"), "{stderr}");
+    let mut model = good_model;
     let joint = model["joints"][0].clone();
     let joints = (0..11)
         .map(|k| {
