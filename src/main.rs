@@ -290,16 +290,16 @@ fn main() -> ExitCode {
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
             note(format_args!("pipetrack: {}", one_message(&e)));
-            let bad_input = e.chain().any(|c| {
-                matches!(
-                    c.downcast_ref::<pipetrack::Error>(),
-                    Some(
-                        pipetrack::Error::Input { .. }
-                            | pipetrack::Error::Io { .. }
-                            | pipetrack::Error::Parameter(_)
-                            | pipetrack::Error::Size(_)
-                    )
-                )
+            // A file the user named that cannot be read or written is bad
+            // input; a full disk is not.
+            let bad_input = e.chain().any(|c| match c.downcast_ref::<pipetrack::Error>() {
+                Some(pipetrack::Error::Io { source, .. }) => {
+                    !matches!(source.kind(), std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded)
+                }
+                Some(pipetrack::Error::Input { .. } | pipetrack::Error::Parameter(_) | pipetrack::Error::Size(_)) => {
+                    true
+                }
+                _ => false,
             });
             ExitCode::from(if bad_input { EXIT_BAD_INPUT } else { 1 })
         }
