@@ -348,7 +348,7 @@ impl fmt::Display for Score {
             self.false_tracking.len(),
             100.0 * self.false_tracking_fraction_of_tracked(),
             100.0 * self.false_tracking_fraction(),
-            self.false_tracking_px
+            crate::bounds::short_number(self.false_tracking_px)
         )?;
         if !self.false_tracking.is_empty() {
             writeln!(f, "false tracking at:   {}", frame_ranges(&self.false_tracking, MAX_LISTED_RANGES))?;

@@ -52,6 +52,10 @@ fn read_text_at_most(path: &Path, max: u64) -> Result<String> {
     if text.len() as u64 > max {
         return Err(Error::input(path, format!("too large: more than {}", byte_size(max))));
     }
+    // A byte-order mark (some editors write one) is not part of the text.
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
     Ok(text)
 }
 
@@ -136,6 +140,7 @@ fn read_jsonl_lines_at_most<T: DeserializeOwned>(path: &Path, max_line: u64) -> 
             return Err(Error::input(path, format!("line {n}: too long: more than {}", byte_size(max_line))));
         }
         let line = line.trim_end_matches(['\n', '\r']);
+        let line = if n == 1 { line.trim_start_matches('\u{feff}') } else { line };
         if line.trim().is_empty() {
             continue;
         }
@@ -308,6 +313,10 @@ mod tests {
         assert_eq!(read_jsonl_lines_at_most::<serde_json::Value>(&path, 44).unwrap().len(), 2);
         let e = read_jsonl_lines_at_most::<serde_json::Value>(&path, 43).unwrap_err().to_string();
         assert!(e.contains("line 2: too long: more than 43 bytes"), "{e}");
+        // A byte-order mark is skipped.
+        fs::write(&path, "\u{feff}{\"frame\": 0}\n").unwrap();
+        assert_eq!(read_text(&path).unwrap(), "{\"frame\": 0}\n");
+        assert_eq!(read_jsonl::<serde_json::Value>(&path).unwrap()[0].1["frame"], 0);
         fs::remove_file(&path).unwrap();
     }
 

@@ -158,7 +158,7 @@ pub(crate) fn check_range(name: &str, value: f64, max: f64, unit: &str) -> Resul
     if value.is_finite() && (0.0..=max).contains(&value) {
         Ok(())
     } else {
-        Err(Error::Parameter(format!("{name} = {value}{unit} is not in 0..={max}")))
+        Err(Error::Parameter(format!("{name} = {}{unit} is not in 0..={max}", crate::bounds::short_number(value))))
     }
 }
 

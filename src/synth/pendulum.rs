@@ -236,7 +236,10 @@ impl PendulumSwing {
     /// pixels. Errors when `speed` is not in `0..=MAX_SPEED`.
     pub fn new(speed: f64, motion: PendulumMotion, jump_at: Option<usize>) -> Result<Self> {
         if !(speed.is_finite() && (0.0..=MAX_SPEED).contains(&speed)) {
-            return Err(Error::Parameter(format!("speed = {speed} px/frame is not in 0..={MAX_SPEED}")));
+            return Err(Error::Parameter(format!(
+                "speed = {} px/frame is not in 0..={MAX_SPEED}",
+                crate::bounds::short_number(speed)
+            )));
         }
         // A·sin(ω/2) = asin(speed / 2r): half the arm angle swept across the bottom.
         let half_sweep = (speed / (2.0 * Self::corner_radius(motion))).asin();
@@ -249,7 +252,10 @@ impl PendulumSwing {
         }
         let amplitude_rad = amplitude(quarter);
         if amplitude_rad > MAX_AMPLITUDE_RAD + 1e-12 {
-            return Err(Error::Parameter(format!("speed = {speed} px/frame cannot be reached")));
+            return Err(Error::Parameter(format!(
+                "speed = {} px/frame cannot be reached",
+                crate::bounds::short_number(speed)
+            )));
         }
         Ok(Self { amplitude_rad, omega_rad_per_frame: omega_of(quarter), motion, jump_at })
     }

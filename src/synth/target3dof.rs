@@ -322,7 +322,10 @@ impl Target3dofPath {
     /// exactly, `speed` rad/s. Errors when `speed` is not in `0..=MAX_SPEED`.
     pub fn new(speed: f64) -> Result<Self> {
         if !(speed.is_finite() && (0.0..=MAX_SPEED).contains(&speed)) {
-            return Err(Error::Parameter(format!("speed = {speed} rad/s is not in 0..={MAX_SPEED}")));
+            return Err(Error::Parameter(format!(
+                "speed = {} rad/s is not in 0..={MAX_SPEED}",
+                crate::bounds::short_number(speed)
+            )));
         }
         let [a, b] = BEARING_AMPLITUDE;
         // Peak of |dl/dt| = ω·√(A² + 4B²) at a centre crossing.
@@ -417,7 +420,10 @@ impl ShakePath {
     /// Errors when `speed` is not in `0..=MAX_SPEED`.
     pub fn new(speed: f64, frames: usize, seed: u64) -> Result<Self> {
         if !(speed.is_finite() && (0.0..=MAX_SPEED).contains(&speed)) {
-            return Err(Error::Parameter(format!("speed = {speed} rad/s is not in 0..={MAX_SPEED}")));
+            return Err(Error::Parameter(format!(
+                "speed = {} rad/s is not in 0..={MAX_SPEED}",
+                crate::bounds::short_number(speed)
+            )));
         }
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         rng.set_stream(SHAKE_STREAM);
