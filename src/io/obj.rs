@@ -21,7 +21,10 @@
 //! runs it.
 //!
 //! A point listed twice is an error (as in `model.json`): meshes exported
-//! with one vertex per face corner need their vertices merged first. The
+//! with one vertex per face corner need their vertices merged first. So is
+//! a face with the vertices of an earlier one (listed twice, or both sides
+//! of a thin plate), whose sides would border two coplanar faces and be no
+//! edges. The
 //! hand-written reader keeps the line of every vertex, face and edge, so
 //! that [`Model::validate`]'s problems name it too.
 
@@ -103,6 +106,9 @@ fn parse(text: &str) -> std::result::Result<Parsed, (usize, String)> {
     // Positive references may point past the vertices read so far; they
     // are checked once all are read.
     let mut references: Vec<(usize, i64)> = Vec::new();
+    // Each face's vertex set, with its line: a face listed twice would
+    // make each of its sides border two coplanar faces, and no edge.
+    let mut face_sets: HashMap<Vec<usize>, usize> = HashMap::new();
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;
         let content = raw.split('#').next().unwrap_or("");
@@ -165,6 +171,13 @@ fn parse(text: &str) -> std::result::Result<Parsed, (usize, String)> {
                     }
                     if let Some(k) = (1..loop_.len()).find(|&k| loop_[..k].contains(&loop_[k])) {
                         return fail(format!("face lists vertex {} twice", loop_[k] + 1));
+                    }
+                    let mut set = loop_.clone();
+                    set.sort_unstable();
+                    if let Some(first) = face_sets.insert(set, line) {
+                        return fail(format!(
+                            "face has the vertices of the face of line {first}: a face listed twice, or both sides of one, has no edges"
+                        ));
                     }
                     parsed.faces.push(loop_);
                     parsed.face_lines.push(line);
@@ -348,6 +361,8 @@ f 2 8 6
             (format!("{ok}f 1 2 -4\n"), "line 4: face: vertex reference -4 goes back past the first vertex"),
             (format!("{ok}f 1 2 0\n"), "line 4: face: vertex reference 0"),
             (format!("{ok}f 1 2 2\n"), "line 4: face lists vertex 2 twice"),
+            (format!("{ok}f 1 2 3\nf 2 3 1\n"), "line 5: face has the vertices of the face of line 4"),
+            (format!("{ok}f 1 2 3\nf 3 2 1\n"), "line 5: face has the vertices of the face of line 4"),
             (format!("{ok}f 1 2 x/1\n"), "line 4: face: \"x/1\" is not a vertex reference"),
             (format!("{ok}l 1\n"), "line 4: polyline has 1 vertices"),
             ("v 0 0\n".to_string(), "line 1: vertex 1: expected x y z, found 2 numbers"),
