@@ -101,14 +101,21 @@ pub fn list_frames(frames_dir: &Path) -> Result<Vec<PathBuf>> {
         let entry = entry.map_err(|e| Error::input(frames_dir, format!("cannot read folder: {e}")))?;
         let name = entry.file_name().to_string_lossy().into_owned();
         let path = entry.path();
-        let is_frame = !name.starts_with('.')
+        let frame_named = !name.starts_with('.')
             && path
                 .extension()
                 .and_then(|e| e.to_str())
-                .is_some_and(|e| FRAME_EXTENSIONS.iter().any(|f| f.eq_ignore_ascii_case(e)))
-            && fs::metadata(&path).is_ok_and(|m| m.is_file());
-        if is_frame {
-            named.push((name, path));
+                .is_some_and(|e| FRAME_EXTENSIONS.iter().any(|f| f.eq_ignore_ascii_case(e)));
+        if !frame_named {
+            continue;
+        }
+        // A folder or device named like a frame is not skipped: the frames
+        // would seem to jump over it.
+        match fs::metadata(&path) {
+            Ok(meta) if meta.is_file() => named.push((name, path)),
+            Ok(meta) if meta.is_dir() => return Err(Error::input(&path, "is a folder, not a frame file")),
+            Ok(_) => return Err(Error::input(&path, "is a device or other special file, not a frame file")),
+            Err(e) => return Err(open_error(&path, &e)),
         }
     }
     if named.is_empty() {

@@ -179,6 +179,12 @@ fn a_gap_in_the_frame_numbers_names_the_missing_frame() {
     f.gray_png("frames/000003.png", 4, 3, |_| 0);
     assert!(input_error(f.open(), "frames/000000.png").starts_with("missing"));
 
+    // A folder named like the next frame is named as such, not as a gap.
+    let f = Folder::good("folder-frame");
+    std::fs::create_dir(f.path("frames/000002.png")).unwrap();
+    f.gray_png("frames/000003.png", 4, 3, |_| 0);
+    assert!(input_error(f.open(), "frames/000002.png").starts_with("is a folder"));
+
     let f = Folder::good("same-number");
     f.gray_png("frames/1.png", 4, 3, |_| 0);
     assert!(input_error(f.open(), "frames/1.png").contains("frame number of 000001.png"));
