@@ -346,6 +346,14 @@ fn note(line: std::fmt::Arguments<'_>) {
     let _ = writeln!(std::io::stderr(), "{line}");
 }
 
+/// After a run, the keys of the sequence's files that no reader read
+/// (a misspelt key is otherwise silently without effect).
+fn note_ignored_keys(seq: &Sequence) {
+    for line in seq.ignored_keys() {
+        note(format_args!("pipetrack: note: {line}"));
+    }
+}
+
 /// A line on stdout, flushed; a failed write is an error naming `stdout`.
 fn say(line: std::fmt::Arguments<'_>) -> anyhow::Result<()> {
     let mut out = std::io::stdout().lock();
@@ -391,6 +399,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "pipetrack: {} frames, {} tracking, {:.1} frames/s on {}",
                 summary.frames, summary.tracked, summary.fps, summary.backend
             ));
+            note_ignored_keys(&seq);
             Ok(())
         }
         Command::Synth { scene, out_dir, frames, seed, speed, noise, occlude, shake, set } => {
@@ -451,6 +460,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 None => roundtrip(&seq, &opts)?,
             };
             println!("{}", summary(&report));
+            note_ignored_keys(&seq);
             Ok(())
         }
         Command::Score { seq_dir, pred, false_tracking_px, plot, plot_size } => {

@@ -109,10 +109,11 @@ pub fn list_frames(frames_dir: &Path) -> Result<Vec<PathBuf>> {
         if !frame_named {
             continue;
         }
-        // A folder or device named like a frame is not skipped: the frames
-        // would seem to jump over it.
+        // A folder or device with a frame's extension is skipped unless it
+        // is numbered like a frame: the frames would seem to jump over it.
         match fs::metadata(&path) {
             Ok(meta) if meta.is_file() => named.push((name, path)),
+            _ if split_number(&name).is_none() => {}
             Ok(meta) if meta.is_dir() => return Err(Error::input(&path, "is a folder, not a frame file")),
             Ok(_) => return Err(Error::input(&path, "is a device or other special file, not a frame file")),
             Err(e) => return Err(open_error(&path, &e)),

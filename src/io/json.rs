@@ -105,6 +105,59 @@ pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
     serde_json::from_str(&text).map_err(|e| input_error(path, describe_json_error(&text, &e, None)))
 }
 
+/// [`read_json`], and the keys of the file that `T` does not read
+/// ([`ignored_keys`]): a misspelt optional key (`"joint"` for `"joints"`)
+/// is otherwise silently left out.
+pub fn read_json_noting_ignored<T: DeserializeOwned + serde::Serialize>(path: &Path) -> Result<(T, Vec<String>)> {
+    let value: T = read_json(path)?;
+    let original: Option<serde_json::Value> = read_text(path).ok().and_then(|text| serde_json::from_str(&text).ok());
+    let ignored = match (original, serde_json::to_value(&value)) {
+        (Some(original), Ok(parsed)) => ignored_keys(&original, &parsed),
+        _ => Vec::new(),
+    };
+    Ok((value, ignored))
+}
+
+/// The keys of `original` (a JSON object, and the objects and arrays in
+/// it) that `parsed` (what was read from it, written back) does not have,
+/// as paths (`joints[0].type`). A key whose value is null or empty is not
+/// listed: an optional field left out on writing looks the same.
+#[must_use]
+pub fn ignored_keys(original: &serde_json::Value, parsed: &serde_json::Value) -> Vec<String> {
+    use serde_json::Value;
+    fn walk(original: &Value, parsed: &Value, at: &str, out: &mut Vec<String>) {
+        match (original, parsed) {
+            (Value::Object(o), Value::Object(p)) => {
+                for (key, value) in o {
+                    let path = if at.is_empty() { key.clone() } else { format!("{at}.{key}") };
+                    match p.get(key) {
+                        Some(read) => walk(value, read, &path, out),
+                        None if !empty(value) => out.push(path),
+                        None => {}
+                    }
+                }
+            }
+            (Value::Array(o), Value::Array(p)) => {
+                for (k, (value, read)) in o.iter().zip(p).enumerate() {
+                    walk(value, read, &format!("{at}[{k}]"), out);
+                }
+            }
+            _ => {}
+        }
+    }
+    fn empty(value: &Value) -> bool {
+        match value {
+            Value::Null => true,
+            Value::Array(a) => a.is_empty(),
+            Value::Object(o) => o.is_empty(),
+            _ => false,
+        }
+    }
+    let mut out = Vec::new();
+    walk(original, parsed, "", &mut out);
+    out
+}
+
 /// The complaint about a JSON text whose top level is an array: every file
 /// and line pipetrack reads is one object with named fields.
 fn not_an_object(text: &str) -> Option<String> {
@@ -288,6 +341,19 @@ fn find_non_json_number(text: &str) -> Option<(String, usize, usize)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Keys the reader does not know are found at any depth; empty ones
+    /// and known ones are not listed.
+    #[test]
+    fn ignored_keys_are_listed_with_their_paths() {
+        let original = serde_json::json!({
+            "name": "box", "joint": [{"name": "lid"}], "pose": null, "extra": [],
+            "joints": [{"name": "lid", "type": "prismatic"}, {"name": "arm"}]
+        });
+        let parsed = serde_json::json!({"name": "box", "joints": [{"name": "lid"}, {"name": "arm"}]});
+        assert_eq!(ignored_keys(&original, &parsed), ["joint", "joints[0].type"]);
+        assert!(ignored_keys(&parsed, &parsed).is_empty());
+    }
 
     /// Devices and folders are refused before a byte is read, and a file
     /// or a line longer than the limit is refused once the limit is passed:

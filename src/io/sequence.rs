@@ -56,6 +56,8 @@ pub struct Sequence {
     dir: PathBuf,
     model_path: PathBuf,
     frames: FrameList,
+    /// Keys of camera.json, model.json and init.json that no reader reads.
+    ignored_keys: Vec<String>,
 }
 
 #[derive(Clone, Debug)]
@@ -73,16 +75,18 @@ impl Sequence {
     pub fn open(dir: &Path, frames_from_stdin: bool) -> Result<Self> {
         check_folder(dir)?;
         let camera_path = dir.join(CAMERA_FILE);
-        let camera: Camera = read_json(&camera_path)?;
+        let (camera, mut ignored_keys) = read_json_noting::<Camera>(&camera_path)?;
         // A size no frame may have is named as such before the intrinsics
         // are judged against it.
         check_frame_size(&camera_path, camera.width as usize, camera.height as usize)?;
         camera.validate(&camera_path)?;
 
-        let (model, model_path) = read_model(dir)?;
+        let (model, model_path, ignored) = read_model(dir)?;
+        ignored_keys.extend(ignored);
 
         let init_path = dir.join(INIT_FILE);
-        let init: InitState = read_json(&init_path)?;
+        let (init, ignored) = read_json_noting::<InitState>(&init_path)?;
+        ignored_keys.extend(ignored);
         init.validate(&init_path, &model, &model_path)?;
 
         let frames = if frames_from_stdin {
@@ -93,7 +97,15 @@ impl Sequence {
             FrameList::Files(paths)
         };
 
-        Ok(Self { camera, model, init, dir: dir.to_path_buf(), model_path, frames })
+        Ok(Self { camera, model, init, dir: dir.to_path_buf(), model_path, frames, ignored_keys })
+    }
+
+    /// One line per input file with keys that no reader reads (misspelt,
+    /// or meant for another tool), naming the file and the keys; empty when
+    /// every key is read.
+    #[must_use]
+    pub fn ignored_keys(&self) -> &[String] {
+        &self.ignored_keys
     }
 
     /// This sequence's first `count` frames (all when fewer) in reverse
@@ -202,17 +214,31 @@ fn check_folder(dir: &Path) -> Result<()> {
 /// The model of the folder: `model.json`, else `model.cao`, else
 /// `model.obj` (SPEC §4), validated; a problem with one of its parts names
 /// the file and line the part was written on.
-fn read_model(dir: &Path) -> Result<(Model, PathBuf)> {
+/// [`read_json_noting_ignored`] with its keys as one line naming `path`
+/// (none when every key is read).
+fn read_json_noting<T: serde::de::DeserializeOwned + serde::Serialize>(path: &Path) -> Result<(T, Vec<String>)> {
+    let (value, keys) = read_json_noting_ignored(path)?;
+    let line = (!keys.is_empty()).then(|| {
+        let shown: Vec<String> = keys.iter().take(5).map(|k| format!("{k:?}")).collect();
+        let more = if keys.len() > 5 { format!(" and {} more", keys.len() - 5) } else { String::new() };
+        format!("{}: ignored, not read by pipetrack: {}{more}", path.display(), shown.join(", "))
+    });
+    Ok((value, line.into_iter().collect()))
+}
+
+/// The sequence's model, its file, and (for `model.json`) the line of
+/// [`read_json_noting`].
+fn read_model(dir: &Path) -> Result<(Model, PathBuf, Vec<String>)> {
     let json_path = dir.join(MODEL_JSON_FILE);
     let cao_path = dir.join(MODEL_CAO_FILE);
     let obj_path = dir.join(MODEL_OBJ_FILE);
     if !json_path.exists() && cao_path.exists() {
-        return Ok((cao::read_cao(&cao_path)?, cao_path));
+        return Ok((cao::read_cao(&cao_path)?, cao_path, Vec::new()));
     }
     if !json_path.exists() && obj_path.exists() {
-        return Ok((obj::read_obj(&obj_path)?, obj_path));
+        return Ok((obj::read_obj(&obj_path)?, obj_path, Vec::new()));
     }
-    let model: Model = read_json(&json_path).map_err(|e| match e {
+    let (model, ignored) = read_json_noting::<Model>(&json_path).map_err(|e| match e {
         Error::Input { path, message } if message == MISSING => {
             Error::input(path, "missing (and there is no model.cao or model.obj either)")
         }
@@ -222,7 +248,7 @@ fn read_model(dir: &Path) -> Result<(Model, PathBuf)> {
         let text = read_text(&json_path).ok()?;
         model_json_line(&text, part).map(|line| (json_path.clone(), line))
     })?;
-    Ok((model, json_path))
+    Ok((model, json_path, ignored))
 }
 
 fn read_truth(path: &Path, model: &Model, model_path: &Path, frame_count: Option<usize>) -> Result<Vec<TruthFrame>> {

@@ -577,3 +577,32 @@ fn reproduce_refuses_options_of_the_other_paper() {
         assert!(!out_dir.exists(), "{args:?} wrote {out_arg}");
     }
 }
+
+/// Keys no reader reads (a misspelt `"corner"` for `"corners"` is one) do
+/// not stop a run, and are named after it, file by file; a sequence as
+/// `synth` writes it has none.
+#[test]
+fn keys_no_reader_reads_are_noted_after_the_run() {
+    let root = scratch("ignored-keys");
+    let seq = good_sequence(&root);
+    let out = track_motion_edge_cpu(&seq, &["--out", root.join("a.jsonl").to_str().unwrap()]);
+    assert!(out.status.success());
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("note:"), "{}", String::from_utf8_lossy(&out.stderr));
+
+    let edit = |file: &str, key: &str| {
+        let path = seq.join(file);
+        let mut value: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        value[key] = serde_json::json!(1);
+        std::fs::write(&path, value.to_string()).unwrap();
+    };
+    edit("camera.json", "k1");
+    edit("init.json", "corner");
+    let out = track_motion_edge_cpu(&seq, &["--out", root.join("b.jsonl").to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert_eq!(lines.len(), 3, "{stderr}");
+    assert!(lines[0].contains("frames/s"), "the run's summary first: {stderr}");
+    assert!(lines[1].contains("camera.json: ignored, not read by pipetrack: \"k1\""), "{stderr}");
+    assert!(lines[2].contains("init.json: ignored, not read by pipetrack: \"corner\""), "{stderr}");
+}
