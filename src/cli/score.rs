@@ -258,6 +258,16 @@ fn score_impl(
                 t.corners.len()
             ));
         }
+        if let Some(params) = p.params.as_ref().filter(|p| !p.is_empty() && !t.params.is_empty()) {
+            if params.len() != t.params.len() {
+                return Err(format!(
+                    "frame {}: {} joint values (\"params\") but truth.jsonl has {}",
+                    p.frame,
+                    params.len(),
+                    t.params.len()
+                ));
+            }
+        }
         if corner_sums.is_empty() {
             corner_sums = vec![(0.0, 0); t.corners.len()];
         } else if corner_sums.len() != t.corners.len() {

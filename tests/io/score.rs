@@ -158,6 +158,15 @@ fn mismatched_frames_are_errors() {
     let mut short = preds.clone();
     short[1].corners.pop();
     assert!(score(&truth, &short).unwrap_err().to_string().contains("frame 1: 3 corners but truth.jsonl has 4"));
+    // Joint values are compared one to one: a count that differs is an error.
+    let mut jointed = truth.clone();
+    jointed.iter_mut().for_each(|t| t.params = vec![0.5]);
+    let mut extra = preds.clone();
+    extra.iter_mut().for_each(|p| p.params = Some(vec![0.5]));
+    assert!(score(&jointed, &extra).is_ok());
+    extra[2].params = Some(vec![0.5, 0.1]);
+    let msg = score(&jointed, &extra).unwrap_err().to_string();
+    assert!(msg.contains("frame 2: 2 joint values (\"params\") but truth.jsonl has 1"), "{msg}");
 }
 
 struct TempFile(PathBuf);
