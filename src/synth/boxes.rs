@@ -275,7 +275,7 @@ impl BoxOptions {
             "background" => self.background = value.parse()?,
             _ => {
                 return Err(Error::Parameter(format!(
-                    "unknown {scene} option '{key}' (known: {})",
+                    "{scene} has no option '{key}' (its options: {})",
                     Self::KEYS.join(", ")
                 )));
             }

@@ -195,7 +195,7 @@ impl PendulumOptions {
             "motion" => self.motion = value.parse()?,
             _ => {
                 return Err(Error::Parameter(format!(
-                    "unknown pendulum option '{key}' (known: {})",
+                    "pendulum has no option '{key}' (its options: {})",
                     Self::KEYS.join(", ")
                 )));
             }

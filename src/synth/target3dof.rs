@@ -291,7 +291,7 @@ impl Target3dofOptions {
             "shake" => self.shake = parse_option("target3dof", key, value, "true or false")?,
             _ => {
                 return Err(Error::Parameter(format!(
-                    "unknown target3dof option '{key}' (known: {})",
+                    "target3dof has no option '{key}' (its options: {})",
                     Self::KEYS.join(", ")
                 )));
             }

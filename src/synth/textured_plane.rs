@@ -129,7 +129,7 @@ impl TexturedPlaneOptions {
             "noise" => self.noise_sigma = parse_option("textured-plane", key, value, "a number")?,
             _ => {
                 return Err(Error::Parameter(format!(
-                    "unknown textured-plane option '{key}' (known: {})",
+                    "textured-plane has no option '{key}' (its options: {})",
                     Self::KEYS.join(", ")
                 )));
             }
