@@ -129,10 +129,18 @@ impl<R: Read> Y4mReader<R> {
             return Err(Error::input(&name, "empty stream: expected a YUV4MPEG2 header"));
         }
         if !line.starts_with(MAGIC) || !(line.len() == MAGIC.len() || line[MAGIC.len()] == b' ') {
-            let start = String::from_utf8_lossy(&line[..line.len().min(16)]).into_owned();
+            let head = &line[..line.len().min(16)];
+            // Text is quoted; bytes that are not printable ASCII are shown
+            // as hexadecimal rather than as replacement characters.
+            let start = if head.iter().all(|b| b.is_ascii_graphic() || *b == b' ') {
+                format!("{:?}", String::from_utf8_lossy(head))
+            } else {
+                let bytes: Vec<String> = head.iter().map(|b| format!("{b:02x}")).collect();
+                format!("the bytes {}", bytes.join(" "))
+            };
             return Err(Error::input(
                 &name,
-                format!("not a YUV4MPEG2 stream: it starts with {start:?} instead of \"YUV4MPEG2 \""),
+                format!("not a YUV4MPEG2 stream: it starts with {start} instead of \"YUV4MPEG2 \""),
             ));
         }
         if !complete {
@@ -417,7 +425,10 @@ mod tests {
     #[test]
     fn bad_headers_are_errors() {
         let msg = |s: &[u8]| message(Y4mReader::new(s).err().expect("should fail"));
-        assert!(msg(b"\x89PNG\r\n").contains("not a YUV4MPEG2 stream"));
+        assert!(
+            msg(b"\x89PNG\r\n").contains("not a YUV4MPEG2 stream: it starts with the bytes 89 50 4e 47 0d instead")
+        );
+        assert!(msg(b"P5 4 4\n").contains("it starts with \"P5 4 4\" instead"));
         assert!(msg(b"").contains("empty stream"));
         assert!(msg(b"YUV4MPEG2 W4 H4").contains("truncated"));
         assert!(msg(b"YUV4MPEG2 W4\n").contains("lacks the W"));
