@@ -225,9 +225,22 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
     }
     let model = crate::io::cao::read_cao(&dir.join(MODEL_CAO_FILE)).map_err(|e| {
         match e {
-            // An error in the written model.cao is one in the --include arguments.
+            // An error in the written model.cao is one in the --include
+            // arguments: its line 4 + k loads part k (`loading_model`).
             Error::Input { path, message } if !parts.is_empty() && path == dir.join(MODEL_CAO_FILE) => {
-                Error::Parameter(format!("--include: {message}"))
+                let part = message
+                    .strip_prefix("line ")
+                    .and_then(|rest| rest.split_once(": "))
+                    .and_then(|(line, rest)| Some((line.parse::<usize>().ok()?.checked_sub(4)?, rest)))
+                    .and_then(|(k, rest)| Some((parts.get(k)?, rest)));
+                match part {
+                    Some((part, rest)) => {
+                        let placement =
+                            if part.placement.is_empty() { String::new() } else { format!(", {}", part.placement) };
+                        Error::Parameter(format!("--include \"{}{placement}\": {rest}", part.file.display()))
+                    }
+                    None => Error::Parameter(format!("--include: {message}")),
+                }
             }
             e => source_error(e, dir, &model_copies),
         }

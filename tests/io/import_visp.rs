@@ -328,7 +328,7 @@ fn loaded_files_are_copied_and_included_parts_placed() {
     // A bad placement is named as the --include argument's; a line break
     // would add a line of its own to the written model.cao.
     for (include, needle) in [
-        ("Extra/wedge.cao, t=[0.2; 0]", "--include"),
+        ("Extra/wedge.cao, t=[0.2; 0]", "Extra/wedge.cao, t=[0.2; 0]\": load(\"wedge.cao\")"),
         ("Extra/wedge.cao, t=[0.2; 0; 0])\nload(\"/elsewhere/other.cao\")\n#", "control character"),
     ] {
         let bad = root.join("seq-bad");
@@ -336,6 +336,7 @@ fn loaded_files_are_copied_and_included_parts_placed() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{stderr}");
         assert!(stderr.contains("--include") && stderr.contains(needle), "{stderr}");
+        assert!(!stderr.contains("line 4"), "a line of the written model.cao: {stderr}");
         assert!(!bad.exists());
     }
 }
