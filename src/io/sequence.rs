@@ -211,9 +211,6 @@ fn check_folder(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// The model of the folder: `model.json`, else `model.cao`, else
-/// `model.obj` (SPEC §4), validated; a problem with one of its parts names
-/// the file and line the part was written on.
 /// [`read_json_noting_ignored`] with its keys as one line naming `path`
 /// (none when every key is read).
 fn read_json_noting<T: serde::de::DeserializeOwned + serde::Serialize>(path: &Path) -> Result<(T, Vec<String>)> {
@@ -226,8 +223,10 @@ fn read_json_noting<T: serde::de::DeserializeOwned + serde::Serialize>(path: &Pa
     Ok((value, line.into_iter().collect()))
 }
 
-/// The sequence's model, its file, and (for `model.json`) the line of
-/// [`read_json_noting`].
+/// The model of the folder: `model.json`, else `model.cao`, else
+/// `model.obj` (SPEC §4), validated; a problem with one of its parts names
+/// the file and line the part was written on. With the model, its file and
+/// (for `model.json`) the line of [`read_json_noting`].
 fn read_model(dir: &Path) -> Result<(Model, PathBuf, Vec<String>)> {
     let json_path = dir.join(MODEL_JSON_FILE);
     let cao_path = dir.join(MODEL_CAO_FILE);

@@ -479,9 +479,9 @@ impl LoweTracker {
     /// of the last frame's (or is not verified), the search runs again
     /// from the last solution itself, then from it moved by half its
     /// velocity (the motion may have turned round or slowed), each at the
-    /// frame's first range. A solution found there replaces `found` when it is verified
-    /// with `confident_support`, more of its outline supported than `found`
-    /// and no fewer matches than a verified `found`.
+    /// frame's first range. A solution found there replaces `found` when
+    /// it is verified with `confident_support`, more of its outline
+    /// supported than `found` and no fewer matches than a verified `found`.
     fn search_slower(&self, view: &FrameView<'_>, found: Option<Found>, diag: &mut LoweDiagnostics) -> Option<Found> {
         let confident = self.params.confident_support;
         let fraction = |found: &Found| found.support.map_or(0.0, support::fraction);
