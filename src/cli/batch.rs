@@ -138,7 +138,7 @@ pub fn read_manifest(path: &Path, default_tracker: Option<&str>, out_dir: &Path)
             lines.push(0);
         }
     } else {
-        let text = read_manifest_text(path)?;
+        let text = crate::io::json::read_text_at_most(path, MAX_MANIFEST_BYTES)?;
         let base = path.parent().unwrap_or(Path::new(""));
         for (i, line) in text.lines().enumerate() {
             let place = format!("line {}: ", i + 1);
@@ -185,18 +185,6 @@ pub fn read_manifest(path: &Path, default_tracker: Option<&str>, out_dir: &Path)
         seen.insert(&e.name, k);
     }
     Ok(entries)
-}
-
-fn read_manifest_text(path: &Path) -> Result<String> {
-    use std::io::Read;
-    let mut text = String::new();
-    fs::File::open(path)
-        .and_then(|f| f.take(MAX_MANIFEST_BYTES + 1).read_to_string(&mut text))
-        .map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
-    if text.len() as u64 > MAX_MANIFEST_BYTES {
-        return Err(Error::input(path, format!("too large for a manifest (at most {MAX_MANIFEST_BYTES} bytes)")));
-    }
-    Ok(text)
 }
 
 /// A folder's name, resolving `.` and `..` through the file system.

@@ -252,20 +252,6 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
         .enumerate()
         .map(|(frame, (pose, pose_path))| true_state(frame, pose, &geometry, &camera, pose_path))
         .collect::<Result<Vec<_>>>()?;
-    // The first frame's pose becomes init.json, where a tracker starts: the
-    // whole model must be in front of the camera there.
-    if let Some((pose, pose_path)) = poses.first() {
-        let points = geometry.camera_vertices(pose, &[])?;
-        if let Some((i, p)) = points.iter().enumerate().find(|(_, p)| !(p.z > 0.0)) {
-            return Err(Error::input(
-                pose_path,
-                format!(
-                    "the first frame's pose puts model vertex {i} at depth {}: a tracker starts from it, with the whole model in front of the camera",
-                    crate::bounds::short_number(p.z)
-                ),
-            ));
-        }
-    }
 
     let frames_dir = dir.join(FRAMES_DIR);
     fs::create_dir_all(&frames_dir).map_err(|e| Error::io(&frames_dir, e))?;
@@ -903,6 +889,17 @@ fn true_state(
     let mut corners = Vec::with_capacity(camera_vertices.len());
     let mut visible = Vec::with_capacity(camera_vertices.len());
     for (i, p) in camera_vertices.iter().enumerate() {
+        // The first frame's pose becomes init.json, where a tracker starts:
+        // the whole model must be in front of the camera there.
+        if frame == 0 && !(p.z > 0.0) {
+            return Err(Error::input(
+                pose_path,
+                format!(
+                    "the first frame's pose puts model vertex {i} at depth {}: a tracker starts from it, with the whole model in front of the camera",
+                    crate::bounds::short_number(p.z)
+                ),
+            ));
+        }
         let pixel = camera.project(*p);
         if !(pixel[0].is_finite() && pixel[1].is_finite()) {
             let why = if p.z == 0.0 {

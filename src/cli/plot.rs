@@ -69,10 +69,7 @@ pub fn check_plot_path(path: &Path, inputs: &[PathBuf]) -> Result<()> {
     if path.is_dir() {
         return Err(Error::input(path, "is a folder: --plot takes a file name"));
     }
-    // Only an existing file can be an input; compare resolved paths so that
-    // `./seq/../seq/truth.jsonl` and links are caught.
-    let Ok(plot) = std::fs::canonicalize(path) else { return Ok(()) };
-    match inputs.iter().find(|p| std::fs::canonicalize(p).is_ok_and(|p| p == plot)) {
+    match crate::io::Sequence::same_file_among(path, inputs) {
         Some(input) => {
             Err(Error::input(path, format!("is the input file {}: write the plot elsewhere", input.display())))
         }

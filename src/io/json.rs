@@ -42,7 +42,7 @@ pub(crate) fn read_text(path: &Path) -> Result<String> {
 }
 
 /// [`read_text`] with a limit of `max` bytes.
-fn read_text_at_most(path: &Path, max: u64) -> Result<String> {
+pub(crate) fn read_text_at_most(path: &Path, max: u64) -> Result<String> {
     use std::io::Read;
     let mut text = String::new();
     open_input(path)?.take(max + 1).read_to_string(&mut text).map_err(|e| match e.kind() {
@@ -95,22 +95,27 @@ pub fn read_frame_lines<T: DeserializeOwned>(
 /// (serde would take it as the fields in order) or a wrong field are input
 /// errors naming `path`.
 pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = read_text(path)?;
+    parse_json(path, &read_text(path)?)
+}
+
+/// [`read_json`] of `text`, the contents of `path`.
+fn parse_json<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
     if text.trim().is_empty() {
         return Err(Error::input(path, "empty file"));
     }
-    if let Some(msg) = not_an_object(&text) {
+    if let Some(msg) = not_an_object(text) {
         return Err(Error::input(path, msg));
     }
-    serde_json::from_str(&text).map_err(|e| input_error(path, describe_json_error(&text, &e, None)))
+    serde_json::from_str(text).map_err(|e| input_error(path, describe_json_error(text, &e, None)))
 }
 
 /// [`read_json`], and the keys of the file that `T` does not read
 /// ([`ignored_keys`]): a misspelt optional key (`"joint"` for `"joints"`)
 /// is otherwise silently left out.
 pub fn read_json_noting_ignored<T: DeserializeOwned + serde::Serialize>(path: &Path) -> Result<(T, Vec<String>)> {
-    let value: T = read_json(path)?;
-    let original: Option<serde_json::Value> = read_text(path).ok().and_then(|text| serde_json::from_str(&text).ok());
+    let text = read_text(path)?;
+    let value: T = parse_json(path, &text)?;
+    let original: Option<serde_json::Value> = serde_json::from_str(&text).ok();
     let ignored = match (original, serde_json::to_value(&value)) {
         (Some(original), Ok(parsed)) => ignored_keys(&original, &parsed),
         _ => Vec::new(),

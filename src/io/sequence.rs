@@ -147,6 +147,18 @@ impl Sequence {
         read_truth(&path, &self.model, &self.model_path, self.frame_count())
     }
 
+    /// The first of `inputs` that the existing file `path` is, compared
+    /// resolved (so `./seq/../seq/init.json` and links are caught); `None`
+    /// when none is, or `path` does not exist. Only an input of the same
+    /// file name, or a link, is resolved.
+    #[must_use]
+    pub fn same_file_among<'a>(path: &Path, inputs: &'a [PathBuf]) -> Option<&'a PathBuf> {
+        let target = fs::canonicalize(path).ok()?;
+        inputs.iter().find(|p| {
+            (p.file_name() == target.file_name() || p.is_symlink()) && fs::canonicalize(p).is_ok_and(|p| p == target)
+        })
+    }
+
     /// The files of SPEC §4 this folder holds: `camera.json`, the model
     /// files, `init.json`, `truth.jsonl` and the frames. An output must not
     /// be written over any of them.

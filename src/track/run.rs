@@ -6,7 +6,7 @@
 //! [`track_step`] once per frame from its own render loop.
 
 use std::fs;
-use std::io::{BufWriter, Read, Write};
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -37,14 +37,7 @@ pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
 /// quoted text shortened (`io::json::one_short_line`).
 pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>, tracker: &str) -> Result<P> {
     let Some(path) = path else { return Ok(P::default()) };
-    let cannot_read = |e: std::io::Error| Error::input(path, format!("cannot read: {e}"));
-    let mut text = String::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(MAX_CONFIG_BYTES + 1).read_to_string(&mut text))
-        .map_err(cannot_read)?;
-    if text.len() as u64 > MAX_CONFIG_BYTES {
-        return Err(Error::input(path, format!("too large for a config file (at most {MAX_CONFIG_BYTES} bytes)")));
-    }
+    let text = crate::io::json::read_text_at_most(path, MAX_CONFIG_BYTES)?;
     let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| toml_error(path, &text, &e))?;
     // Other trackers' tables are theirs: one file may serve several trackers.
     let own = table.remove(tracker);
@@ -135,26 +128,7 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             let params: LoweParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
             // What the model alone decides is the model file's error.
-            if seq.model.units != "m" {
-                return Err(Error::input(
-                    seq.model_path(),
-                    format!(
-                        "lowe tracks a 3-D model in metres (\"units\": \"m\"); this one is in {:?}",
-                        seq.model.units
-                    ),
-                ));
-            }
-            let joints = seq.model.joints.len();
-            if joints > crate::track::lowe::params::MAX_JOINTS {
-                let most = crate::track::lowe::params::MAX_JOINTS;
-                return Err(Error::input(
-                    seq.model_path(),
-                    format!("lowe tracks at most {most} joints; the model has {joints}"),
-                ));
-            }
-            if seq.model.edges.is_empty() {
-                return Err(Error::input(seq.model_path(), "lowe needs a model with edges"));
-            }
+            LoweTracker::check_model(&seq.model).map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
             let tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, params)
                 .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
             Ok(Box::new(tracker))
@@ -523,19 +497,16 @@ pub fn check_output(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Res
     if opts.overlay.as_deref().is_some_and(|o| o == out_path) {
         return Err(Error::input(out_path, "is also the overlay folder: give --out and --overlay different names"));
     }
-    // Only an existing file can be an input; compare resolved paths so that
-    // `./seq/../seq/init.json` and links are caught.
-    let Ok(out) = fs::canonicalize(out_path) else { return Ok(()) };
-    let same =
-        |p: &Path| (p.file_name() == out.file_name() || p.is_symlink()) && fs::canonicalize(p).is_ok_and(|p| p == out);
-    if let Some(input) = seq.input_files().iter().find(|p| same(p)) {
+    if let Some(input) = Sequence::same_file_among(out_path, &seq.input_files()) {
         return Err(Error::input(
             out_path,
             format!("is the sequence's input file {}: write the output elsewhere", input.display()),
         ));
     }
-    if opts.config.as_deref().is_some_and(same) {
-        return Err(Error::input(out_path, "is the --config file: write the output elsewhere"));
+    if let Some(config) = &opts.config {
+        if Sequence::same_file_among(out_path, std::slice::from_ref(config)).is_some() {
+            return Err(Error::input(out_path, "is the --config file: write the output elsewhere"));
+        }
     }
     Ok(())
 }

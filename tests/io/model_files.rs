@@ -309,6 +309,25 @@ fn bad_model_obj_names_the_line() {
     );
 }
 
+/// `track SEQ --tracker lowe` must exit 2 with an error naming `file`
+/// (`init.json`, `model.json`) and containing `needle`, and write nothing;
+/// `what` labels a failure.
+fn expect_lowe_refused(seq: &Path, file: &str, needle: &str, what: &str) {
+    let out_file = seq.with_extension("jsonl");
+    let out = track_cpu(seq, "lowe", &out_file);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{what}: {stderr}");
+    assert!(stderr.contains(&format!("{file}: ")) && stderr.contains(needle), "{what}: {stderr}");
+    assert!(!out_file.exists(), "{what}: nothing written");
+}
+
+/// `f` applied to the JSON file at `path`, written back.
+fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
+    let mut value: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    f(&mut value);
+    std::fs::write(path, value.to_string()).unwrap();
+}
+
 /// A start pose that puts the model at or behind the camera: refused with
 /// init.json named, not tracked as lost on every frame.
 #[test]
@@ -316,19 +335,11 @@ fn lowe_refuses_a_start_pose_behind_the_camera() {
     let root = scratch("behind");
     let seq = root.join("seq");
     synth("box", &seq, "2");
-    let init_path = seq.join("init.json");
-    let mut init: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&init_path).unwrap()).unwrap();
     // The centre behind the camera, at it, and in front of it with the
     // camera inside the box (its nearest vertices behind).
     for z in [-1.0, -0.3, 0.0, 0.05] {
-        init["pose"]["translation"] = serde_json::json!([0.0, 0.0, z]);
-        std::fs::write(&init_path, init.to_string()).unwrap();
-        let out_file = root.join("out.jsonl");
-        let out = track_cpu(&seq, "lowe", &out_file);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "z = {z}: {stderr}");
-        assert!(stderr.contains("init.json: ") && stderr.contains("in front of the camera"), "z = {z}: {stderr}");
-        assert!(!out_file.exists(), "z = {z}: nothing written");
+        edit_json(&seq.join("init.json"), |init| init["pose"]["translation"] = serde_json::json!([0.0, 0.0, z]));
+        expect_lowe_refused(&seq, "init.json", "in front of the camera", &format!("z = {z}"));
     }
 }
 
@@ -340,44 +351,29 @@ fn lowe_names_the_file_at_fault_for_joints() {
     let root = scratch("joints");
     let seq = root.join("seq");
     synth("hinged-box", &seq, "2");
-    let out_file = root.join("out.jsonl");
-
     let init_path = seq.join("init.json");
-    let mut init: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&init_path).unwrap()).unwrap();
-    init["params"] = serde_json::json!([5.0]);
-    std::fs::write(&init_path, init.to_string()).unwrap();
-    let out = track_cpu(&seq, "lowe", &out_file);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("init.json: ") && stderr.contains("outside its joint's limits"), "{stderr}");
-    assert!(!out_file.exists());
+    edit_json(&init_path, |init| init["params"] = serde_json::json!([5.0]));
+    expect_lowe_refused(&seq, "init.json", "outside its joint's limits", "lid at 5 rad");
     // No start joint values: each joint starts at 0.
-    init.as_object_mut().unwrap().remove("params");
-    std::fs::write(&init_path, init.to_string()).unwrap();
+    edit_json(&init_path, |init| {
+        init.as_object_mut().unwrap().remove("params");
+    });
 
     let model_path = seq.join("model.json");
-    let mut model: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model_path).unwrap()).unwrap();
-    let good_model = model.clone();
-    model["units"] = serde_json::json!("px");
-    std::fs::write(&model_path, model.to_string()).unwrap();
-    let out = track_cpu(&seq, "lowe", &out_file);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("model.json: ") && stderr.contains("in metres"), "{stderr}");
-    let mut model = good_model;
-    let joint = model["joints"][0].clone();
-    let joints = (0..11)
-        .map(|k| {
-            let mut j = joint.clone();
-            j["name"] = serde_json::json!(format!("lid {k}"));
-            j
-        })
-        .collect();
-    model["joints"] = serde_json::Value::Array(joints);
-    std::fs::write(&model_path, model.to_string()).unwrap();
-    let out = track_cpu(&seq, "lowe", &out_file);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("model.json: ") && stderr.contains("at most 10 joints"), "{stderr}");
-    assert!(!out_file.exists());
+    let good_model = std::fs::read_to_string(&model_path).unwrap();
+    edit_json(&model_path, |model| model["units"] = serde_json::json!("px"));
+    expect_lowe_refused(&seq, "model.json", "in metres", "pixel units");
+    std::fs::write(&model_path, good_model).unwrap();
+    edit_json(&model_path, |model| {
+        let joint = model["joints"][0].clone();
+        let joints = (0..11)
+            .map(|k| {
+                let mut j = joint.clone();
+                j["name"] = serde_json::json!(format!("lid {k}"));
+                j
+            })
+            .collect();
+        model["joints"] = serde_json::Value::Array(joints);
+    });
+    expect_lowe_refused(&seq, "model.json", "at most 10 joints", "11 joints");
 }

@@ -19,6 +19,7 @@ use crate::common;
 use pipetrack::backend::{CpuBackend, EarlyVision, GpuBackend};
 use pipetrack::cli::score::score;
 use pipetrack::io::formats::FrameResult;
+use pipetrack::synth::SyntheticSequence;
 use pipetrack::synth::boxes::{BoxKind, BoxOptions, render_box};
 use pipetrack::track::{LoweParams, LoweTracker};
 
@@ -96,8 +97,8 @@ const BOX_OCCLUDED_10_SEED_9: Case = Case { seed: 9, min_tracked: 250, ..BOX_OCC
 /// extrapolated, frames 245–255 behind the band).
 const HINGED_OCCLUDED: Case = Case { occlude: 0.5, max_lid_frames_over_2deg: 8, max_lid_deg: 6.0, ..HINGED_SLOW };
 
-/// Track `case` on `backend`, assert its figures and return the results.
-fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<FrameResult> {
+/// The scene of `case`.
+fn render(case: &Case) -> SyntheticSequence {
     let opts = BoxOptions {
         kind: case.kind,
         speed: case.speed,
@@ -106,10 +107,25 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<
         seed: case.seed,
         ..BoxOptions::default()
     };
-    let seq = render_box(&opts).expect("render the box scene");
-    let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, LoweParams::default()).expect("lowe tracker");
+    render_box(&opts).expect("render the box scene")
+}
+
+/// `seq` tracked by lowe with `params` on `backend`: each frame's result,
+/// and the lost frames with their reasons.
+fn track(
+    seq: &SyntheticSequence,
+    params: LoweParams,
+    backend: &mut dyn EarlyVision,
+) -> (Vec<FrameResult>, Vec<String>) {
+    let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, params).expect("lowe tracker");
     let size = (seq.camera.width as usize, seq.camera.height as usize);
-    let (results, lost) = common::track_lost(&mut tracker, backend, seq.frames.iter().cloned(), size);
+    common::track_lost(&mut tracker, backend, seq.frames.iter().cloned(), size)
+}
+
+/// Track `case` on `backend`, assert its figures and return the results.
+fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<FrameResult> {
+    let seq = render(case);
+    let (results, lost) = track(&seq, LoweParams::default(), backend);
     let s = score(&seq.truth, &results).expect("score");
     let stats = s.stats.expect("scored frames");
     let lid_errors: Vec<(usize, f64)> = results
@@ -230,19 +246,15 @@ fn lowe_holds_abrupt_reversals_by_searching_from_slower_predictions_cpu() {
 /// not on every frame of an object whose outline is steadily part
 /// supported: on the box half hidden at 4 px/frame (less than 80 % of the
 /// outline supported on 161 of the 300 frames, down to 34 %) it costs at
-/// most a fifth more search
-/// branches per frame than no second look, and the frames tracked are the
-/// same. Made whenever no solution was confident, it cost 2.6 times as
-/// many (6.44 against 2.47 per frame).
+/// most a fifth more search branches per frame than no second look, and
+/// the frames tracked are the same. Made whenever no solution was
+/// confident, it cost 2.6 times as many (6.44 against 2.47 per frame).
 #[test]
 fn lowe_searches_from_slower_predictions_only_at_a_drop_of_support_cpu() {
-    let opts = BoxOptions { kind: BoxKind::Rigid, speed: 4.0, occlude: 0.5, seed: 0, ..BoxOptions::default() };
-    let seq = render_box(&opts).expect("render the box scene");
-    let size = (seq.camera.width as usize, seq.camera.height as usize);
+    let seq = render(&BOX_OCCLUDED);
     let run = |search_slower_predictions: bool| {
         let params = LoweParams { search_slower_predictions, ..LoweParams::default() };
-        let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, params).expect("lowe tracker");
-        let (results, _) = common::track_lost(&mut tracker, &mut CpuBackend::new(), seq.frames.iter().cloned(), size);
+        let (results, _) = track(&seq, params, &mut CpuBackend::new());
         let tracked = results.iter().filter(|r| r.status == pipetrack::io::formats::Status::Tracking).count();
         let branches: usize = results.iter().map(|r| r.search_branches.expect("lowe reports its branches")).sum();
         (tracked, branches as f64 / results.len() as f64)

@@ -245,24 +245,40 @@ pub struct LoweTracker {
 }
 
 impl LoweTracker {
-    /// A tracker of `model` seen by `camera`, starting at `init`'s pose and
-    /// joint values. Errors on a model the tracker cannot use (too many
-    /// joints, no edges) and on an `init` without a pose, with the wrong
-    /// number of joint values or one outside its joint's limits, or whose
-    /// pose puts the model's centre or any vertex at or behind the camera.
-    pub fn new(camera: Camera, model: &Model, init: &InitState, params: LoweParams) -> Result<Self> {
-        params.validate()?;
-        let geometry = ModelGeometry::new(model)?;
-        if geometry.joint_count() > params::MAX_JOINTS {
+    /// Errors on a model the tracker cannot use: not in metres, more than
+    /// [`params::MAX_JOINTS`] joints, or no edges. [`LoweTracker::new`]
+    /// checks it first; a caller that read the model from a file calls it
+    /// to name that file.
+    pub fn check_model(model: &Model) -> Result<()> {
+        if model.units != "m" {
             return Err(Error::Parameter(format!(
-                "lowe tracks at most {} joints; the model has {}",
-                params::MAX_JOINTS,
-                geometry.joint_count()
+                "lowe tracks a 3-D model in metres (\"units\": \"m\"); this one is in {:?}",
+                model.units
             )));
         }
-        if geometry.edges().is_empty() {
+        let joints = model.joints.len();
+        if joints > params::MAX_JOINTS {
+            return Err(Error::Parameter(format!(
+                "lowe tracks at most {} joints; the model has {joints}",
+                params::MAX_JOINTS
+            )));
+        }
+        if model.edges.is_empty() {
             return Err(Error::Parameter("lowe needs a model with edges".into()));
         }
+        Ok(())
+    }
+
+    /// A tracker of `model` seen by `camera`, starting at `init`'s pose and
+    /// joint values. Errors on a model the tracker cannot use
+    /// ([`LoweTracker::check_model`]) and on an `init` without a pose, with
+    /// the wrong number of joint values or one outside its joint's limits,
+    /// or whose pose puts the model's centre or any vertex at or behind the
+    /// camera.
+    pub fn new(camera: Camera, model: &Model, init: &InitState, params: LoweParams) -> Result<Self> {
+        params.validate()?;
+        Self::check_model(model)?;
+        let geometry = ModelGeometry::new(model)?;
         let pose = init.pose.as_ref().ok_or_else(|| Error::Parameter("lowe needs \"pose\" in init.json".into()))?;
         let joint_values = if init.params.is_empty() { vec![0.0; geometry.joint_count()] } else { init.params.clone() };
         if joint_values.len() != geometry.joint_count() {
