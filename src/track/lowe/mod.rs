@@ -16,7 +16,12 @@
 //!    the part's motion. Extrapolated, such a step (a lid under an occluder,
 //!    unmeasured on one frame, loosely fitted 4° back on the next) puts the
 //!    lid 13–32° off over the four frames that do not see it (hinged box
-//!    half hidden at 10 px/frame, seed 0).
+//!    half hidden at 10 px/frame, seed 0). Nor is a jump to another joint
+//!    value (step 9): it corrects the fit, and the joint's step starts
+//!    again from zero. Extrapolated, a lid found again 62° open after
+//!    eight frames held shut on the box's rim was carried to its upper
+//!    limit, 45° beyond it, and left there unmeasured (half hidden at
+//!    20 px/frame, seed 14).
 //! 2. **Features** ([`segments`]): LoG σ = 1.2 zero crossings in a window
 //!    around the predicted model (wide enough for the largest search
 //!    range), linked with hysteresis, cut into straight segments, indexed
@@ -613,9 +618,9 @@ impl LoweTracker {
     /// supported samples by the margin of [`better_supported`] (for its
     /// distance from `found` or from the prediction, the nearer), every joint
     /// it moved is measured, and it has more matches than `found`.
-    fn joint_alternatives(&self, view: &FrameView<'_>, found: Found, diag: &mut LoweDiagnostics) -> Found {
+    fn joint_alternatives(&self, view: &FrameView<'_>, found: Found, diag: &mut LoweDiagnostics) -> (Found, Vec<bool>) {
         // Only a verified solution has its outline's support counted.
-        let Some(own) = found.support else { return found };
+        let Some(own) = found.support else { return (found, Vec::new()) };
         // Each hypothesis with its visible model segments and how many of
         // their samples are supported.
         let mut hypotheses: Vec<(usize, State, Vec<ModelSegment>)> = Vec::new();
@@ -658,7 +663,17 @@ impl LoweTracker {
                 best = Some((counts.0, other));
             }
         }
-        best.map_or(found, |(_, other)| other)
+        match best {
+            None => (found, Vec::new()),
+            Some((_, other)) => {
+                let jumped = (0..self.limits.len())
+                    .map(|j| {
+                        (other.solution.state.params[j] - found.solution.state.params[j]).abs() >= JOINT_ALTERNATIVE_GAP
+                    })
+                    .collect();
+                (other, jumped)
+            }
+        }
     }
 
     /// Whether joint `joint` is measured in a solution of covariance `p`:
@@ -670,11 +685,13 @@ impl LoweTracker {
     /// The joint steps the next prediction extrapolates, after `solution`
     /// was verified with `previous` the last state (module doc, step 1): a
     /// joint measured in this frame and the last takes its step between
-    /// them; any other keeps its last such step; after a loss, none moves.
-    fn update_joint_velocity(&mut self, previous: &State, solution: &estimation::Solution) {
+    /// them; any other keeps its last such step; after a loss none moves,
+    /// nor does a joint that `jumped` to another value (step 9): that step
+    /// corrected the fit and is no motion.
+    fn update_joint_velocity(&mut self, previous: &State, solution: &estimation::Solution, jumped: &[bool]) {
         for joint in 0..self.joint_velocity.len() {
             let measured = self.measures_joint(&solution.covariance, joint);
-            if self.lost_frames > 0 {
+            if self.lost_frames > 0 || jumped.get(joint).copied().unwrap_or(false) {
                 self.joint_velocity[joint] = 0.0;
             } else if measured && self.joint_measured[joint] {
                 self.joint_velocity[joint] = solution.state.params[joint] - previous.params[joint];
@@ -1163,9 +1180,12 @@ impl Tracker for LoweTracker {
                 accepted = Some(found);
             }
         }
+        let mut joints_jumped = Vec::new();
         if let Some(found) = accepted.take() {
             accepted = Some(if found.verified() && !self.limits.is_empty() {
-                self.joint_alternatives(&view, found, &mut diag)
+                let (found, jumped) = self.joint_alternatives(&view, found, &mut diag);
+                joints_jumped = jumped;
+                found
             } else {
                 found
             });
@@ -1211,7 +1231,7 @@ impl Tracker for LoweTracker {
             Some(solution) => {
                 // Across a loss there is no velocity to extrapolate.
                 let previous = std::mem::replace(&mut self.last, solution.state.clone());
-                self.update_joint_velocity(&previous, &solution);
+                self.update_joint_velocity(&previous, &solution, &joints_jumped);
                 self.before_last = (self.lost_frames == 0).then_some(previous);
                 self.last_tracked = solution.state.clone();
                 if self.views.iter().all(|v| rotation_between(v, &solution.state) > VIEW_GAP_RAD) {
@@ -1311,23 +1331,27 @@ mod tests {
         let measured = (0.3 * tracker.params.prior_joint_sigma).powi(2);
         let unmeasured = tracker.params.prior_joint_sigma.powi(2);
         let mut last = tracker.last.clone();
-        let mut verify = |tracker: &mut LoweTracker, lid: f64, variance: f64| {
+        let mut verify = |tracker: &mut LoweTracker, lid: f64, variance: f64, jumped: bool| {
             let s = solution(lid, variance);
-            tracker.update_joint_velocity(&last, &s);
+            tracker.update_joint_velocity(&last, &s, &[jumped]);
             last = s.state;
             tracker.joint_velocity[0]
         };
         // The first measured frame has no measured frame before it.
-        assert_eq!(verify(&mut tracker, 0.52, measured), 0.0);
-        assert!((verify(&mut tracker, 0.55, measured) - 0.03).abs() < 1e-12);
+        assert_eq!(verify(&mut tracker, 0.52, measured, false), 0.0);
+        assert!((verify(&mut tracker, 0.55, measured, false) - 0.03).abs() < 1e-12);
         // Unmeasured: its value is the prior's; the last measured step stays.
-        assert!((verify(&mut tracker, 0.40, unmeasured) - 0.03).abs() < 1e-12);
+        assert!((verify(&mut tracker, 0.40, unmeasured, false) - 0.03).abs() < 1e-12);
         // Measured again, but the step comes from an unmeasured value.
-        assert!((verify(&mut tracker, 0.61, measured) - 0.03).abs() < 1e-12);
-        assert!((verify(&mut tracker, 0.65, measured) - 0.04).abs() < 1e-12);
+        assert!((verify(&mut tracker, 0.61, measured, false) - 0.03).abs() < 1e-12);
+        assert!((verify(&mut tracker, 0.65, measured, false) - 0.04).abs() < 1e-12);
+        // A jump to another joint value (step 9) is no motion; the next
+        // measured step is.
+        assert_eq!(verify(&mut tracker, 1.3, measured, true), 0.0);
+        assert!((verify(&mut tracker, 1.34, measured, false) - 0.04).abs() < 1e-12);
         // The first frame after a loss starts from no velocity.
         tracker.lost_frames = 3;
-        assert_eq!(verify(&mut tracker, 0.9, measured), 0.0);
+        assert_eq!(verify(&mut tracker, 0.9, measured, false), 0.0);
     }
 
     fn segment(a: [f64; 2], b: [f64; 2]) -> ModelSegment {
