@@ -617,7 +617,9 @@ impl LoweTracker {
     /// `found`'s joint values replaces `found` when its outline has more
     /// supported samples by the margin of [`better_supported`] (for its
     /// distance from `found` or from the prediction, the nearer), every joint
-    /// it moved is measured, and it has more matches than `found`.
+    /// it moved is measured, and it has more matches than `found`. With
+    /// the solution, which joints it moved by at least the gap (none when
+    /// `found` stays).
     fn joint_alternatives(&self, view: &FrameView<'_>, found: Found, diag: &mut LoweDiagnostics) -> (Found, Vec<bool>) {
         // Only a verified solution has its outline's support counted.
         let Some(own) = found.support else { return (found, Vec::new()) };
@@ -1322,7 +1324,7 @@ mod tests {
 
     /// The joint velocity of step 1: a step between two frames that both
     /// measured the joint; kept through a frame that did not; none after a
-    /// loss.
+    /// jump to another joint value or a loss.
     #[test]
     fn a_joint_steps_only_between_frames_that_measured_it() {
         let init = InitState { pose: Some(start_pose()), params: vec![0.5], ..InitState::default() };
