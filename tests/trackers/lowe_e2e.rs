@@ -226,6 +226,18 @@ fn lowe_at_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
     }
 }
 
+/// The hinged box at 30 px/frame seed 10: the lid swings by up to 70° in
+/// ten frames, and searched with the lid at its last verified angle, the
+/// whole image gave the box back only where the lid came near that angle
+/// again (233 of 300 frames, lost twice for 33 frames). Searched with the
+/// best supported lid angle at each position of the grid, it holds 284.
+const HINGED_30_SEED_10: Case = Case { seed: 10, min_tracked: 275, ..HINGED_30 };
+
+#[test]
+fn lowe_reacquires_the_hinged_box_with_its_lid_moved_cpu() {
+    check(&HINGED_30_SEED_10, &mut CpuBackend::new(), "cpu");
+}
+
 /// Abrupt reversals, where the extrapolated prediction lies twice the last
 /// step from the object: searched at the extrapolation alone, the hinged
 /// box at 25 px/frame seed 8 held 235 of its frames and the box at
