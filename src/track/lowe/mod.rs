@@ -129,7 +129,8 @@
 //!    9's margin: the lid of a hinged box lost at 30 px/frame swings by
 //!    up to 70° in ten frames, and from the last verified lid angle the
 //!    search found the box again only where the lid came back near it
-//!    (seed 10: lost twice for 33 frames, now for 10 and 6).
+//!    (seed 10: lost twice for 33 frames; with the grid's lid angles, for
+//!    10 and 6).
 //!    After a loss the velocity starts again from zero.
 //! 9. **Other joint values** (our addition): a joint's part can fold onto
 //!    another part (a shut lid's edges lie on the box's rim), and the fit
@@ -616,6 +617,18 @@ impl LoweTracker {
         }
     }
 
+    /// Each joint's range on a grid of [`JOINT_ALTERNATIVES`] values, as
+    /// `(joint, value)`, without the values nearer than
+    /// [`JOINT_ALTERNATIVE_GAP`] to `state`'s.
+    fn joint_grid<'a>(&'a self, state: &'a State) -> impl Iterator<Item = (usize, f64)> + 'a {
+        self.limits.iter().enumerate().flat_map(move |(joint, &[lo, hi])| {
+            (0..JOINT_ALTERNATIVES)
+                .map(move |k| lo + (hi - lo) * k as f64 / (JOINT_ALTERNATIVES - 1) as f64)
+                .filter(move |value| (value - state.params[joint]).abs() >= JOINT_ALTERNATIVE_GAP)
+                .map(move |value| (joint, value))
+        })
+    }
+
     /// Moves `hypothesis` (whose visible model segments are `segs`, which
     /// follow it) to the value of one joint on the grid of
     /// [`LoweTracker::joint_alternatives`] whose outline has the most
@@ -628,22 +641,14 @@ impl LoweTracker {
         let own = view.support_counts(segs);
         let mut best: Option<(Support, State)> = None;
         let mut other_segs = Vec::new();
-        for (joint, &[lo, hi]) in self.limits.iter().enumerate() {
-            let current = hypothesis.params[joint];
-            for k in 0..JOINT_ALTERNATIVES {
-                let value = lo + (hi - lo) * k as f64 / (JOINT_ALTERNATIVES - 1) as f64;
-                if (value - current).abs() < JOINT_ALTERNATIVE_GAP {
-                    continue;
-                }
-                let mut other = hypothesis.clone();
-                other.params[joint] = value;
-                view.visible_segments(&other, &mut other_segs);
-                let counts = view.support_counts(&other_segs);
-                if better_supported(counts, own, (value - current).abs())
-                    && best.as_ref().is_none_or(|(c, _)| counts.0 > c.0)
-                {
-                    best = Some((counts, other));
-                }
+        for (joint, value) in self.joint_grid(hypothesis) {
+            let mut other = hypothesis.clone();
+            other.params[joint] = value;
+            view.visible_segments(&other, &mut other_segs);
+            let counts = view.support_counts(&other_segs);
+            let moved = (value - hypothesis.params[joint]).abs();
+            if better_supported(counts, own, moved) && best.as_ref().is_none_or(|(c, _)| counts.0 > c.0) {
+                best = Some((counts, other));
             }
         }
         if let Some((_, other)) = best {
@@ -670,19 +675,12 @@ impl LoweTracker {
         // Each hypothesis with its visible model segments and how many of
         // their samples are supported.
         let mut hypotheses: Vec<(usize, State, Vec<ModelSegment>)> = Vec::new();
-        for (joint, &[lo, hi]) in self.limits.iter().enumerate() {
-            let current = found.solution.state.params[joint];
-            for k in 0..JOINT_ALTERNATIVES {
-                let value = lo + (hi - lo) * k as f64 / (JOINT_ALTERNATIVES - 1) as f64;
-                if (value - current).abs() < JOINT_ALTERNATIVE_GAP {
-                    continue;
-                }
-                let mut hypothesis = found.solution.state.clone();
-                hypothesis.params[joint] = value;
-                let mut segs = Vec::new();
-                view.visible_segments(&hypothesis, &mut segs);
-                hypotheses.push((view.support_counts(&segs).0, hypothesis, segs));
-            }
+        for (joint, value) in self.joint_grid(&found.solution.state) {
+            let mut hypothesis = found.solution.state.clone();
+            hypothesis.params[joint] = value;
+            let mut segs = Vec::new();
+            view.visible_segments(&hypothesis, &mut segs);
+            hypotheses.push((view.support_counts(&segs).0, hypothesis, segs));
         }
         hypotheses.sort_by_key(|h| std::cmp::Reverse(h.0));
         let mut best: Option<(usize, Found)> = None;
