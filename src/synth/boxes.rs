@@ -273,12 +273,7 @@ impl BoxOptions {
             "occlude" => self.occlude = parse_option(scene, key, value, number)?,
             "noise" | "noise_sigma" => self.noise_sigma = parse_option(scene, key, value, number)?,
             "background" => self.background = value.parse()?,
-            _ => {
-                return Err(Error::Parameter(format!(
-                    "{scene} has no option '{key}' (its options: {})",
-                    Self::KEYS.join(", ")
-                )));
-            }
+            _ => return Err(super::no_such_option(scene, key, &Self::KEYS)),
         }
         Ok(())
     }

@@ -153,6 +153,12 @@ pub(crate) fn parse_option<T: std::str::FromStr>(scene: &str, key: &str, value: 
     value.parse().map_err(|_| Error::Parameter(format!("{scene} option {key}: '{value}' is not {what}")))
 }
 
+/// The error for a `--set` key that `scene` does not have; `keys` are its
+/// options.
+pub(crate) fn no_such_option(scene: &str, key: &str, keys: &[&str]) -> Error {
+    Error::Parameter(format!("{scene} has no option '{key}' (its options: {})", keys.join(", ")))
+}
+
 /// Error unless `value` (named `name`, in `unit`) is finite and in `0..=max`.
 pub(crate) fn check_range(name: &str, value: f64, max: f64, unit: &str) -> Result<()> {
     if value.is_finite() && (0.0..=max).contains(&value) {

@@ -193,12 +193,7 @@ impl PendulumOptions {
             "distractor_y" => self.distractor_y = parse_option("pendulum", key, value, number)?,
             "jump_at" => self.jump_at = Some(parse_option("pendulum", key, value, "a frame index")?),
             "motion" => self.motion = value.parse()?,
-            _ => {
-                return Err(Error::Parameter(format!(
-                    "pendulum has no option '{key}' (its options: {})",
-                    Self::KEYS.join(", ")
-                )));
-            }
+            _ => return Err(super::no_such_option("pendulum", key, &Self::KEYS)),
         }
         Ok(())
     }
@@ -235,12 +230,7 @@ impl PendulumSwing {
     /// The swing whose peak frame-to-frame corner displacement is `speed`
     /// pixels. Errors when `speed` is not in `0..=MAX_SPEED`.
     pub fn new(speed: f64, motion: PendulumMotion, jump_at: Option<usize>) -> Result<Self> {
-        if !(speed.is_finite() && (0.0..=MAX_SPEED).contains(&speed)) {
-            return Err(Error::Parameter(format!(
-                "speed = {} px/frame is not in 0..={MAX_SPEED}",
-                crate::bounds::short_number(speed)
-            )));
-        }
+        super::check_range("speed", speed, MAX_SPEED, " px/frame")?;
         // A·sin(ω/2) = asin(speed / 2r): half the arm angle swept across the bottom.
         let half_sweep = (speed / (2.0 * Self::corner_radius(motion))).asin();
         let amplitude = |quarter: f64| half_sweep / (omega_of(quarter) / 2.0).sin();

@@ -289,12 +289,7 @@ impl Target3dofOptions {
             "noise" | "noise_sigma" => self.noise_sigma = parse_option("target3dof", key, value, number)?,
             "background" => self.background = value.parse()?,
             "shake" => self.shake = parse_option("target3dof", key, value, "true or false")?,
-            _ => {
-                return Err(Error::Parameter(format!(
-                    "target3dof has no option '{key}' (its options: {})",
-                    Self::KEYS.join(", ")
-                )));
-            }
+            _ => return Err(super::no_such_option("target3dof", key, &Self::KEYS)),
         }
         Ok(())
     }
@@ -321,12 +316,7 @@ impl Target3dofPath {
     /// The path whose line of sight turns at most, and at its centre crossings
     /// exactly, `speed` rad/s. Errors when `speed` is not in `0..=MAX_SPEED`.
     pub fn new(speed: f64) -> Result<Self> {
-        if !(speed.is_finite() && (0.0..=MAX_SPEED).contains(&speed)) {
-            return Err(Error::Parameter(format!(
-                "speed = {} rad/s is not in 0..={MAX_SPEED}",
-                crate::bounds::short_number(speed)
-            )));
-        }
+        super::check_range("speed", speed, MAX_SPEED, " rad/s")?;
         let [a, b] = BEARING_AMPLITUDE;
         // Peak of |dl/dt| = ω·√(A² + 4B²) at a centre crossing.
         Ok(Self { speed, omega: speed / (a * a + 4.0 * b * b).sqrt() })
@@ -419,12 +409,7 @@ impl ShakePath {
     /// The shaken path of `frames` frames at `speed` rad/s drawn from `seed`.
     /// Errors when `speed` is not in `0..=MAX_SPEED`.
     pub fn new(speed: f64, frames: usize, seed: u64) -> Result<Self> {
-        if !(speed.is_finite() && (0.0..=MAX_SPEED).contains(&speed)) {
-            return Err(Error::Parameter(format!(
-                "speed = {} rad/s is not in 0..={MAX_SPEED}",
-                crate::bounds::short_number(speed)
-            )));
-        }
+        super::check_range("speed", speed, MAX_SPEED, " rad/s")?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         rng.set_stream(SHAKE_STREAM);
         let step = speed / FRAME_RATE_HZ;

@@ -127,12 +127,7 @@ impl TexturedPlaneOptions {
             "motion" => self.motion = value.parse()?,
             "speed" => self.speed = parse_option("textured-plane", key, value, "a number")?,
             "noise" => self.noise_sigma = parse_option("textured-plane", key, value, "a number")?,
-            _ => {
-                return Err(Error::Parameter(format!(
-                    "textured-plane has no option '{key}' (its options: {})",
-                    Self::KEYS.join(", ")
-                )));
-            }
+            _ => return Err(super::no_such_option("textured-plane", key, Self::KEYS)),
         }
         Ok(())
     }

@@ -127,9 +127,9 @@
 //!    the joint values of step 9's grid whose outline has the most zero
 //!    crossings along it, when that beats the state's own values by step
 //!    9's margin: the lid of a hinged box lost at 30 px/frame swings by
-//!    up to 70° in ten frames, and from the last verified lid angle the
+//!    up to 86° in ten frames, and from the last verified lid angle the
 //!    search found the box again only where the lid came back near it
-//!    (seed 10: lost twice for 33 frames; with the grid's lid angles, for
+//!    (seed 10: lost for 33 and 34 frames; with the grid's lid angles, for
 //!    10 and 6).
 //!    After a loss the velocity starts again from zero.
 //! 9. **Other joint values** (our addition): a joint's part can fold onto
@@ -640,7 +640,8 @@ impl LoweTracker {
         }
         let own = view.support_counts(segs);
         let mut best: Option<(Support, State)> = None;
-        let mut other_segs = Vec::new();
+        // The best hypothesis' segments, and a buffer for the next one's.
+        let (mut best_segs, mut other_segs) = (Vec::new(), Vec::new());
         for (joint, value) in self.joint_grid(hypothesis) {
             let mut other = hypothesis.clone();
             other.params[joint] = value;
@@ -649,11 +650,12 @@ impl LoweTracker {
             let moved = (value - hypothesis.params[joint]).abs();
             if better_supported(counts, own, moved) && best.as_ref().is_none_or(|(c, _)| counts.0 > c.0) {
                 best = Some((counts, other));
+                std::mem::swap(&mut best_segs, &mut other_segs);
             }
         }
         if let Some((_, other)) = best {
             *hypothesis = other;
-            view.visible_segments(hypothesis, segs);
+            *segs = best_segs;
         }
     }
 
