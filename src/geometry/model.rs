@@ -226,6 +226,25 @@ impl ModelGeometry {
         Ok((vertices, derivatives))
     }
 
+    /// The rigid motion of the object frame that turns it by `angle`
+    /// radians about joint `joint`'s axis (the right-hand rotation about
+    /// the axis through its origin). Composed onto a camera-from-object
+    /// pose (`pose * swing`) while that joint's value changes by −`angle`,
+    /// it leaves the part the joint moves where it was and swings the rest
+    /// of the model about the joint. `None` when `joint` is out of range or
+    /// a joint applied after it (a lower index) moves a vertex it moves:
+    /// its axis then moves with that joint.
+    #[must_use]
+    pub fn joint_swing(&self, joint: usize, angle: f64) -> Option<Pose> {
+        let moved = &self.joints.get(joint)?.vertices;
+        if self.joints[..joint].iter().any(|outer| outer.vertices.iter().any(|v| moved.contains(v))) {
+            return None;
+        }
+        let JointAxis { origin, axis, .. } = self.joints[joint];
+        let rotation = DMat3::from_axis_angle(axis, angle);
+        Some(Pose::new(rotation, origin - rotation * origin))
+    }
+
     /// Each joint's limits `[min, max]`, radians, in joint order.
     #[must_use]
     pub fn joint_limits(&self) -> Vec<[f64; 2]> {
@@ -397,6 +416,46 @@ mod tests {
         // Parent: (1, 0, 0) → (0, 1, 0).
         assert!((v[1] - DVec3::new(0.0, 1.0, 0.0)).length() < 1e-15, "{}", v[1]);
         assert!(v[3].length() < 1e-15, "{}", v[3]);
+    }
+
+    #[test]
+    fn a_joint_swing_keeps_the_moved_part_and_turns_the_rest_about_the_joint() {
+        let mut model = cube();
+        let joint = |origin: [f64; 3], axis: [f64; 3], vertices: Vec<usize>| Joint {
+            name: "joint".into(),
+            origin,
+            axis,
+            vertices,
+            min: -3.0,
+            max: 3.0,
+        };
+        model.joints = vec![
+            joint([0.0, 0.0, 1.0], [2.0, 0.0, 0.0], vec![6, 7]),
+            joint([0.0, 1.0, 0.0], [0.0, 0.0, 1.0], vec![2, 6]),
+        ];
+        let geometry = ModelGeometry::new(&model).expect("cube with two joints");
+        let pose = Pose::from_axis_angle(DVec3::new(0.3, -0.2, 0.1), DVec3::new(0.1, 0.2, 3.0));
+        let params = [0.4, -0.7];
+        let before = geometry.camera_vertices(&pose, &params).expect("posed");
+        let delta = 0.25;
+        let swung = pose * geometry.joint_swing(0, delta).expect("the outermost joint swings");
+        let after = geometry.camera_vertices(&swung, &[params[0] - delta, params[1]]).expect("posed");
+        // The lid (6, 7) stays; the rest turns by `delta` about the hinge,
+        // the x axis through (0, 0, 1) in the object frame.
+        for v in [6, 7] {
+            assert!((after[v] - before[v]).length() < 1e-12, "vertex {v}");
+        }
+        let hinge = pose.apply(DVec3::new(0.0, 0.0, 1.0));
+        let axis = pose.rotate(DVec3::X);
+        let turned = DMat3::from_axis_angle(axis, delta);
+        for v in [0, 1, 2, 3, 4, 5] {
+            let expected = hinge + turned * (before[v] - hinge);
+            assert!((after[v] - expected).length() < 1e-12, "vertex {v}");
+        }
+        // Vertex 6 is moved by both joints: the second one's axis moves
+        // with the first, so it has no swing of its own.
+        assert!(geometry.joint_swing(1, delta).is_none());
+        assert!(geometry.joint_swing(2, delta).is_none());
     }
 
     #[test]
