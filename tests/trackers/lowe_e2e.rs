@@ -241,7 +241,7 @@ fn lowe_does_not_verify_a_pose_its_matches_leave_loose_cpu() {
 
 /// The hinged box at 30 px/frame, seed 6: on frames 77–81 the lid, open
 /// 14–43°, was taken for the lid shut on a box turned about the hinge,
-/// 9–26 px off with a third or less of the box's own outline supported,
+/// the model 9–26 px off, with a third or less of the box's own outline supported,
 /// and reported tracking (6 false frames in all). Step 9 now also tries
 /// the lid's grid values with the lid held and the box swung about the
 /// hinge (2 false frames, 290 tracking).
