@@ -166,8 +166,8 @@
 //!    is taken for the part at another value on a body turned about the
 //!    joint. On the hinged box at 30 px/frame, seed 6, frames 77–81, the
 //!    lid open 14–43° was fitted as the lid shut on a box turned about the
-//!    hinge (the model 9–26 px off), with a third or less of the box's own outline
-//!    supported. So each value of the grid is also tried with the part the
+//!    hinge (the model 9–26 px off), with a third or less of the box's own
+//!    outline supported. So each value of the grid is also tried with the part the
 //!    joint moves held where it is and the rest of the model swung about
 //!    the joint (the joint's *swing*, for a joint whose axis no other joint
 //!    moves); the best supported swing whose outline beats the frame's by
