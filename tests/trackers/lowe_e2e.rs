@@ -229,9 +229,9 @@ fn lowe_at_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
 /// The box half hidden at 10 px/frame, seed 8: with its sides behind the
 /// band, a solution of the twice-doubled range whose matches fixed the
 /// rotation to σ 7.0° only slid the box 19–47 px along the band's edges,
-/// and frames 74–77 were reported tracking. While tracking, a solution's
-/// rotation σ may now be at most twice the prior's (one frame 6 px off
-/// remains, 229 frames tracking).
+/// and frames 74–77 were reported tracking (5 false frames in all). While
+/// tracking, a solution's rotation σ is at most twice the prior's, which
+/// leaves one frame 6 px off and 229 frames tracking.
 const BOX_OCCLUDED_10_SEED_8: Case = Case { seed: 8, min_tracked: 220, ..BOX_OCCLUDED_10 };
 
 #[test]
@@ -240,11 +240,11 @@ fn lowe_does_not_verify_a_pose_its_matches_leave_loose_cpu() {
 }
 
 /// The hinged box at 30 px/frame, seed 6: on frames 77–81 the lid, open
-/// 14–43°, was taken for the lid shut on a box turned about the hinge,
-/// the model 9–26 px off, with a third or less of the box's own outline supported,
-/// and reported tracking (6 false frames in all). Step 9 now also tries
-/// the lid's grid values with the lid held and the box swung about the
-/// hinge (2 false frames, 290 tracking).
+/// 14–43°, was taken for the lid shut on a box turned about the hinge
+/// (the model 9–26 px off, a third or less of the box's own outline
+/// supported) and reported tracking (6 false frames in all). Step 9 also
+/// tries the lid's grid values with the lid held and the box swung about
+/// the hinge, which leaves 2 false frames and 290 tracking.
 const HINGED_30_SEED_6: Case = Case { seed: 6, min_tracked: 285, ..HINGED_30 };
 
 #[test]

@@ -167,12 +167,12 @@
 //!    joint. On the hinged box at 30 px/frame, seed 6, frames 77–81, the
 //!    lid open 14–43° was fitted as the lid shut on a box turned about the
 //!    hinge (the model 9–26 px off), with a third or less of the box's own
-//!    outline supported. So each value of the grid is also tried with the part the
-//!    joint moves held where it is and the rest of the model swung about
-//!    the joint (the joint's *swing*, for a joint whose axis no other joint
-//!    moves); the best supported swing whose outline beats the frame's by
-//!    the margin above is searched from as well, and its solution replaces
-//!    the frame's on the same terms.
+//!    outline supported. So each value of the grid is also tried with the
+//!    part the joint moves held where it is and the rest of the model
+//!    swung about the joint (the joint's *swing*, for a joint whose axis no
+//!    other joint moves); the best supported swing whose outline beats the
+//!    frame's by the margin above is searched from as well, and its
+//!    solution replaces the frame's on the same terms.
 //!
 //! Output per frame: status, `corners` (every model vertex projected),
 //! `pose`, `params` (joint values) and the covariance P of the correction
@@ -687,7 +687,8 @@ impl LoweTracker {
     /// on a grid of [`JOINT_ALTERNATIVES`] values, each farther than
     /// [`JOINT_ALTERNATIVE_GAP`] from the solution's, with the pose and the
     /// other joints held. The [`JOINT_REFITS`] values whose outlines have
-    /// the most zero crossings along them are searched from; the best
+    /// the most zero crossings along them are searched from, and the best
+    /// supported swing ([`LoweTracker::best_joint_swing`]) if any; the best
     /// supported verified solution at least [`JOINT_ALTERNATIVE_GAP`] from
     /// `found`'s joint values replaces `found` when its outline has more
     /// supported samples by the margin of [`better_supported`] (for its
