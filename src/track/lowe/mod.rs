@@ -170,8 +170,9 @@
 //!    outline supported. So each value of the grid is also tried with the
 //!    part the joint moves held where it is and the rest of the model
 //!    swung about the joint (the joint's *swing*, for a joint whose axis no
-//!    other joint moves); the best supported swing whose outline beats the
-//!    frame's by the margin above is searched from as well, and its
+//!    other joint moves). When the frame's solution has less than
+//!    `confident_support`, the best supported swing whose outline beats
+//!    the frame's by the margin above is searched from as well, and its
 //!    solution replaces the frame's on the same terms.
 //!
 //! Output per frame: status, `corners` (every model vertex projected),
@@ -663,32 +664,52 @@ impl LoweTracker {
             return;
         }
         let own = view.support_counts(segs);
-        let mut best: Option<(Support, State)> = None;
-        // The best hypothesis' segments, and a buffer for the next one's.
-        let (mut best_segs, mut other_segs) = (Vec::new(), Vec::new());
-        for (joint, value) in self.joint_grid(hypothesis) {
-            let mut other = hypothesis.clone();
+        let held = |state: &State, joint: usize, value: f64| {
+            let mut other = state.clone();
             other.params[joint] = value;
-            view.visible_segments(&other, &mut other_segs);
-            let counts = view.support_counts(&other_segs);
-            let moved = (value - hypothesis.params[joint]).abs();
-            if better_supported(counts, own, moved) && best.as_ref().is_none_or(|(c, _)| counts.0 > c.0) {
-                best = Some((counts, other));
-                std::mem::swap(&mut best_segs, &mut other_segs);
+            Some(other)
+        };
+        if let Some((_, other, other_segs)) = self.best_supported_grid_value(view, hypothesis, own, held) {
+            *hypothesis = other;
+            *segs = other_segs;
+        }
+    }
+
+    /// Of the states `alternative` makes from `state` for each value of
+    /// [`LoweTracker::joint_grid`] (`None`: no such state), the one whose
+    /// outline has the most supported samples, when that beats `own` by
+    /// the margin of [`better_supported`] for the joint's change; with its
+    /// support and visible model segments.
+    fn best_supported_grid_value(
+        &self,
+        view: &FrameView<'_>,
+        state: &State,
+        own: Support,
+        alternative: impl Fn(&State, usize, f64) -> Option<State>,
+    ) -> Option<(Support, State, Vec<ModelSegment>)> {
+        let mut best: Option<(Support, State, Vec<ModelSegment>)> = None;
+        // A buffer for each hypothesis' segments, handed to `best` when it wins.
+        let mut segs = Vec::new();
+        for (joint, value) in self.joint_grid(state) {
+            let Some(other) = alternative(state, joint, value) else { continue };
+            view.visible_segments(&other, &mut segs);
+            let counts = view.support_counts(&segs);
+            let moved = (value - state.params[joint]).abs();
+            if better_supported(counts, own, moved) && best.as_ref().is_none_or(|(c, ..)| counts.0 > c.0) {
+                let previous = best.replace((counts, other, std::mem::take(&mut segs)));
+                segs = previous.map(|(.., buffer)| buffer).unwrap_or_default();
             }
         }
-        if let Some((_, other)) = best {
-            *hypothesis = other;
-            *segs = best_segs;
-        }
+        best
     }
 
     /// Other values of each joint (module doc, step 9): the joint's range
     /// on a grid of [`JOINT_ALTERNATIVES`] values, each farther than
     /// [`JOINT_ALTERNATIVE_GAP`] from the solution's, with the pose and the
     /// other joints held. The [`JOINT_REFITS`] values whose outlines have
-    /// the most zero crossings along them are searched from, and the best
-    /// supported swing ([`LoweTracker::best_joint_swing`]) if any; the best
+    /// the most zero crossings along them are searched from, and, when
+    /// `found` has less than `confident_support`, the best supported swing
+    /// ([`LoweTracker::best_joint_swing`]) if any; the best
     /// supported verified solution at least [`JOINT_ALTERNATIVE_GAP`] from
     /// `found`'s joint values replaces `found` when its outline has more
     /// supported samples by the margin of [`better_supported`] (for its
@@ -711,8 +732,9 @@ impl LoweTracker {
         }
         hypotheses.sort_by_key(|h| std::cmp::Reverse(h.0));
         hypotheses.truncate(JOINT_REFITS);
-        if let Some(swung) = self.best_joint_swing(view, &found.solution.state, own) {
-            hypotheses.push(swung);
+        // A confident fit of the body is not turned under its part.
+        if support::fraction(own) < self.params.confident_support {
+            hypotheses.extend(self.best_joint_swing(view, &found.solution.state, own));
         }
         let mut best: Option<(usize, Found)> = None;
         for (_, hypothesis, segs) in &hypotheses {
@@ -725,10 +747,9 @@ impl LoweTracker {
             let jump = moved.min(largest_difference(params, &self.prediction.params));
             // Each joint that moved is measured in the other solution: the
             // image, not the prior alone, sets its value.
-            let measured = (0..self.limits.len()).all(|j| {
-                (other.solution.state.params[j] - found.solution.state.params[j]).abs() < JOINT_ALTERNATIVE_GAP
-                    || self.measures_joint(&other.solution.covariance, j)
-            });
+            let measured = jumped_joints(&other.solution.state, &found.solution.state)
+                .enumerate()
+                .all(|(j, jumped)| !jumped || self.measures_joint(&other.solution.covariance, j));
             if moved >= JOINT_ALTERNATIVE_GAP
                 && measured
                 && other.matches.len() > found.matches.len()
@@ -741,11 +762,7 @@ impl LoweTracker {
         match best {
             None => (found, Vec::new()),
             Some((_, other)) => {
-                let jumped = (0..self.limits.len())
-                    .map(|j| {
-                        (other.solution.state.params[j] - found.solution.state.params[j]).abs() >= JOINT_ALTERNATIVE_GAP
-                    })
-                    .collect();
+                let jumped = jumped_joints(&other.solution.state, &found.solution.state).collect();
                 (other, jumped)
             }
         }
@@ -754,30 +771,23 @@ impl LoweTracker {
     /// The joint swing of step 9 (module doc): each joint of `state` set to
     /// the values of [`LoweTracker::joint_grid`] with the part it moves
     /// held where it is and the rest of the model swung about the joint
-    /// ([`ModelGeometry::joint_swing`]). Of those whose outline has more
-    /// supported samples than `own` by the margin of [`better_supported`],
-    /// the one with the most, with its support and visible model segments.
+    /// ([`ModelGeometry::joint_swing`]); the best supported of them
+    /// ([`LoweTracker::best_supported_grid_value`]), with its supported
+    /// samples and visible model segments.
     fn best_joint_swing(
         &self,
         view: &FrameView<'_>,
         state: &State,
         own: Support,
     ) -> Option<(usize, State, Vec<ModelSegment>)> {
-        let mut best: Option<(usize, State, Vec<ModelSegment>)> = None;
-        let mut segs = Vec::new();
-        for (joint, value) in self.joint_grid(state) {
-            let change = value - state.params[joint];
-            let Some(swing) = self.geometry.joint_swing(joint, -change) else { continue };
-            let mut hypothesis = state.clone();
-            hypothesis.pose = hypothesis.pose * swing;
-            hypothesis.params[joint] = value;
-            view.visible_segments(&hypothesis, &mut segs);
-            let counts = view.support_counts(&segs);
-            if better_supported(counts, own, change.abs()) && best.as_ref().is_none_or(|b| counts.0 > b.0) {
-                best = Some((counts.0, hypothesis, std::mem::take(&mut segs)));
-            }
-        }
-        best
+        let swung = |state: &State, joint: usize, value: f64| {
+            let swing = self.geometry.joint_swing(joint, state.params[joint] - value)?;
+            let mut other = state.clone();
+            other.pose = other.pose * swing;
+            other.params[joint] = value;
+            Some(other)
+        };
+        self.best_supported_grid_value(view, state, own, swung).map(|(counts, other, segs)| (counts.0, other, segs))
     }
 
     /// Whether joint `joint` is measured in a solution of covariance `p`:
@@ -855,6 +865,12 @@ const JOINT_ALTERNATIVE_GAP: f64 = 0.2;
 /// its prior's (`prior_joint_sigma`) is not measured there: no match
 /// constrains it, and its value is where the search started.
 const UNMEASURED_SIGMA_RATIO: f64 = 0.9;
+
+/// Per joint, whether `a` and `b` differ by at least
+/// [`JOINT_ALTERNATIVE_GAP`]: a jump to another joint value (step 9).
+fn jumped_joints<'a>(a: &'a State, b: &'a State) -> impl Iterator<Item = bool> + 'a {
+    a.params.iter().zip(&b.params).map(|(x, y)| (x - y).abs() >= JOINT_ALTERNATIVE_GAP)
+}
 
 /// The largest absolute difference of two joint-value lists, radians.
 fn largest_difference(a: &[f64], b: &[f64]) -> f64 {
