@@ -664,22 +664,36 @@ impl LoweTracker {
             return;
         }
         let own = view.support_counts(segs);
-        let held = |state: &State, joint: usize, value: f64| {
-            let mut other = state.clone();
-            other.params[joint] = value;
-            Some(other)
-        };
-        if let Some((_, other, other_segs)) = self.best_supported_grid_value(view, hypothesis, own, held) {
+        if let Some((_, other, other_segs)) = self.best_supported_grid_value(view, hypothesis, own, with_joint) {
             *hypothesis = other;
             *segs = other_segs;
         }
     }
 
-    /// Of the states `alternative` makes from `state` for each value of
-    /// [`LoweTracker::joint_grid`] (`None`: no such state), the one whose
-    /// outline has the most supported samples, when that beats `own` by
-    /// the margin of [`better_supported`] for the joint's change; with its
-    /// support and visible model segments.
+    /// The states `alternative` makes from `state` for each value of
+    /// [`LoweTracker::joint_grid`] (`None`: no such state), in the grid's
+    /// order, each with its outline's supported samples, the joint's change
+    /// (radians) and its visible model segments.
+    fn grid_hypotheses(
+        &self,
+        view: &FrameView<'_>,
+        state: &State,
+        alternative: impl Fn(&State, usize, f64) -> Option<State>,
+    ) -> Vec<(Support, f64, State, Vec<ModelSegment>)> {
+        self.joint_grid(state)
+            .filter_map(|(joint, value)| {
+                let other = alternative(state, joint, value)?;
+                let mut segs = Vec::new();
+                view.visible_segments(&other, &mut segs);
+                Some((view.support_counts(&segs), (value - state.params[joint]).abs(), other, segs))
+            })
+            .collect()
+    }
+
+    /// Of [`LoweTracker::grid_hypotheses`], the first whose outline has the
+    /// most supported samples, when that beats `own` by the margin of
+    /// [`better_supported`] for the joint's change; with its support and
+    /// visible model segments.
     fn best_supported_grid_value(
         &self,
         view: &FrameView<'_>,
@@ -688,16 +702,9 @@ impl LoweTracker {
         alternative: impl Fn(&State, usize, f64) -> Option<State>,
     ) -> Option<(Support, State, Vec<ModelSegment>)> {
         let mut best: Option<(Support, State, Vec<ModelSegment>)> = None;
-        // A buffer for each hypothesis' segments, handed to `best` when it wins.
-        let mut segs = Vec::new();
-        for (joint, value) in self.joint_grid(state) {
-            let Some(other) = alternative(state, joint, value) else { continue };
-            view.visible_segments(&other, &mut segs);
-            let counts = view.support_counts(&segs);
-            let moved = (value - state.params[joint]).abs();
+        for (counts, moved, other, segs) in self.grid_hypotheses(view, state, alternative) {
             if better_supported(counts, own, moved) && best.as_ref().is_none_or(|(c, ..)| counts.0 > c.0) {
-                let previous = best.replace((counts, other, std::mem::take(&mut segs)));
-                segs = previous.map(|(.., buffer)| buffer).unwrap_or_default();
+                best = Some((counts, other, segs));
             }
         }
         best
@@ -722,14 +729,11 @@ impl LoweTracker {
         let Some(own) = found.support else { return (found, Vec::new()) };
         // Each hypothesis with its visible model segments and how many of
         // their samples are supported.
-        let mut hypotheses: Vec<(usize, State, Vec<ModelSegment>)> = Vec::new();
-        for (joint, value) in self.joint_grid(&found.solution.state) {
-            let mut hypothesis = found.solution.state.clone();
-            hypothesis.params[joint] = value;
-            let mut segs = Vec::new();
-            view.visible_segments(&hypothesis, &mut segs);
-            hypotheses.push((view.support_counts(&segs).0, hypothesis, segs));
-        }
+        let mut hypotheses: Vec<(usize, State, Vec<ModelSegment>)> = self
+            .grid_hypotheses(view, &found.solution.state, with_joint)
+            .into_iter()
+            .map(|(counts, _, hypothesis, segs)| (counts.0, hypothesis, segs))
+            .collect();
         hypotheses.sort_by_key(|h| std::cmp::Reverse(h.0));
         hypotheses.truncate(JOINT_REFITS);
         // A confident fit of the body is not turned under its part.
@@ -865,6 +869,14 @@ const JOINT_ALTERNATIVE_GAP: f64 = 0.2;
 /// its prior's (`prior_joint_sigma`) is not measured there: no match
 /// constrains it, and its value is where the search started.
 const UNMEASURED_SIGMA_RATIO: f64 = 0.9;
+
+/// `state` with joint `joint` set to `value` (step 9's grid with the pose
+/// held).
+fn with_joint(state: &State, joint: usize, value: f64) -> Option<State> {
+    let mut other = state.clone();
+    other.params[joint] = value;
+    Some(other)
+}
 
 /// Per joint, whether `a` and `b` differ by at least
 /// [`JOINT_ALTERNATIVE_GAP`]: a jump to another joint value (step 9).
