@@ -319,8 +319,22 @@ const HINGED_OCCLUDED_30: Case = Case { speed: 30.0, occlude: 0.5, seed: 1, min_
 /// onto the box's rim, 14° from its prediction; the search from the lid
 /// open, 6° from the prediction, was held to the margin of a 20° jump
 /// from the fold, and the fold stayed for five frames, 7–22 px off. The
-/// margin now counts from the prediction when that is nearer.
-const HINGED_OCCLUDED_30_SEED_0: Case = Case { seed: 0, min_tracked: 280, ..HINGED_OCCLUDED_30 };
+/// margin now counts from the prediction when that is nearer. Frames 47
+/// and 50, their lid 9.5° and 13.8° off, are ambiguous (step 10) and lost.
+const HINGED_OCCLUDED_30_SEED_0: Case = Case { seed: 0, min_tracked: 275, ..HINGED_OCCLUDED_30 };
+
+/// Half the edges hidden at 20 px/frame, seed 14: on frames 73–80 the
+/// lid, opening from 15° to 53° behind the band, was held shut on the box's
+/// rim, 7–32 px off, and reported tracking (8 false frames). On 74–80 the
+/// search from the lid standing open gave a verified solution with as many
+/// matches and about as much support: the answer is ambiguous, and such a
+/// frame is now reported lost (module doc of the tracker, step 10).
+const HINGED_OCCLUDED_FAST_SEED_14: Case = Case { seed: 14, min_tracked: 270, ..HINGED_OCCLUDED_FAST };
+
+#[test]
+fn lowe_does_not_claim_an_ambiguous_answer_cpu() {
+    check(&HINGED_OCCLUDED_FAST_SEED_14, &mut CpuBackend::new(), "cpu");
+}
 
 #[test]
 fn lowe_hinged_box_occluded_at_20_and_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {

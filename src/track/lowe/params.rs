@@ -191,6 +191,25 @@ pub struct LoweParams {
     /// the edges hidden; 6 px left 3 at 20 px/frame (the lid's 1 cm front
     /// is 2–6 px wide there). Range: [0, 50].
     pub swap_gap_px: f64,
+    /// A verified answer of a model with joints is reported `lost` (its
+    /// state still carried to the next frame) when one of the other joint
+    /// values searched after it (the tracker's module doc, step 9) gave a
+    /// verified solution with at least as many matches, at least this
+    /// share of the answer's supported outline samples, and the model's
+    /// vertices on average more than `ambiguous_distance_px` away: the
+    /// image supports two different answers about equally, and the tracker
+    /// cannot say which it is on. Over the 105 hinged-box runs of the
+    /// stress sweep (`benches/lowe_sweep.sh`, seeds 0–14), 0.9 / 0.95 /
+    /// 1.0 / off gave 29 / 29 / 32 / 53 frames tracking more than 5 px off
+    /// and 29 300 / 29 349 / 29 394 / 29 465 frames tracking (seeds 15–29:
+    /// 15 / 16 / 18 / 27 and 29 041 / 29 089 / 29 136 / 29 208). 0 turns
+    /// the test off. Range: [0, 10].
+    pub ambiguous_support_ratio: f64,
+    /// See `ambiguous_support_ratio`: the mean distance between the two
+    /// answers' projected model vertices above which they are different
+    /// answers, px (`pipetrack score` counts a frame more than 5 px off as
+    /// false tracking). Range: (0, 4096].
+    pub ambiguous_distance_px: f64,
     /// Linking, segmentation and indexing of the zero crossings (a
     /// `[segments]` table in a file of top-level keys, `[lowe.segments]`
     /// in one with a `[lowe]` table; see [`SegmentParams`]).
@@ -229,6 +248,8 @@ impl Default for LoweParams {
             search_max_rotation_sigma: 0.03,
             window_margin_px: 8.0,
             swap_gap_px: 8.0,
+            ambiguous_support_ratio: 0.95,
+            ambiguous_distance_px: 5.0,
             segments: SegmentParams::default(),
         }
     }
@@ -276,6 +297,8 @@ impl LoweParams {
         )?;
         Interval::closed(0.0, 4096.0).check(WHO, "window_margin_px", self.window_margin_px, " px")?;
         Interval::closed(0.0, 50.0).check(WHO, "swap_gap_px", self.swap_gap_px, " px")?;
+        Interval::closed(0.0, 10.0).check(WHO, "ambiguous_support_ratio", self.ambiguous_support_ratio, "")?;
+        Interval::open_closed(0.0, 4096.0).check(WHO, "ambiguous_distance_px", self.ambiguous_distance_px, " px")?;
         self.segments.validate()
     }
 }
