@@ -191,19 +191,19 @@ pub struct LoweParams {
     /// the edges hidden; 6 px left 3 at 20 px/frame (the lid's 1 cm front
     /// is 2–6 px wide there). Range: [0, 50].
     pub swap_gap_px: f64,
-    /// A verified answer of a model with joints is reported `lost` (its
-    /// state still carried to the next frame) when one of the other joint
-    /// values searched after it (the tracker's module doc, step 9) gave a
-    /// verified solution with at least as many matches, at least this
-    /// share of the answer's supported outline samples, and the model's
-    /// vertices on average more than `ambiguous_distance_px` away: the
-    /// image supports two different answers about equally, and the tracker
-    /// cannot say which it is on. Over the 105 hinged-box runs of the
-    /// stress sweep (`benches/lowe_sweep.sh`, seeds 0–14), 0.9 / 0.95 /
-    /// 1.0 / off gave 29 / 29 / 32 / 53 frames tracking more than 5 px off
-    /// and 29 300 / 29 349 / 29 394 / 29 465 frames tracking (seeds 15–29:
-    /// 15 / 16 / 18 / 27 and 29 041 / 29 089 / 29 136 / 29 208). 0 turns
-    /// the test off. Range: [0, 10].
+    /// A verified answer is reported `lost` (its state still carried to
+    /// the next frame) when another verified solution of the frame's
+    /// searches (wider ranges, slower predictions, the whole-image search,
+    /// other joint values: the tracker's module doc, step 10) has at least
+    /// as many matches, at least this share of the answer's supported
+    /// outline samples, and the model's vertices on average more than
+    /// `ambiguous_distance_px` away: the image supports two different
+    /// answers about equally, and the tracker cannot say which it is on.
+    /// Over the 180 runs of the stress sweep (`benches/lowe_sweep.sh`,
+    /// seeds 0–14), 0.95 took the frames tracking more than 5 px off from
+    /// 63 to 26, the runs with more than 1 % of them from 5 to none, and
+    /// the frames tracking from 51 109 to 50 964; on seeds 15–29, 46 → 20,
+    /// 2 → none and 50 885 → 50 741. 0 turns the test off. Range: [0, 10].
     pub ambiguous_support_ratio: f64,
     /// See `ambiguous_support_ratio`: the mean distance between the two
     /// answers' projected model vertices above which they are different
