@@ -523,7 +523,11 @@ impl LoweTracker {
                 continue;
             };
             let found = Found { solution, matches: outcome.matches, segs, support: Some(support), doubling };
-            view.verified.borrow_mut().push((support.0, found.matches.len(), found.solution.state.clone()));
+            view.verified.borrow_mut().push(Verified {
+                supported: support.0,
+                matches: found.matches.len(),
+                state: found.solution.state.clone(),
+            });
             // A weakly supported solution does not end the search: a wider
             // range may hold a confident one (module doc, step 6).
             let confident = support::fraction(support) >= confident_support;
@@ -794,12 +798,12 @@ impl LoweTracker {
         }
     }
 
-    /// Of the frame's `verified` solutions (supported samples, matches,
-    /// state), the best supported one that makes `answer` ambiguous (module
-    /// doc, step 10): at least as many matches, at least
-    /// `ambiguous_support_ratio` of its supported samples, its model
-    /// vertices on average more than `ambiguous_distance_px` away.
-    fn ambiguity(&self, answer: &Found, verified: &[(usize, usize, State)]) -> Option<Ambiguity> {
+    /// Of the frame's `verified` solutions, the best supported one that
+    /// makes `answer` ambiguous (module doc, step 10): at least as many
+    /// matches, at least `ambiguous_support_ratio` of its supported
+    /// samples, its model vertices on average more than
+    /// `ambiguous_distance_px` away.
+    fn ambiguity(&self, answer: &Found, verified: &[Verified]) -> Option<Ambiguity> {
         let least_ratio = self.params.ambiguous_support_ratio;
         let own = answer.support?.0;
         if least_ratio == 0.0 || own == 0 {
@@ -808,12 +812,14 @@ impl LoweTracker {
         let corners = self.corners_at(&answer.solution.state);
         verified
             .iter()
-            .filter(|(_, matches, _)| *matches >= answer.matches.len())
-            .filter_map(|(supported, _, state)| {
-                let support_ratio = *supported as f64 / own as f64;
-                let distance_px = mean_distance(&corners, &self.corners_at(state));
-                (support_ratio >= least_ratio && distance_px > self.params.ambiguous_distance_px)
-                    .then_some(Ambiguity { support_ratio, distance_px })
+            .filter(|rival| rival.matches >= answer.matches.len())
+            .filter_map(|rival| {
+                let support_ratio = rival.supported as f64 / own as f64;
+                if support_ratio < least_ratio {
+                    return None;
+                }
+                let distance_px = mean_distance(&corners, &self.corners_at(&rival.state));
+                (distance_px > self.params.ambiguous_distance_px).then_some(Ambiguity { support_ratio, distance_px })
             })
             .max_by(|a, b| a.support_ratio.total_cmp(&b.support_ratio))
     }
@@ -966,6 +972,18 @@ struct Found {
     doubling: usize,
 }
 
+/// A verified solution of one of the frame's searches: a rival of its
+/// answer (module doc, step 10).
+#[derive(Clone, Debug)]
+struct Verified {
+    /// Supported samples of its outline.
+    supported: usize,
+    /// Its matches.
+    matches: usize,
+    /// Its state.
+    state: State,
+}
+
 /// Another verified solution of the frame about as well supported as its
 /// answer and far from it (module doc, step 10).
 #[derive(Clone, Copy, Debug)]
@@ -1004,10 +1022,9 @@ struct FrameView<'a> {
     /// [`TRACKING_ROTATION_SIGMA_PRIORS`] times `prior_rotation_sigma`
     /// while tracking.
     max_rotation_sigma: f64,
-    /// Every verified solution the frame's searches found so far, as
-    /// (supported samples, matches, state): the rivals of its answer
-    /// (module doc, step 10).
-    verified: RefCell<Vec<(usize, usize, State)>>,
+    /// Every verified solution the frame's searches found so far: the
+    /// rivals of its answer (module doc, step 10).
+    verified: RefCell<Vec<Verified>>,
 }
 
 impl FrameView<'_> {
@@ -1520,7 +1537,7 @@ mod tests {
 
     use super::estimation::{Match, Solution};
     use super::{
-        Found, LoweParams, LoweTracker, State, better_supported, distinct_outline, fixtures, rotation_between,
+        Found, LoweParams, LoweTracker, State, Verified, better_supported, distinct_outline, fixtures, rotation_between,
     };
     use crate::geometry::Pose;
     use crate::io::formats::InitState;
@@ -1598,16 +1615,17 @@ mod tests {
         let near = solution(0.51, 1e-4).state;
         let far_px = super::mean_distance(&tracker.corners_at(&answer.solution.state), &tracker.corners_at(&far));
         assert!(far_px > 1.0, "the lid 0.7 rad away moves the vertices {far_px} px on average");
-        let ambiguity =
-            |tracker: &LoweTracker, verified: &[(usize, usize, State)]| tracker.ambiguity(&answer, verified);
-        let rival = ambiguity(&tracker, &[(200, 12, answer.solution.state.clone()), (185, 12, far.clone())]).unwrap();
-        assert!((rival.support_ratio - 0.925).abs() < 1e-12);
+        let verified = |supported, matches, state: &State| Verified { supported, matches, state: state.clone() };
+        let rival = tracker
+            .ambiguity(&answer, &[verified(200, 12, &answer.solution.state), verified(192, 12, &far)])
+            .expect("ambiguous");
+        assert!((rival.support_ratio - 0.96).abs() < 1e-12);
         assert!((rival.distance_px - far_px).abs() < 1e-9);
-        assert!(ambiguity(&tracker, &[(170, 14, far.clone())]).is_none(), "less supported");
-        assert!(ambiguity(&tracker, &[(230, 11, far.clone())]).is_none(), "fewer matches");
-        assert!(ambiguity(&tracker, &[(230, 12, near)]).is_none(), "the same answer");
+        assert!(tracker.ambiguity(&answer, &[verified(188, 14, &far)]).is_none(), "less supported");
+        assert!(tracker.ambiguity(&answer, &[verified(230, 11, &far)]).is_none(), "fewer matches");
+        assert!(tracker.ambiguity(&answer, &[verified(230, 12, &near)]).is_none(), "the same answer");
         tracker.params.ambiguous_support_ratio = 0.0;
-        assert!(ambiguity(&tracker, &[(230, 12, far)]).is_none(), "the test off");
+        assert!(tracker.ambiguity(&answer, &[verified(230, 12, &far)]).is_none(), "the test off");
     }
 
     fn fixture_match() -> Match {
