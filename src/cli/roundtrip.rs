@@ -33,7 +33,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::cli::score::ErrorStats;
-use crate::geometry::Pose;
+use crate::geometry::{Pose, mean_point_distance};
 use crate::io::formats::{FrameResult, InitState, Status};
 use crate::io::{AtomicFile, Sequence};
 use crate::track::run::{TrackOptions, check_output, read_config, track_sequence};
@@ -167,10 +167,8 @@ pub fn compare(forward: &[FrameResult], backward: &[FrameResult], start: Option<
                 Some(frame) != start && f.status == Status::Tracking && b.is_some_and(|b| b.status == Status::Tracking);
             let (corner_px, translation_m, rotation_rad) = match b {
                 Some(b) if both => {
-                    let corners = (f.corners.len() == b.corners.len() && !f.corners.is_empty()).then(|| {
-                        f.corners.iter().zip(&b.corners).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).sum::<f64>()
-                            / f.corners.len() as f64
-                    });
+                    let corners = (f.corners.len() == b.corners.len() && !f.corners.is_empty())
+                        .then(|| mean_point_distance(&f.corners, &b.corners));
                     let poses = f.pose.zip(b.pose).map(|(p, q)| (Pose::from(p), Pose::from(q)));
                     (
                         corners,

@@ -8,7 +8,8 @@
 //! - [`pose`]: rigid camera-from-object poses X_cam = R·X_obj + t on glam
 //!   (f64), with R to and from axis-angle (Rodrigues) vectors.
 //! - [`polygon`]: whether image corners trace a model's edges as a simple
-//!   polygon, and the similarity step that moves an outline on as a whole.
+//!   polygon, the similarity step that moves an outline on as a whole, and
+//!   the mean distance between two sets of corners.
 //! - [`model`]: the model's vertices under joint values (SPEC §4's joint
 //!   rule), Newell face normals, back-face visibility and visible edges.
 //! - [`hidden_lines`]: the parts of each edge the camera sees, once the
@@ -27,5 +28,5 @@ pub mod pose;
 pub use camera::Camera;
 pub use hidden_lines::{VisibleEdgeParts, VisibleSegment, visible_edge_parts, visible_edge_segments};
 pub use model::{ModelGeometry, faces_camera, newell_normal};
-pub use polygon::{check_simple_polygon, similarity_step};
+pub use polygon::{check_simple_polygon, mean_point_distance, similarity_step};
 pub use pose::{Pose, axis_angle_from_rotation, rotation_from_axis_angle};

@@ -1,10 +1,19 @@
 //! Planar polygons in the image: whether corners trace a model's edges as a
-//! simple polygon, and how an outline moves on as a whole.
+//! simple polygon, how an outline moves on as a whole, and how far apart
+//! two sets of corners lie.
 
 /// Two corners closer than this (pixels) are the same point.
 const MIN_CORNER_SEPARATION_PX: f64 = 1e-6;
 /// Two edges at a corner whose directions' sine is below this are on one line.
 const MIN_CORNER_SINE: f64 = 1e-9;
+
+/// Mean image distance between corresponding points of `a` and `b`, px
+/// (0 for none).
+#[must_use]
+pub fn mean_point_distance(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
+    let sum: f64 = a.iter().zip(b).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).sum();
+    sum / a.len().max(1) as f64
+}
 
 /// Check that image `corners` (one per model vertex) trace the model's
 /// polygon as a simple polygon: the two corners of an edge apart,

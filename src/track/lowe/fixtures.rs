@@ -1,7 +1,7 @@
 //! Test fixtures of the `lowe` tracker: a hinged box, a camera, errors.
 
 use super::projection::State;
-use crate::geometry::{Camera, ModelGeometry};
+use crate::geometry::{Camera, ModelGeometry, mean_point_distance};
 use crate::io::formats::{Joint, Model};
 
 /// A box 0.30 × 0.15 × 0.20 m with a lid plate hinged about x at the
@@ -54,14 +54,8 @@ pub fn camera() -> Camera {
 
 /// Mean image distance of the vertices of two states, px.
 pub fn vertex_error(geometry: &ModelGeometry, cam: &Camera, a: &State, b: &State) -> f64 {
-    let pa = geometry.camera_vertices(&a.pose, &a.params).unwrap();
-    let pb = geometry.camera_vertices(&b.pose, &b.params).unwrap();
-    pa.iter()
-        .zip(&pb)
-        .map(|(p, q)| {
-            let (u, v) = (cam.project(*p), cam.project(*q));
-            (u[0] - v[0]).hypot(u[1] - v[1])
-        })
-        .sum::<f64>()
-        / pa.len() as f64
+    let image = |s: &State| -> Vec<[f64; 2]> {
+        geometry.camera_vertices(&s.pose, &s.params).unwrap().into_iter().map(|p| cam.project(p)).collect()
+    };
+    mean_point_distance(&image(a), &image(b))
 }

@@ -227,7 +227,7 @@ use crate::backend::{FrameRequest, ListSpec, ZeroCrossingRequest};
 use crate::early::Window;
 use crate::early::log::LogParams;
 use crate::early::zero_crossing::ZeroCrossingParams;
-use crate::geometry::{Camera, ModelGeometry, Pose};
+use crate::geometry::{Camera, ModelGeometry, Pose, mean_point_distance};
 use crate::io::formats::{self, InitState, Model, Status};
 use crate::io::overlay::EdgeBand;
 use crate::{Error, Result};
@@ -696,30 +696,31 @@ impl LoweTracker {
         }
     }
 
-    /// The states `alternative` makes from `state` for each value of
-    /// [`LoweTracker::joint_grid`] (`None`: no such state), in the grid's
-    /// order, each with its outline's supported samples, the joint's change
-    /// (radians) and its visible model segments.
-    fn grid_hypotheses(
+    /// `visit` called, in the grid's order, with each state `alternative`
+    /// makes from `state` for a value of [`LoweTracker::joint_grid`]
+    /// (`None`: no such state), its outline's supported samples, the
+    /// joint's change (radians) and its visible model segments. The
+    /// segments are one buffer, refilled for each state: a visitor that
+    /// keeps them takes them (`std::mem::take`) and may hand back another.
+    fn for_each_grid_hypothesis(
         &self,
         view: &FrameView<'_>,
         state: &State,
         alternative: impl Fn(&State, usize, f64) -> Option<State>,
-    ) -> Vec<(Support, f64, State, Vec<ModelSegment>)> {
-        self.joint_grid(state)
-            .filter_map(|(joint, value)| {
-                let other = alternative(state, joint, value)?;
-                let mut segs = Vec::new();
-                view.visible_segments(&other, &mut segs);
-                Some((view.support_counts(&segs), (value - state.params[joint]).abs(), other, segs))
-            })
-            .collect()
+        mut visit: impl FnMut(Support, f64, State, &mut Vec<ModelSegment>),
+    ) {
+        let mut segs = Vec::new();
+        for (joint, value) in self.joint_grid(state) {
+            let Some(other) = alternative(state, joint, value) else { continue };
+            view.visible_segments(&other, &mut segs);
+            visit(view.support_counts(&segs), (value - state.params[joint]).abs(), other, &mut segs);
+        }
     }
 
-    /// Of [`LoweTracker::grid_hypotheses`], the first whose outline has the
-    /// most supported samples, when that beats `own` by the margin of
-    /// [`better_supported`] for the joint's change; with its support and
-    /// visible model segments.
+    /// Of [`LoweTracker::for_each_grid_hypothesis`]'s states, the first
+    /// whose outline has the most supported samples, when that beats `own`
+    /// by the margin of [`better_supported`] for the joint's change; with
+    /// its support and visible model segments.
     fn best_supported_grid_value(
         &self,
         view: &FrameView<'_>,
@@ -728,11 +729,13 @@ impl LoweTracker {
         alternative: impl Fn(&State, usize, f64) -> Option<State>,
     ) -> Option<(Support, State, Vec<ModelSegment>)> {
         let mut best: Option<(Support, State, Vec<ModelSegment>)> = None;
-        for (counts, moved, other, segs) in self.grid_hypotheses(view, state, alternative) {
+        self.for_each_grid_hypothesis(view, state, alternative, |counts, moved, other, segs| {
             if better_supported(counts, own, moved) && best.as_ref().is_none_or(|(c, ..)| counts.0 > c.0) {
-                best = Some((counts, other, segs));
+                // The winner keeps the buffer; the one it beat lends its own.
+                let beaten = best.replace((counts, other, std::mem::take(segs)));
+                *segs = beaten.map(|(.., buffer)| buffer).unwrap_or_default();
             }
-        }
+        });
         best
     }
 
@@ -755,11 +758,10 @@ impl LoweTracker {
         let Some(own) = found.support else { return (found, Vec::new()) };
         // Each hypothesis with its visible model segments and how many of
         // their samples are supported.
-        let mut hypotheses: Vec<(usize, State, Vec<ModelSegment>)> = self
-            .grid_hypotheses(view, &found.solution.state, with_joint)
-            .into_iter()
-            .map(|(counts, _, hypothesis, segs)| (counts.0, hypothesis, segs))
-            .collect();
+        let mut hypotheses: Vec<(usize, State, Vec<ModelSegment>)> = Vec::new();
+        self.for_each_grid_hypothesis(view, &found.solution.state, with_joint, |counts, _, hypothesis, segs| {
+            hypotheses.push((counts.0, hypothesis, std::mem::take(segs)));
+        });
         hypotheses.sort_by_key(|h| std::cmp::Reverse(h.0));
         hypotheses.truncate(JOINT_REFITS);
         // A confident fit of the body is not turned under its part.
@@ -818,7 +820,7 @@ impl LoweTracker {
                 if support_ratio < least_ratio {
                     return None;
                 }
-                let distance_px = mean_distance(&corners, &self.corners_at(&rival.state));
+                let distance_px = mean_point_distance(&corners, &self.corners_at(&rival.state));
                 (distance_px > self.params.ambiguous_distance_px).then_some(Ambiguity { support_ratio, distance_px })
             })
             .max_by(|a, b| a.support_ratio.total_cmp(&b.support_ratio))
@@ -928,12 +930,6 @@ fn with_joint(state: &State, joint: usize, value: f64) -> Option<State> {
     let mut other = state.clone();
     other.params[joint] = value;
     Some(other)
-}
-
-/// Mean distance between corresponding points of `a` and `b`, px.
-fn mean_distance(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
-    let sum: f64 = a.iter().zip(b).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).sum();
-    sum / a.len().max(1) as f64
 }
 
 /// Per joint, whether `a` and `b` differ by at least
@@ -1412,10 +1408,7 @@ impl Tracker for LoweTracker {
                 found
             });
         }
-        let ambiguity = accepted
-            .as_ref()
-            .filter(|found| found.verified())
-            .and_then(|found| self.ambiguity(found, &view.verified.borrow()));
+        let ambiguity = accepted.as_ref().and_then(|found| self.ambiguity(found, &view.verified.borrow()));
         let estimation = estimation::take_solve_time().as_secs_f64();
         diag.segments_ms = (segmented - started).as_secs_f64() * 1e3;
         diag.estimation_ms = estimation * 1e3;
@@ -1539,7 +1532,7 @@ mod tests {
     use super::{
         Found, LoweParams, LoweTracker, State, Verified, better_supported, distinct_outline, fixtures, rotation_between,
     };
-    use crate::geometry::Pose;
+    use crate::geometry::{Pose, mean_point_distance};
     use crate::io::formats::InitState;
     use crate::track::lowe::params::MAX_PARAMS;
     use crate::track::lowe::projection::ModelSegment;
@@ -1613,7 +1606,7 @@ mod tests {
         tracker.params.ambiguous_distance_px = 1.0;
         let far = solution(1.2, 1e-4).state;
         let near = solution(0.51, 1e-4).state;
-        let far_px = super::mean_distance(&tracker.corners_at(&answer.solution.state), &tracker.corners_at(&far));
+        let far_px = mean_point_distance(&tracker.corners_at(&answer.solution.state), &tracker.corners_at(&far));
         assert!(far_px > 1.0, "the lid 0.7 rad away moves the vertices {far_px} px on average");
         let verified = |supported, matches, state: &State| Verified { supported, matches, state: state.clone() };
         let rival = tracker
