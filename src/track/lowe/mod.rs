@@ -41,7 +41,9 @@
 //!    acceptable set also doubles the ranges ("increase the search range
 //!    when the system is unable to find the object").
 //! 6. **Best-first search and locking on** ([`search`]), each solution a
-//!    stabilised Gauss–Newton fit ([`estimation`], eq. 1). A verified
+//!    stabilised Gauss–Newton fit ([`estimation`], eq. 1); with
+//!    `remember_contrast`, each tracked frame's matches add to the contrast
+//!    memory of their edges that locking on consults ([`search`], step 4). A verified
 //!    solution (step 7) whose outline support is below `confident_support`
 //!    does not end the search (our addition): the wider ranges are searched
 //!    as well, and the first verified solution there with that support
@@ -301,7 +303,28 @@ pub struct LoweTracker {
     /// Verified states at orientations at least [`VIEW_GAP_RAD`] apart, the
     /// oldest first (where the whole-image search also starts).
     views: Vec<State>,
+    /// Per model edge, the contrast its matches have shown (module doc of
+    /// [`search`], step 4).
+    contrast_memory: Vec<EdgeContrast>,
 }
+
+/// The contrast a model edge's matches have shown on the tracked frames
+/// with the same faces facing the camera.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct EdgeContrast {
+    /// [`ModelSegment::facing`] of the edge on those frames.
+    facing: u8,
+    /// The matched image segments' lengths, px, signed by the side of the
+    /// model segment they are dark on (+ along its normal), summed over
+    /// the frames whose matches of the edge all had one contrast, each
+    /// frame's weight [`CONTRAST_MEMORY_DECAY`] times the next one's.
+    dark_side_px: f64,
+}
+
+/// Weight of a frame's contrast evidence against the next frame's.
+const CONTRAST_MEMORY_DECAY: f64 = 0.9;
+/// Least remembered length, px, for an edge's contrast to count as known.
+const CONTRAST_MEMORY_MIN_PX: f64 = 20.0;
 
 impl LoweTracker {
     /// Errors on a model the tracker cannot use: not in metres, more than
@@ -395,6 +418,7 @@ impl LoweTracker {
             window: Window::full(camera.width as usize, camera.height as usize),
             last_diagnostics: LoweDiagnostics::default(),
             views: Vec::new(),
+            contrast_memory: vec![EdgeContrast::default(); geometry.edges().len()],
             geometry,
             params,
         };
@@ -881,6 +905,48 @@ impl LoweTracker {
             && residual.is_some_and(|r| r > self.params.loose_fit_residual_ratio * self.params.measurement_sigma_px)
     }
 
+    /// Each frame weighs [`CONTRAST_MEMORY_DECAY`] times the next one in
+    /// the edges' contrast memory.
+    fn fade_contrast_memory(&mut self) {
+        for memory in &mut self.contrast_memory {
+            memory.dark_side_px *= CONTRAST_MEMORY_DECAY;
+        }
+    }
+
+    /// Adds a tracked frame's matches to each edge's contrast memory: an
+    /// edge whose matches all have one contrast adds their length on that
+    /// side; its memory starts again when other faces of it face the
+    /// camera.
+    fn remember_contrast(&mut self, segs: &[ModelSegment], matches: &[estimation::Match]) {
+        let mut seen: Vec<(usize, u8, f64, f64)> = Vec::new();
+        for m in matches {
+            let Some(seg) = segs.iter().find(|s| s.edge == m.edge && s.interval == m.interval) else { continue };
+            let s = &self.image_segments[m.image];
+            let [nx, ny] = seg.normal();
+            let across = s.direction.cos() * nx + s.direction.sin() * ny;
+            if across.abs() < 0.5 {
+                continue;
+            }
+            let (dark, bright) = if across > 0.0 { (s.length, 0.0) } else { (0.0, s.length) };
+            match seen.iter_mut().find(|e| e.0 == m.edge) {
+                Some(e) => {
+                    e.2 += dark;
+                    e.3 += bright;
+                }
+                None => seen.push((m.edge, seg.facing, dark, bright)),
+            }
+        }
+        for (edge, facing, dark, bright) in seen {
+            let memory = &mut self.contrast_memory[edge];
+            if memory.facing != facing {
+                *memory = EdgeContrast { facing, dark_side_px: 0.0 };
+            }
+            if dark == 0.0 || bright == 0.0 {
+                memory.dark_side_px += dark - bright;
+            }
+        }
+    }
+
     fn settings(&self) -> SearchSettings {
         SearchSettings {
             set_probability: self.params.set_probability,
@@ -1029,7 +1095,13 @@ impl FrameView<'_> {
         let t = self.tracker;
         let Ok(lin) = Linearised::at(&t.geometry, state, t.centre) else { return };
         let parts = crate::geometry::hidden_lines::visible_edge_parts(&t.geometry, &lin.points, &t.camera);
+        let facing_faces = if t.params.remember_contrast { t.geometry.facing_faces(&lin.points) } else { Vec::new() };
         for (edge, intervals) in parts.iter().enumerate() {
+            let facing = t.geometry.edge_faces()[edge]
+                .iter()
+                .take(8)
+                .enumerate()
+                .fold(0u8, |bits, (k, &f)| if facing_faces.get(f) == Some(&true) { bits | 1 << k } else { bits });
             for &part in intervals {
                 let Some(inside) = projection::clip_to_image(&lin, &t.camera, t.geometry.edges()[edge], part) else {
                     continue;
@@ -1040,6 +1112,7 @@ impl FrameView<'_> {
                     // Matches name the visible part, which stays the same
                     // while the image border cuts it at another place.
                     seg.interval = part;
+                    seg.facing = facing;
                     out.push(seg);
                 }
             }
@@ -1252,6 +1325,19 @@ impl SearchFrame for FrameView<'_> {
         [s.start, s.end]
     }
 
+    fn contrast_direction(&self, image: usize) -> Option<f64> {
+        Some(self.tracker.image_segments[image].direction)
+    }
+
+    fn remembered_contrast(&self, seg: &ModelSegment) -> f64 {
+        let memory = self.tracker.contrast_memory[seg.edge];
+        if memory.facing == seg.facing && memory.dark_side_px.abs() >= CONTRAST_MEMORY_MIN_PX {
+            memory.dark_side_px.signum()
+        } else {
+            0.0
+        }
+    }
+
     fn verify(
         &self,
         segs: &[ModelSegment],
@@ -1346,6 +1432,7 @@ impl Tracker for LoweTracker {
         self.crossing_map.rebuild(crossings, self.window, self.params.segments.low_threshold);
         let segmented = std::time::Instant::now();
         let _ = estimation::take_solve_time();
+        self.fade_contrast_memory();
 
         let n = self.n();
         let ctx = MatchContext {
@@ -1462,7 +1549,14 @@ impl Tracker for LoweTracker {
                 self.first_doubling = 0;
                 self.lost_frames = 0;
                 self.phase = Phase::Tracking;
-                let final_segs = accepted.map(|found| found.segs).unwrap_or_default();
+                let final_segs = accepted
+                    .map(|found| {
+                        if self.params.remember_contrast {
+                            self.remember_contrast(&found.segs, &found.matches);
+                        }
+                        found.segs
+                    })
+                    .unwrap_or_default();
                 // An ambiguous answer is carried on, but not claimed.
                 let status = match ambiguity {
                     None => Status::Tracking,
@@ -1625,9 +1719,64 @@ mod tests {
         Match { edge: 0, interval: [0.0, 1.0], endpoints: [[0.0, 0.0], [1.0, 0.0]], image: 0 }
     }
 
+    /// An edge's matches of one contrast add their length on its dark
+    /// side; matches of both contrasts add nothing; a match running along
+    /// the edge is not counted; the memory fades by
+    /// [`super::CONTRAST_MEMORY_DECAY`] a frame and starts again when other
+    /// faces of the edge face the camera.
+    #[test]
+    fn an_edge_remembers_the_contrast_of_its_matches_while_its_faces_stay() {
+        use super::{CONTRAST_MEMORY_DECAY, EdgeContrast};
+        use crate::track::lowe::segments::ImageSegment;
+        use std::f64::consts::FRAC_PI_2;
+        let init = InitState { pose: Some(start_pose()), params: vec![0.5], ..InitState::default() };
+        let mut tracker =
+            LoweTracker::new(fixtures::camera(), &fixtures::hinged_box_model(), &init, LoweParams::default()).unwrap();
+        let piece = |y: f64, length: f64, direction: f64| ImageSegment {
+            start: [0.0, y],
+            end: [length, y],
+            midpoint: [0.5 * length, y],
+            length,
+            orientation: 0.0,
+            strength: 1.0,
+            direction,
+            pixels: length as u32,
+        };
+        let (down, up, along) = (FRAC_PI_2, -FRAC_PI_2, 0.0);
+        tracker.image_segments =
+            vec![piece(0.0, 30.0, down), piece(0.5, 20.0, down), piece(40.0, 30.0, down), piece(40.2, 25.0, up)];
+        tracker.image_segments.push(piece(0.2, 50.0, along));
+        let edge = |edge: usize, y: f64, facing: u8| ModelSegment { edge, facing, ..segment([0.0, y], [100.0, y]) };
+        let segs = vec![edge(0, 0.0, 0b01), edge(1, 40.0, 0b01)];
+        assert_eq!(segs[0].normal(), [0.0, 1.0]);
+        let images = tracker.image_segments.clone();
+        let matched = |seg: &ModelSegment, image: usize| Match {
+            edge: seg.edge,
+            interval: seg.interval,
+            endpoints: [images[image].start, images[image].end],
+            image,
+        };
+        let matches: Vec<Match> =
+            [(0, 0), (0, 1), (1, 2), (1, 3), (0, 4)].iter().map(|&(m, i)| matched(&segs[m], i)).collect();
+        tracker.remember_contrast(&segs, &matches);
+        assert_eq!(tracker.contrast_memory[0], EdgeContrast { facing: 0b01, dark_side_px: 50.0 });
+        assert_eq!(tracker.contrast_memory[1], EdgeContrast { facing: 0b01, dark_side_px: 0.0 });
+        assert_eq!(tracker.contrast_memory[2], EdgeContrast::default());
+
+        tracker.fade_contrast_memory();
+        assert!((tracker.contrast_memory[0].dark_side_px - 50.0 * CONTRAST_MEMORY_DECAY).abs() < 1e-12);
+        // Edge 0 with its other face turned to the camera: what it showed
+        // before lies between other surfaces.
+        let turned = vec![edge(0, 0.0, 0b11), edge(1, 40.0, 0b01)];
+        let matches = vec![matched(&turned[0], 3), matched(&turned[1], 3)];
+        tracker.remember_contrast(&turned, &matches);
+        assert_eq!(tracker.contrast_memory[0], EdgeContrast { facing: 0b11, dark_side_px: -25.0 });
+        assert_eq!(tracker.contrast_memory[1], EdgeContrast { facing: 0b01, dark_side_px: -25.0 });
+    }
+
     fn segment(a: [f64; 2], b: [f64; 2]) -> ModelSegment {
         let rows = [[0.0; MAX_PARAMS]; 2];
-        ModelSegment { edge: 0, interval: [0.0, 1.0], a, b, da: rows, db: rows }
+        ModelSegment { edge: 0, interval: [0.0, 1.0], a, b, da: rows, db: rows, facing: 0 }
     }
 
     fn length((p, q): ([f64; 2], [f64; 2])) -> f64 {

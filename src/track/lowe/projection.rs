@@ -173,6 +173,11 @@ pub struct ModelSegment {
     pub da: [Row; 2],
     /// Derivative rows of `b` (u, v).
     pub db: [Row; 2],
+    /// Which of the edge's faces face the camera, bit k for its k-th face
+    /// in [`crate::geometry::ModelGeometry::edge_faces`] (the first eight):
+    /// what lies on either side of it in the image. 0 unless the tracker's
+    /// visible model set it.
+    pub facing: u8,
 }
 
 /// The part of `interval` (3-D parameters along the edge `[i, j]`, both
@@ -226,7 +231,7 @@ impl ModelSegment {
         let (a, da) = project_with_rows(camera, p, &rp, lin.n)?;
         let (b, db) = project_with_rows(camera, q, &rq, lin.n)?;
         let length = (b[0] - a[0]).hypot(b[1] - a[1]);
-        (length > 1e-3).then_some(Self { edge, interval, a, b, da, db })
+        (length > 1e-3).then_some(Self { edge, interval, a, b, da, db, facing: 0 })
     }
 
     /// Length in the image, px.
