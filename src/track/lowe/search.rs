@@ -451,8 +451,11 @@ fn contrast_conflicts(frame: &dyn SearchFrame, segs: &[ModelSegment], assigned: 
             }
             let seg = &segs[a.model];
             let remembered = frame.remembered_contrast(seg);
+            if remembered == 0.0 {
+                continue;
+            }
             let (side_a, side_b) = (contrast_side(frame, image_a, seg), contrast_side(frame, image_b, seg));
-            if remembered == 0.0 || side_a * side_b >= 0.0 {
+            if side_a * side_b >= 0.0 {
                 continue;
             }
             let [ux, uy] = seg.direction();
