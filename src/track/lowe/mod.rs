@@ -42,12 +42,12 @@
 //!    when the system is unable to find the object").
 //! 6. **Best-first search and locking on** ([`search`]), each solution a
 //!    stabilised Gauss–Newton fit ([`estimation`], eq. 1); with
-//!    `remember_contrast`, each tracked frame's matches add to the contrast
-//!    memory of their edges that locking on consults ([`search`], step 4). A verified
-//!    solution (step 7) whose outline support is below `confident_support`
-//!    does not end the search (our addition): the wider ranges are searched
-//!    as well, and the first verified solution there with that support
-//!    replaces it. At an abrupt reversal the first range's best set can fit
+//!    `remember_contrast`, each verified frame's matches add to the
+//!    contrast memory of their edges that locking on consults ([`search`],
+//!    step 4). A verified solution (step 7) whose outline support is below
+//!    `confident_support` does not end the search (our addition): the
+//!    wider ranges are searched as well, and the first verified solution
+//!    there with that support replaces it. At an abrupt reversal the first range's best set can fit
 //!    a model 10–16 px off whose outline is 30–45 % supported, where the
 //!    doubled range finds the true pose at 90 % and more. A solution of a
 //!    wider range that is not that confident replaces the first one when
@@ -308,7 +308,7 @@ pub struct LoweTracker {
     contrast_memory: Vec<EdgeContrast>,
 }
 
-/// The contrast a model edge's matches have shown on the tracked frames
+/// The contrast a model edge's matches have shown on the verified frames
 /// with the same faces facing the camera.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct EdgeContrast {
@@ -913,7 +913,7 @@ impl LoweTracker {
         }
     }
 
-    /// Adds a tracked frame's matches to each edge's contrast memory: an
+    /// Adds a verified frame's matches to each edge's contrast memory: an
     /// edge whose matches all have one contrast adds their length on that
     /// side; its memory starts again when other faces of it face the
     /// camera.
@@ -922,12 +922,11 @@ impl LoweTracker {
         for m in matches {
             let Some(seg) = segs.iter().find(|s| s.edge == m.edge && s.interval == m.interval) else { continue };
             let s = &self.image_segments[m.image];
-            let [nx, ny] = seg.normal();
-            let across = s.direction.cos() * nx + s.direction.sin() * ny;
-            if across.abs() < 0.5 {
-                continue;
-            }
-            let (dark, bright) = if across > 0.0 { (s.length, 0.0) } else { (0.0, s.length) };
+            let (dark, bright) = match search::dark_side(s.direction, seg) {
+                0.0 => continue,
+                side if side > 0.0 => (s.length, 0.0),
+                _ => (0.0, s.length),
+            };
             match seen.iter_mut().find(|e| e.0 == m.edge) {
                 Some(e) => {
                     e.2 += dark;

@@ -29,7 +29,7 @@
 //!    With `remember_contrast` (our addition, off by default), an edge of
 //!    the model keeps one contrast along its length (it separates the same
 //!    two surfaces), and the side of it its matches were dark on over the
-//!    last tracked frames is remembered, while the same faces of it face
+//!    last verified frames is remembered, while the same faces of it face
 //!    the camera ([`SearchFrame::remembered_contrast`]). Of two image
 //!    segments side by side on one model segment with opposite contrast,
 //!    the one of the contrast the edge has not shown does not join. A lid
@@ -38,8 +38,8 @@
 //!    93) is fitted between the two, and the lid turns 3° off. Replayed
 //!    over the matches of that run, wherever an edge held pieces of both
 //!    contrasts and the true pose told which was its own, the remembered
-//!    contrast was the right one on all 96 edges where one was known, and
-//!    on 107 of 109 at 20 px/frame. It costs false tracking all the same
+//!    contrast was the right one in all 96 such cases (an edge on a frame)
+//!    where one was known, and in 107 of 109 at 20 px/frame. It costs false tracking all the same
 //!    (`LoweParams::remember_contrast`).
 //! 5. **Verification**: the branch ends the search only when its locked-on
 //!    solution is verified (overdetermined enough: see
@@ -82,7 +82,7 @@ pub trait SearchFrame {
     /// Direction across image segment `image` from its bright side to its
     /// dark side, radians; `None` when the frame does not know it.
     fn contrast_direction(&self, image: usize) -> Option<f64>;
-    /// The side of `seg` its edge has shown dark on the last tracked
+    /// The side of `seg` its edge has shown dark on the last verified
     /// frames with the same faces facing the camera: +1 along the
     /// segment's normal, −1 against it, 0 when not known (module doc,
     /// step 4).
@@ -478,15 +478,21 @@ fn contrast_conflicts(frame: &dyn SearchFrame, segs: &[ModelSegment], assigned: 
     conflicts
 }
 
-/// Which side of `seg` image segment `image` is dark on: +1 along the
-/// segment's normal, −1 against it, 0 when its contrast runs within 60° of
-/// the segment or the frame does not know it.
-pub fn contrast_side(frame: &dyn SearchFrame, image: usize, seg: &ModelSegment) -> f64 {
-    frame.contrast_direction(image).map_or(0.0, |d| {
-        let [nx, ny] = seg.normal();
-        let across = d.cos() * nx + d.sin() * ny;
-        if across.abs() < 0.5 { 0.0 } else { across.signum() }
-    })
+/// Which side of `seg` image segment `image` is dark on ([`dark_side`]);
+/// 0 when the frame does not know its contrast.
+fn contrast_side(frame: &dyn SearchFrame, image: usize, seg: &ModelSegment) -> f64 {
+    frame.contrast_direction(image).map_or(0.0, |d| dark_side(d, seg))
+}
+
+/// Which side of `seg` an image segment whose contrast runs in `direction`
+/// (radians, bright side to dark side) is dark on: +1 along the segment's
+/// normal, −1 against it, 0 when that direction lies within 60° of the
+/// segment.
+#[must_use]
+pub fn dark_side(direction: f64, seg: &ModelSegment) -> f64 {
+    let [nx, ny] = seg.normal();
+    let across = direction.cos() * nx + direction.sin() * ny;
+    if across.abs() < 0.5 { 0.0 } else { across.signum() }
 }
 
 fn same_matches(a: &[Match], b: &[Match]) -> bool {
