@@ -4,9 +4,12 @@
 //! end). A sample is supported when a zero crossing at or above the
 //! hysteresis' low threshold lies within 1 px of it across the segment and
 //! within 1 px along it, with its edge orientation (the gradient direction
-//! turned by 90°) within `angle` of the segment's. The map is a byte per
-//! window pixel holding the quantised orientation of the crossing there (0:
-//! none), rebuilt each frame into the same buffer.
+//! turned by 90°) within `angle` of the segment's, and, where the segment
+//! names the side of it that must be dark, with its gradient (from the
+//! bright side to the dark side) pointing to that side. The map is a byte
+//! per window pixel holding the quantised orientation of the crossing
+//! there (0: none), and when asked a second byte with its gradient's
+//! direction, rebuilt each frame into the same buffers.
 
 use crate::early::{Feature, Window};
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -16,7 +19,8 @@ use crate::estimate::line_fit::rem_pi;
 /// Samples closer than this to a segment's end points are not taken, px
 /// (two edges blur into each other at a corner).
 pub const END_MARGIN_PX: f64 = 2.0;
-/// Orientation levels over [0, π) (1 ..= 255; 0 marks an empty pixel).
+/// Orientation levels over [0, π), direction levels over [0, 2π) (1 ..=
+/// 255; 0 marks an empty pixel).
 const LEVELS: f64 = 255.0;
 
 /// Zero-crossing orientations over a window of interest.
@@ -27,13 +31,17 @@ pub struct CrossingMap {
     height: usize,
     /// Row after row of the window, then a spare cell.
     cells: Vec<u8>,
+    /// The crossings' gradient directions, laid out as `cells`; empty
+    /// unless the map was rebuilt with directions.
+    directions: Vec<u8>,
 }
 
 impl CrossingMap {
     /// Refill the map with the crossings of `crossings` inside `window`
     /// whose magnitude is at least `min_magnitude` (a later crossing at the
-    /// same pixel replacing an earlier one).
-    pub fn rebuild(&mut self, crossings: &[Feature], window: Window, min_magnitude: f32) {
+    /// same pixel replacing an earlier one); their gradients' directions
+    /// too when `with_directions`.
+    pub fn rebuild(&mut self, crossings: &[Feature], window: Window, min_magnitude: f32, with_directions: bool) {
         self.window = window;
         self.width = (window.x1.saturating_sub(window.x0)) as usize;
         self.height = (window.y1.saturating_sub(window.y0)) as usize;
@@ -42,32 +50,55 @@ impl CrossingMap {
         let spare = self.width * self.height;
         self.cells.clear();
         self.cells.resize(spare + 1, 0);
+        self.directions.clear();
+        if with_directions {
+            self.directions.resize(spare + 1, 0);
+        }
         for f in crossings {
             let inside = (f.x >= window.x0) & (f.y >= window.y0) & (f.x < window.x1) & (f.y < window.y1);
             let taken = inside & !(f.magnitude < min_magnitude) & f.theta.is_finite();
             let at = (f.y.wrapping_sub(window.y0)) as usize * self.width + (f.x.wrapping_sub(window.x0)) as usize;
             let edge = rem_pi(f64::from(f.theta) + FRAC_PI_2);
             self.cells[if taken { at } else { spare }] = 1 + ((edge / PI * LEVELS) as u8).min(254);
+            if with_directions {
+                let direction = f64::from(f.theta).rem_euclid(2.0 * PI);
+                self.directions[if taken { at } else { spare }] =
+                    1 + ((direction / (2.0 * PI) * LEVELS) as u8).min(254);
+            }
         }
     }
 
     /// Orientation level at pixel (x, y); 0 outside the window or where
     /// there is no crossing.
     fn level(&self, x: i64, y: i64) -> u8 {
+        self.cell(x, y).map_or(0, |k| self.cells[k])
+    }
+
+    /// Gradient direction at pixel (x, y), radians in [0, 2π) (the middle
+    /// of its level); `None` outside the window, where there is no
+    /// crossing, or when the map holds no directions.
+    fn direction(&self, x: i64, y: i64) -> Option<f64> {
+        let level = *self.directions.get(self.cell(x, y)?)?;
+        (level > 0).then(|| (f64::from(level - 1) + 0.5) / LEVELS * 2.0 * PI)
+    }
+
+    /// Index of pixel (x, y) in the window's cells.
+    fn cell(&self, x: i64, y: i64) -> Option<usize> {
         let (cx, cy) = (x - i64::from(self.window.x0), y - i64::from(self.window.y0));
-        if cx < 0 || cy < 0 || cx >= self.width as i64 || cy >= self.height as i64 {
-            return 0;
-        }
-        self.cells[cy as usize * self.width + cx as usize]
+        (cx >= 0 && cy >= 0 && cx < self.width as i64 && cy < self.height as i64)
+            .then(|| cy as usize * self.width + cx as usize)
     }
 
     /// `(supported, samples)` over the segments `lines` (module doc), with
-    /// orientations within `angle` radians.
+    /// orientations within `angle` radians. Each line `(p, q, side)` with
+    /// `side` ±1 is supported only by crossings dark on that side of it
+    /// (+1: along its normal, `p → q` turned by +90°) and needs a map
+    /// rebuilt with directions; 0 takes either.
     #[must_use]
-    pub fn support(&self, lines: impl Iterator<Item = ([f64; 2], [f64; 2])>, angle: f64) -> (usize, usize) {
+    pub fn support(&self, lines: impl Iterator<Item = ([f64; 2], [f64; 2], f64)>, angle: f64) -> (usize, usize) {
         let tolerance = angle / std::f64::consts::PI * LEVELS;
         let (mut supported, mut samples) = (0, 0);
-        for (p, q) in lines {
+        for (p, q, side) in lines {
             let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
             let length = dx.hypot(dy);
             if !(length.is_finite() && length > 2.0 * END_MARGIN_PX) {
@@ -82,6 +113,10 @@ impl CrossingMap {
                 let d = (f64::from(level - 1) + 0.5 - orientation).abs();
                 d.min(LEVELS - d) <= tolerance
             };
+            // The gradient points from the bright side to the dark side.
+            let dark_on_side = |x: i64, y: i64| {
+                side == 0.0 || self.direction(x, y).is_some_and(|a| (a.sin() * ux - a.cos() * uy) * side > 0.0)
+            };
             let mut s = END_MARGIN_PX;
             while s <= length - END_MARGIN_PX {
                 samples += 1;
@@ -93,6 +128,7 @@ impl CrossingMap {
                         (rx * uy - ry * ux).abs() <= 1.0
                             && (rx * ux + ry * uy).abs() <= 1.0
                             && matches_level(self.level(x0 + i, y0 + j))
+                            && dark_on_side(x0 + i, y0 + j)
                     })
                 });
                 if hit {
@@ -118,30 +154,56 @@ mod tests {
     fn a_segment_on_its_edge_is_supported_and_one_beside_it_is_not() {
         let window = Window { x0: 5, y0: 5, x1: 120, y1: 60 };
         let mut map = CrossingMap::default();
-        map.rebuild(&horizontal(30, 10..110, 5.0), window, 1.5);
+        map.rebuild(&horizontal(30, 10..110, 5.0), window, 1.5, false);
         let angle = 20f64.to_radians();
-        let on = map.support([([10.0, 30.4], [109.0, 30.4])].into_iter(), angle);
+        let on = map.support([([10.0, 30.4], [109.0, 30.4], 0.0)].into_iter(), angle);
         assert_eq!(on.0, on.1);
         assert_eq!(on.1, 96);
-        let beside = map.support([([10.0, 32.5], [109.0, 32.5])].into_iter(), angle);
+        let beside = map.support([([10.0, 32.5], [109.0, 32.5], 0.0)].into_iter(), angle);
         assert_eq!(beside.0, 0);
         // Turned by 30°: only the samples near the crossing line count, and
         // not at this orientation.
-        let turned = map.support([([20.0, 30.0], [80.0, 30.0 + 60.0 * 30f64.to_radians().tan()])].into_iter(), angle);
+        let turned =
+            map.support([([20.0, 30.0], [80.0, 30.0 + 60.0 * 30f64.to_radians().tan()], 0.0)].into_iter(), angle);
         assert_eq!(turned.0, 0);
         // A weak edge below the threshold supports nothing.
-        map.rebuild(&horizontal(30, 10..110, 1.0), window, 1.5);
-        assert_eq!(map.support([([10.0, 30.0], [109.0, 30.0])].into_iter(), angle).0, 0);
+        map.rebuild(&horizontal(30, 10..110, 1.0), window, 1.5, false);
+        assert_eq!(map.support([([10.0, 30.0], [109.0, 30.0], 0.0)].into_iter(), angle).0, 0);
     }
 
     #[test]
     fn rebuilding_forgets_the_last_frame() {
         let window = Window { x0: 0, y0: 0, x1: 64, y1: 48 };
         let mut map = CrossingMap::default();
-        map.rebuild(&horizontal(20, 0..64, 5.0), window, 1.5);
-        map.rebuild(&horizontal(40, 0..64, 5.0), window, 1.5);
+        map.rebuild(&horizontal(20, 0..64, 5.0), window, 1.5, false);
+        map.rebuild(&horizontal(40, 0..64, 5.0), window, 1.5, false);
         let angle = 20f64.to_radians();
-        assert_eq!(map.support([([0.0, 20.0], [63.0, 20.0])].into_iter(), angle).0, 0);
-        assert!(map.support([([0.0, 40.0], [63.0, 40.0])].into_iter(), angle).0 > 50);
+        assert_eq!(map.support([([0.0, 20.0], [63.0, 20.0], 0.0)].into_iter(), angle).0, 0);
+        assert!(map.support([([0.0, 40.0], [63.0, 40.0], 0.0)].into_iter(), angle).0 > 50);
+    }
+
+    /// A line that names its dark side is supported only by crossings dark
+    /// on that side: the same edge supports it one way round and not the
+    /// other, and a map without directions supports neither.
+    #[test]
+    fn a_line_with_a_dark_side_takes_only_crossings_of_that_contrast() {
+        let window = Window { x0: 0, y0: 0, x1: 120, y1: 60 };
+        let mut map = CrossingMap::default();
+        // Gradient along +y: bright above, dark below.
+        map.rebuild(&horizontal(30, 10..110, 5.0), window, 1.5, true);
+        let angle = 20f64.to_radians();
+        let (rightwards, leftwards) = (([10.0, 30.0], [109.0, 30.0]), ([109.0, 30.0], [10.0, 30.0]));
+        let count =
+            |map: &CrossingMap, (p, q): ([f64; 2], [f64; 2]), side: f64| map.support([(p, q, side)].into_iter(), angle);
+        let all = count(&map, rightwards, 0.0);
+        assert_eq!(all.0, all.1);
+        // Rightwards, the normal points down (+y), the dark side.
+        assert_eq!(count(&map, rightwards, 1.0), all);
+        assert_eq!(count(&map, rightwards, -1.0).0, 0);
+        assert_eq!(count(&map, leftwards, -1.0), all);
+        assert_eq!(count(&map, leftwards, 1.0).0, 0);
+        map.rebuild(&horizontal(30, 10..110, 5.0), window, 1.5, false);
+        assert_eq!(count(&map, rightwards, 0.0), all);
+        assert_eq!(count(&map, rightwards, 1.0).0, 0);
     }
 }

@@ -81,7 +81,9 @@
 //!    visible model edges' length, and at least `min_support` of that
 //!    length has a zero crossing along it (within 1 px across, at an edge
 //!    orientation within 20°: [`crate::track::support`]; two model edges on
-//!    one image line, as a shut lid's front on the box's rim, count once).
+//!    one image line, as a shut lid's front on the box's rim, count once;
+//!    with `remember_contrast`, along an edge whose contrast is remembered
+//!    only crossings of that contrast count: [`evidence`]).
 //!    The second test is independent of the matching: a few long clutter
 //!    segments can cover a quarter of a model put in the wrong place, but
 //!    the rest of its outline then runs over nothing. Otherwise it is
@@ -1178,9 +1180,11 @@ impl FrameView<'_> {
     /// zero crossing within 1 px across at an edge orientation within 20°
     /// of its own (a crossing's `theta` is the gradient's direction, across
     /// the edge), each part of the outline counted once
-    /// ([`distinct_outline`]).
+    /// ([`distinct_outline`]); along an edge with a remembered contrast
+    /// (`remember_contrast`), only crossings of that contrast.
     fn support_counts(&self, segs: &[ModelSegment]) -> Support {
-        self.crossing_map.support(distinct_outline(segs).into_iter(), SUPPORT_ANGLE_DEG.to_radians())
+        let pieces = distinct_outline(segs).into_iter().map(|(p, q, k)| (p, q, self.remembered_contrast(&segs[k])));
+        self.crossing_map.support(pieces, SUPPORT_ANGLE_DEG.to_radians())
     }
 }
 
@@ -1193,10 +1197,11 @@ const SAME_LINE_PX: f64 = 1.0;
 /// nearly parallel) is left out. Two edges can project onto one line — a
 /// shut lid's front on the box's rim, a hinge — and there the image has one
 /// edge: counted twice it would let an outline that folds a part onto
-/// another gain support from the fold alone.
-fn distinct_outline(segs: &[ModelSegment]) -> Vec<([f64; 2], [f64; 2])> {
+/// another gain support from the fold alone. Each piece comes with the
+/// index of its segment in `segs`.
+fn distinct_outline(segs: &[ModelSegment]) -> Vec<([f64; 2], [f64; 2], usize)> {
     let max_sine = 3f64.to_radians().sin();
-    let mut pieces: Vec<([f64; 2], [f64; 2])> = Vec::with_capacity(segs.len());
+    let mut pieces: Vec<([f64; 2], [f64; 2], usize)> = Vec::with_capacity(segs.len());
     // Intervals of a segment (by distance from its `a`) covered by earlier segments.
     let mut covered: Vec<[f64; 2]> = Vec::new();
     for (i, seg) in segs.iter().enumerate() {
@@ -1227,12 +1232,12 @@ fn distinct_outline(segs: &[ModelSegment]) -> Vec<([f64; 2], [f64; 2])> {
         let mut start = 0.0;
         for &[lo, hi] in &covered {
             if lo > start {
-                pieces.push((at(start), at(lo)));
+                pieces.push((at(start), at(lo), i));
             }
             start = f64::max(start, hi);
         }
         if start < length {
-            pieces.push((at(start), at(length)));
+            pieces.push((at(start), at(length), i));
         }
     }
     pieces
@@ -1428,7 +1433,12 @@ impl Tracker for LoweTracker {
         self.extractor.extract(crossings, self.window, &mut image_segments);
         self.image_segments = image_segments;
         self.index.build(&self.image_segments, self.window);
-        self.crossing_map.rebuild(crossings, self.window, self.params.segments.low_threshold);
+        self.crossing_map.rebuild(
+            crossings,
+            self.window,
+            self.params.segments.low_threshold,
+            self.params.remember_contrast,
+        );
         let segmented = std::time::Instant::now();
         let _ = estimation::take_solve_time();
         self.fade_contrast_memory();
@@ -1810,8 +1820,9 @@ mod tests {
             segment([50.0, -50.0], [50.0, 50.0]),
         ];
         let pieces = distinct_outline(&segs);
-        let lengths: Vec<f64> = pieces.iter().map(|&p| length(p)).collect();
+        let lengths: Vec<f64> = pieces.iter().map(|&(p, q, _)| length((p, q))).collect();
         assert_eq!(pieces.len(), 4, "{pieces:?}");
+        assert_eq!(pieces.iter().map(|&(_, _, k)| k).collect::<Vec<_>>(), vec![0, 2, 3, 4]);
         for (got, want) in lengths.iter().zip([100.0, 50.0, 100.0, 100.0]) {
             assert!((got - want).abs() < 1e-9, "{lengths:?}");
         }

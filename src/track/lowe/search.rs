@@ -32,7 +32,9 @@
 //!    last verified frames is remembered, while the same faces of it face
 //!    the camera ([`SearchFrame::remembered_contrast`]). Of two image
 //!    segments side by side on one model segment with opposite contrast,
-//!    the one of the contrast the edge has not shown does not join. A lid
+//!    the one of the contrast the edge has not shown does not join (and
+//!    the frame's verification counts only zero crossings of that
+//!    contrast along the edge: the tracker's module doc, step 7). A lid
 //!    edge holding pieces of its own line and of a parallel line 2 px
 //!    beside it of the other contrast (the hinged box half hidden, frame
 //!    93) is fitted between the two, and the lid turns 3° off. Replayed
