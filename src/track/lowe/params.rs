@@ -210,16 +210,18 @@ pub struct LoweParams {
     /// answers, px (`pipetrack score` counts a frame more than 5 px off as
     /// false tracking). Range: (0, 4096].
     pub ambiguous_distance_px: f64,
-    /// Whether locking on chooses between two lines of opposite contrast
-    /// side by side on one model edge by the contrast the edge has shown
-    /// on the last tracked frames ([`super::search`], step 4). Off by
-    /// default: it makes the fit more accurate and costs false tracking.
-    /// On the 360 runs of the stress sweep (`benches/lowe_sweep.sh`, seeds
-    /// 0–14 and 15–29) it lowered the mean vertex error of the frames on
-    /// target by 11–20 % in every scene and the hinged-box frames with the
-    /// lid more than 2° off from 914 to 832 and 822 to 765, but the frames
-    /// tracking more than 5 px off went from 26 to 29 and 20 to 25, with
-    /// three runs above 1 % of them against none.
+    /// Whether a model edge's contrast, as its matches showed it on the
+    /// last verified frames, chooses between two lines of opposite
+    /// contrast side by side on it while locking on ([`super::search`],
+    /// step 4), and whether the verification then counts along it only the
+    /// zero crossings of that contrast (the tracker's module doc, step 7).
+    /// Off by default. On the 360 runs of the stress sweep
+    /// (`benches/lowe_sweep.sh`, seeds 0–14 and 15–29) it lowered the mean
+    /// vertex error of the frames on target by 12–21 % in every scene, the
+    /// hinged-box frames with the lid more than 2° off from 914 to 719 and
+    /// 822 to 664, and the frames tracking more than 5 px off from 26 to 23
+    /// and 20 to 14, with 0.7 % fewer frames tracking; but two runs of seeds
+    /// 0–14 had more than 1 % of their frames that far off (none without).
     pub remember_contrast: bool,
     /// Linking, segmentation and indexing of the zero crossings (a
     /// `[segments]` table in a file of top-level keys, `[lowe.segments]`

@@ -33,16 +33,17 @@
 //!    the camera ([`SearchFrame::remembered_contrast`]). Of two image
 //!    segments side by side on one model segment with opposite contrast,
 //!    the one of the contrast the edge has not shown does not join (and
-//!    the frame's verification counts only zero crossings of that
-//!    contrast along the edge: the tracker's module doc, step 7). A lid
+//!    the frame's verification counts along the edge only the zero
+//!    crossings of the remembered contrast: the tracker's module doc,
+//!    step 7). A lid
 //!    edge holding pieces of its own line and of a parallel line 2 px
 //!    beside it of the other contrast (the hinged box half hidden, frame
 //!    93) is fitted between the two, and the lid turns 3° off. Replayed
 //!    over the matches of that run, wherever an edge held pieces of both
 //!    contrasts and the true pose told which was its own, the remembered
 //!    contrast was the right one in all 96 such cases (an edge on a frame)
-//!    where one was known, and in 107 of 109 at 20 px/frame. It costs false tracking all the same
-//!    (`LoweParams::remember_contrast`).
+//!    where one was known, and in 107 of 109 at 20 px/frame. Why it is not
+//!    the default: `LoweParams::remember_contrast`.
 //! 5. **Verification**: the branch ends the search only when its locked-on
 //!    solution is verified (overdetermined enough: see
 //!    [`SearchFrame::verify`]); otherwise the node counts as rejected (step
