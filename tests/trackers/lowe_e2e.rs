@@ -102,11 +102,17 @@ const HINGED_OCCLUDED: Case = Case { occlude: 0.5, max_lid_frames_over_2deg: 8, 
 /// With the contrast memory, no frame of the slow hinged box has the lid
 /// more than 2° off (2 without: frames 233 and 234, where a stripe of the
 /// background beside the lid's side joined it), and 4 with half the edges
-/// hidden (7 without).
+/// hidden (7 without); the mean vertex errors, 0.144 and 0.239 px, are
+/// below those without it (0.200 and 0.294 px).
 const HINGED_SLOW_CONTRAST: Case =
-    Case { remember_contrast: true, max_lid_frames_over_2deg: 0, max_lid_deg: 2.0, ..HINGED_SLOW };
-const HINGED_OCCLUDED_CONTRAST: Case =
-    Case { remember_contrast: true, max_lid_frames_over_2deg: 4, max_lid_deg: 5.0, ..HINGED_OCCLUDED };
+    Case { remember_contrast: true, max_mean_px: 0.17, max_lid_frames_over_2deg: 0, max_lid_deg: 2.0, ..HINGED_SLOW };
+const HINGED_OCCLUDED_CONTRAST: Case = Case {
+    remember_contrast: true,
+    max_mean_px: 0.27,
+    max_lid_frames_over_2deg: 4,
+    max_lid_deg: 5.0,
+    ..HINGED_OCCLUDED
+};
 
 /// The scene of `case`.
 fn render(case: &Case) -> SyntheticSequence {
