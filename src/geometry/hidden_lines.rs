@@ -105,9 +105,17 @@ pub struct VisibleEdgeParts {
     intervals: Vec<[f64; 2]>,
     /// Edge k's intervals are `intervals[starts[k]..starts[k + 1]]`.
     starts: Vec<usize>,
+    /// Whether each face faces the camera (the back-face test's answer).
+    facing: Vec<bool>,
 }
 
 impl VisibleEdgeParts {
+    /// Whether each face of the model faces the camera.
+    #[must_use]
+    pub fn facing_faces(&self) -> &[bool] {
+        &self.facing
+    }
+
     /// Number of edges.
     #[must_use]
     pub fn edge_count(&self) -> usize {
@@ -203,8 +211,11 @@ pub fn visible_edge_parts(geometry: &ModelGeometry, camera_vertices: &[DVec3], c
     let outline_tolerance = ON_OUTLINE_TOLERANCE * camera.fx.abs().max(camera.fy.abs());
 
     let edges = geometry.edges();
-    let mut parts =
-        VisibleEdgeParts { intervals: Vec::with_capacity(edges.len()), starts: Vec::with_capacity(edges.len() + 1) };
+    let mut parts = VisibleEdgeParts {
+        intervals: Vec::with_capacity(edges.len()),
+        starts: Vec::with_capacity(edges.len() + 1),
+        facing: Vec::new(),
+    };
     parts.starts.push(0);
     let mut hidden = Vec::new();
     let mut crossings = Vec::new();
@@ -226,6 +237,7 @@ pub fn visible_edge_parts(geometry: &ModelGeometry, camera_vertices: &[DVec3], c
         }
         parts.starts.push(parts.intervals.len());
     }
+    parts.facing = facing;
     parts
 }
 

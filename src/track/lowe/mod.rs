@@ -1096,13 +1096,17 @@ impl FrameView<'_> {
         let t = self.tracker;
         let Ok(lin) = Linearised::at(&t.geometry, state, t.centre) else { return };
         let parts = crate::geometry::hidden_lines::visible_edge_parts(&t.geometry, &lin.points, &t.camera);
-        let facing_faces = if t.params.remember_contrast { t.geometry.facing_faces(&lin.points) } else { Vec::new() };
         for (edge, intervals) in parts.iter().enumerate() {
-            let facing = t.geometry.edge_faces()[edge]
-                .iter()
-                .take(8)
-                .enumerate()
-                .fold(0u8, |bits, (k, &f)| if facing_faces.get(f) == Some(&true) { bits | 1 << k } else { bits });
+            // Only the contrast memory reads which faces of an edge face the camera.
+            let facing = if t.params.remember_contrast {
+                t.geometry.edge_faces()[edge]
+                    .iter()
+                    .take(8)
+                    .enumerate()
+                    .fold(0u8, |bits, (k, &f)| if parts.facing_faces()[f] { bits | 1 << k } else { bits })
+            } else {
+                0
+            };
             for &part in intervals {
                 let Some(inside) = projection::clip_to_image(&lin, &t.camera, t.geometry.edges()[edge], part) else {
                     continue;
