@@ -188,7 +188,11 @@
 //!     from the answer's, the image supports two different answers about
 //!     equally: the frame is reported `lost`, its reason naming the rival,
 //!     and the answer is still carried to the next frame as a verified one
-//!     (its velocity, window and bars are those of tracking). The hinged box
+//!     (its velocity, window and bars are those of tracking). A rival with
+//!     at least `ambiguous_carry_ratio` of the answer's supported samples
+//!     is carried on in the answer's place (its pose, joint values,
+//!     covariance and visible model; the joints it moved by a jump of
+//!     step 9 start from no velocity). The hinged box
 //!     half hidden at 20 px/frame, seed 14, held its lid shut on the box's
 //!     rim for eight frames while the lid opened 15–53° behind the band,
 //!     7–32 px off; on seven of them a search from the lid open gave a
@@ -552,7 +556,7 @@ impl LoweTracker {
             view.verified.borrow_mut().push(Verified {
                 supported: support.0,
                 matches: found.matches.len(),
-                state: found.solution.state.clone(),
+                solution: found.solution.clone(),
             });
             // A weakly supported solution does not end the search: a wider
             // range may hold a confident one (module doc, step 6).
@@ -846,8 +850,12 @@ impl LoweTracker {
                 if support_ratio < least_ratio {
                     return None;
                 }
-                let distance_px = mean_point_distance(&corners, &self.corners_at(&rival.state));
-                (distance_px > self.params.ambiguous_distance_px).then_some(Ambiguity { support_ratio, distance_px })
+                let distance_px = mean_point_distance(&corners, &self.corners_at(&rival.solution.state));
+                (distance_px > self.params.ambiguous_distance_px).then(|| Ambiguity {
+                    support_ratio,
+                    distance_px,
+                    rival: rival.solution.clone(),
+                })
             })
             .max_by(|a, b| a.support_ratio.total_cmp(&b.support_ratio))
     }
@@ -957,6 +965,7 @@ impl LoweTracker {
             lock_iterations: self.params.lock_iterations,
             lock_probability: self.params.lock_probability,
             swap_gap: self.params.swap_gap_px,
+            swap_residual_ratio: self.params.swap_residual_ratio,
         }
     }
 }
@@ -1043,18 +1052,20 @@ struct Verified {
     supported: usize,
     /// Its matches.
     matches: usize,
-    /// Its state.
-    state: State,
+    /// Its fit.
+    solution: estimation::Solution,
 }
 
 /// Another verified solution of the frame about as well supported as its
 /// answer and far from it (module doc, step 10).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct Ambiguity {
     /// Its supported outline samples over the answer's.
     support_ratio: f64,
     /// Mean distance between the two solutions' projected model vertices, px.
     distance_px: f64,
+    /// Its fit.
+    rival: estimation::Solution,
 }
 
 impl Found {
@@ -1509,6 +1520,14 @@ impl Tracker for LoweTracker {
             });
         }
         let ambiguity = accepted.as_ref().and_then(|found| self.ambiguity(found, &view.verified.borrow()));
+        // A rival clearly better supported than the answer is carried on in
+        // its place, with its visible model (module doc, step 10).
+        let carry_ratio = self.params.ambiguous_carry_ratio;
+        let carried = ambiguity.as_ref().filter(|a| carry_ratio > 0.0 && a.support_ratio >= carry_ratio).map(|a| {
+            let mut rival_segs = Vec::new();
+            view.visible_segments(&a.rival.state, &mut rival_segs);
+            (a.rival.clone(), rival_segs)
+        });
         let estimation = estimation::take_solve_time().as_secs_f64();
         diag.segments_ms = (segmented - started).as_secs_f64() * 1e3;
         diag.estimation_ms = estimation * 1e3;
@@ -1543,6 +1562,16 @@ impl Tracker for LoweTracker {
                 }
             }
         };
+        let (verified, carried_segs) = match (verified, carried) {
+            (Some(answer), Some((rival, rival_segs))) => {
+                joints_jumped = jumped_joints(&rival.state, &answer.state)
+                    .enumerate()
+                    .map(|(j, moved)| moved || joints_jumped.get(j).copied().unwrap_or(false))
+                    .collect();
+                (Some(rival), Some(rival_segs))
+            }
+            (verified, _) => (verified, None),
+        };
         // The overlay's bands: the visible model at the reported state (the
         // search's segments at the solution, or those at the prediction) with
         // the spread of its perpendicular position.
@@ -1562,21 +1591,30 @@ impl Tracker for LoweTracker {
                 self.first_doubling = 0;
                 self.lost_frames = 0;
                 self.phase = Phase::Tracking;
-                let final_segs = accepted
-                    .map(|found| {
-                        if self.params.remember_contrast {
-                            self.remember_contrast(&found.segs, &found.matches);
-                        }
-                        found.segs
-                    })
-                    .unwrap_or_default();
-                // An ambiguous answer is carried on, but not claimed.
+                // The contrast memory learns nothing from a frame whose
+                // rival is carried: its matches are not kept, and the
+                // answer's are not its.
+                let rival_carried = carried_segs.is_some();
+                let final_segs = match carried_segs {
+                    Some(rival_segs) => rival_segs,
+                    None => accepted
+                        .map(|found| {
+                            if self.params.remember_contrast {
+                                self.remember_contrast(&found.segs, &found.matches);
+                            }
+                            found.segs
+                        })
+                        .unwrap_or_default(),
+                };
+                // An ambiguous answer, or the rival carried in its place, is
+                // carried on, but not claimed.
                 let status = match ambiguity {
                     None => Status::Tracking,
-                    Some(Ambiguity { support_ratio, distance_px }) => {
+                    Some(Ambiguity { support_ratio, distance_px, .. }) => {
+                        let carried = if rival_carried { "; that one is carried on" } else { "" };
                         lost_reason = Some(format!(
                             "ambiguous: another verified solution {distance_px:.1} px away has {support_ratio:.2} \
-                             of this one's supported outline and at least as many matches"
+                             of this one's supported outline and at least as many matches{carried}"
                         ));
                         Status::Lost
                     }
@@ -1711,16 +1749,18 @@ mod tests {
         };
         // The lid is a third of the model's vertices, 1 m away.
         tracker.params.ambiguous_distance_px = 1.0;
-        let far = solution(1.2, 1e-4).state;
-        let near = solution(0.51, 1e-4).state;
-        let far_px = mean_point_distance(&tracker.corners_at(&answer.solution.state), &tracker.corners_at(&far));
+        let far = solution(1.2, 1e-4);
+        let near = solution(0.51, 1e-4);
+        let far_px = mean_point_distance(&tracker.corners_at(&answer.solution.state), &tracker.corners_at(&far.state));
         assert!(far_px > 1.0, "the lid 0.7 rad away moves the vertices {far_px} px on average");
-        let verified = |supported, matches, state: &State| Verified { supported, matches, state: state.clone() };
+        let verified =
+            |supported, matches, solution: &Solution| Verified { supported, matches, solution: solution.clone() };
         let rival = tracker
-            .ambiguity(&answer, &[verified(200, 12, &answer.solution.state), verified(192, 12, &far)])
+            .ambiguity(&answer, &[verified(200, 12, &answer.solution), verified(192, 12, &far)])
             .expect("ambiguous");
         assert!((rival.support_ratio - 0.96).abs() < 1e-12);
         assert!((rival.distance_px - far_px).abs() < 1e-9);
+        assert_eq!(rival.rival.state.params, far.state.params, "the rival's own fit");
         assert!(tracker.ambiguity(&answer, &[verified(188, 14, &far)]).is_none(), "less supported");
         assert!(tracker.ambiguity(&answer, &[verified(230, 11, &far)]).is_none(), "fewer matches");
         assert!(tracker.ambiguity(&answer, &[verified(230, 12, &near)]).is_none(), "the same answer");

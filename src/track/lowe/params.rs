@@ -191,6 +191,21 @@ pub struct LoweParams {
     /// the edges hidden; 6 px left 3 at 20 px/frame (the lid's 1 cm front
     /// is 2–6 px wide there). Range: [0, 50].
     pub swap_gap_px: f64,
+    /// A swap of `swap_gap_px` (see [`super::search`], step 6) that covers
+    /// no less of the model with as many matches is kept as well when its
+    /// residual σ is at most this share of the solution's. 0 keeps none
+    /// that way. 0.8: on frame 104 of the hinged box at 20 px/frame the
+    /// lid's 1 cm front showed one line, taken by the wrong one of its two
+    /// edges (lid 2.1° off); the swap to the other covered 5 px more, short
+    /// of a quarter of its length, at residual σ 0.58 px against 0.84 px.
+    /// With 0.8 no frame of that scene is more than 2° off (max 1.85°).
+    /// Over the 180 stress runs (`benches/lowe_sweep.sh`, seeds 0–14) the
+    /// hinged-box frames tracking with the lid more than 2° off went from
+    /// 914 to 788 and the mean vertex error on target fell 2–5 % on the
+    /// hinged box (the box's runs unchanged), for 50 964 → 50 882 frames
+    /// tracking and 26 → 28 false, no run above 1 %; SEEDS_15_29.
+    /// Range: [0, 1].
+    pub swap_residual_ratio: f64,
     /// A verified answer is reported `lost` (its state still carried to
     /// the next frame) when another verified solution of the frame's
     /// searches (wider ranges, slower predictions, the whole-image search,
@@ -210,6 +225,17 @@ pub struct LoweParams {
     /// answers, px (`pipetrack score` counts a frame more than 5 px off as
     /// false tracking). Range: (0, 4096].
     pub ambiguous_distance_px: f64,
+    /// An ambiguous frame's rival (see `ambiguous_support_ratio`) with at
+    /// least this share of the answer's supported outline samples is
+    /// carried on to the next frame in the answer's place (its pose, joint
+    /// values and covariance; the frame is still reported `lost`). 0 never
+    /// carries a rival. Alone it changes little: over the 180 stress runs
+    /// (seeds 0–14, `swap_residual_ratio` 0) 50 964 → 50 813 frames
+    /// tracking, 26 → 24 false. With
+    /// `remember_contrast` it holds the hinged box half hidden at 10
+    /// px/frame, seed 1, where the memory alone slid onto the band (7
+    /// false frames, none with 1.2): see RESULTS.md. Range: [0, 10].
+    pub ambiguous_carry_ratio: f64,
     /// Whether a model edge's contrast, as its matches showed it on the
     /// last verified frames, chooses between two lines of opposite
     /// contrast side by side on it while locking on ([`super::search`],
@@ -221,7 +247,11 @@ pub struct LoweParams {
     /// hinged-box frames with the lid more than 2° off from 914 to 719 and
     /// 822 to 664, and the frames tracking more than 5 px off from 26 to 23
     /// and 20 to 14, with 0.7 % fewer frames tracking; but two runs of seeds
-    /// 0–14 had more than 1 % of their frames that far off (none without).
+    /// 0–14 had more than 1 % of their frames that far off (none without;
+    /// these figures with `swap_residual_ratio` 0). With
+    /// `ambiguous_carry_ratio` 1.2 as well (and `swap_residual_ratio` 0.8),
+    /// seeds 0–14: 50 637 frames tracking, 18 false, the lid more than 2°
+    /// off on 559 hinged-box frames, one run above 1 % (RESULTS.md).
     pub remember_contrast: bool,
     /// Linking, segmentation and indexing of the zero crossings (a
     /// `[segments]` table in a file of top-level keys, `[lowe.segments]`
@@ -261,8 +291,10 @@ impl Default for LoweParams {
             search_max_rotation_sigma: 0.03,
             window_margin_px: 8.0,
             swap_gap_px: 8.0,
+            swap_residual_ratio: 0.8,
             ambiguous_support_ratio: 0.95,
             ambiguous_distance_px: 5.0,
+            ambiguous_carry_ratio: 0.0,
             remember_contrast: false,
             segments: SegmentParams::default(),
         }
@@ -311,8 +343,10 @@ impl LoweParams {
         )?;
         Interval::closed(0.0, 4096.0).check(WHO, "window_margin_px", self.window_margin_px, " px")?;
         Interval::closed(0.0, 50.0).check(WHO, "swap_gap_px", self.swap_gap_px, " px")?;
+        Interval::closed(0.0, 1.0).check(WHO, "swap_residual_ratio", self.swap_residual_ratio, "")?;
         Interval::closed(0.0, 10.0).check(WHO, "ambiguous_support_ratio", self.ambiguous_support_ratio, "")?;
         Interval::open_closed(0.0, 4096.0).check(WHO, "ambiguous_distance_px", self.ambiguous_distance_px, " px")?;
+        Interval::closed(0.0, 10.0).check(WHO, "ambiguous_carry_ratio", self.ambiguous_carry_ratio, "")?;
         self.segments.validate()
     }
 }

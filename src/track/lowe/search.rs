@@ -63,6 +63,10 @@
 //!    quarter of the neighbour's length: at the right state the edges
 //!    around the thin face (the lid's sides, whose image segments the
 //!    overlap test of eq. 3 refuses at the wrong one) find their matches.
+//!    It is kept as well when it covers no less with as many matches or
+//!    more and its residual σ is at most `swap_residual_ratio` of the
+//!    solution's: the sides may have found their matches either way (the
+//!    lid's 1 cm front 2–3 px wide), and only the closer fit tells.
 //!    When both lines of the pair were found and both joined the one model
 //!    segment (the fit then lies between them, 2 px off each), the swap
 //!    that gives the neighbour only the image segments on its side is
@@ -120,6 +124,10 @@ pub struct SearchSettings {
     /// Widest gap between parallel neighbours tried the other way round,
     /// px (module doc, step 6); 0 tries none.
     pub swap_gap: f64,
+    /// A swap that covers as much with as many matches is kept when its
+    /// residual σ is at most this share of the solution's (module doc,
+    /// step 6); 0 keeps none that way.
+    pub swap_residual_ratio: f64,
 }
 
 /// The result of one frame's search.
@@ -337,7 +345,15 @@ fn swap_parallel(
                 }
                 let (next, next_matches, next_segs, _) = lock_on(frame, problem, first, swapped, settings, needed);
                 let Some(support) = frame.verify(&next_segs, &next_matches, next.residual_sigma) else { continue };
-                if frame.covered_length(&next_segs, &next_matches) >= before + gain {
+                let covered = frame.covered_length(&next_segs, &next_matches);
+                // As much covered by as many matches, and a clearly closer fit.
+                let closer = covered >= before
+                    && next_matches.len() >= matches.len()
+                    && matches!(
+                        (next.residual_sigma, solution.residual_sigma),
+                        (Some(after), Some(now)) if after <= settings.swap_residual_ratio * now
+                    );
+                if covered >= before + gain || closer {
                     verified = Verified { solution: next, matches: next_matches, segs: next_segs, support };
                     kept += 1;
                     continue 'swaps;
@@ -571,6 +587,7 @@ mod tests {
             lock_iterations: 4,
             lock_probability: 0.5,
             swap_gap: 0.0,
+            swap_residual_ratio: 0.0,
         }
     }
 
