@@ -347,7 +347,8 @@ fn swap_parallel(
                 let Some(support) = frame.verify(&next_segs, &next_matches, next.residual_sigma) else { continue };
                 let covered = frame.covered_length(&next_segs, &next_matches);
                 // As much covered by as many matches, and a clearly closer fit.
-                let closer = covered >= before
+                let closer = settings.swap_residual_ratio > 0.0
+                    && covered >= before
                     && next_matches.len() >= matches.len()
                     && matches!(
                         (next.residual_sigma, solution.residual_sigma),
