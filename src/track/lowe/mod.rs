@@ -1521,13 +1521,9 @@ impl Tracker for LoweTracker {
         }
         let ambiguity = accepted.as_ref().and_then(|found| self.ambiguity(found, &view.verified.borrow()));
         // A rival clearly better supported than the answer is carried on in
-        // its place, with its visible model (module doc, step 10).
+        // its place (module doc, step 10).
         let carry_ratio = self.params.ambiguous_carry_ratio;
-        let carried = ambiguity.as_ref().filter(|a| carry_ratio > 0.0 && a.support_ratio >= carry_ratio).map(|a| {
-            let mut rival_segs = Vec::new();
-            view.visible_segments(&a.rival.state, &mut rival_segs);
-            (a.rival.clone(), rival_segs)
-        });
+        let rival_carried = ambiguity.as_ref().is_some_and(|a| carry_ratio > 0.0 && a.support_ratio >= carry_ratio);
         let estimation = estimation::take_solve_time().as_secs_f64();
         diag.segments_ms = (segmented - started).as_secs_f64() * 1e3;
         diag.estimation_ms = estimation * 1e3;
@@ -1562,15 +1558,20 @@ impl Tracker for LoweTracker {
                 }
             }
         };
-        let (verified, carried_segs) = match (verified, carried) {
-            (Some(answer), Some((rival, rival_segs))) => {
+        // The carried rival's visible model replaces the answer's.
+        let mut carried_segs = None;
+        let verified = match (verified, &ambiguity) {
+            (Some(answer), Some(Ambiguity { rival, .. })) if rival_carried => {
                 joints_jumped = jumped_joints(&rival.state, &answer.state)
                     .enumerate()
                     .map(|(j, moved)| moved || joints_jumped.get(j).copied().unwrap_or(false))
                     .collect();
-                (Some(rival), Some(rival_segs))
+                let mut rival_segs = Vec::new();
+                view.visible_segments(&rival.state, &mut rival_segs);
+                carried_segs = Some(rival_segs);
+                Some(rival.clone())
             }
-            (verified, _) => (verified, None),
+            (verified, _) => verified,
         };
         // The overlay's bands: the visible model at the reported state (the
         // search's segments at the solution, or those at the prediction) with
@@ -1594,7 +1595,6 @@ impl Tracker for LoweTracker {
                 // The contrast memory learns nothing from a frame whose
                 // rival is carried: its matches are not kept, and the
                 // answer's are not its.
-                let rival_carried = carried_segs.is_some();
                 let final_segs = match carried_segs {
                     Some(rival_segs) => rival_segs,
                     None => accepted
