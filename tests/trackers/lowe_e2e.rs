@@ -389,7 +389,8 @@ fn lowe_does_not_claim_an_ambiguous_answer_cpu() {
 /// at frame 127, 3.6 px off, a rival 5.3 px away had 1.29 times the
 /// answer's supported outline; carried on, the answer slid onto the band's
 /// long edges, verified on frames 128–134 (7 false frames). Carrying the
-/// rival instead (`ambiguous_carry_ratio` 1.2) holds the run.
+/// rival instead (`ambiguous_carry_ratio` 1.2) leaves no frame false, with
+/// 294 of 300 tracking, as many as without the memory.
 const HINGED_OCCLUDED_10_SEED_1_CARRIED: Case = Case {
     speed: 10.0,
     occlude: 0.5,

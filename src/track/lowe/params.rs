@@ -233,10 +233,10 @@ pub struct LoweParams {
     /// values and covariance; the frame is still reported `lost`). 0 never
     /// carries a rival. Alone it changes little: over the 180 stress runs
     /// (seeds 0–14, `swap_residual_ratio` 0) 50 964 → 50 813 frames
-    /// tracking, 26 → 24 false. With
-    /// `remember_contrast` it holds the hinged box half hidden at 10
-    /// px/frame, seed 1, where the memory alone slid onto the band (7
-    /// false frames, none with 1.2): see RESULTS.md. Range: [0, 10].
+    /// tracking, 26 → 24 false. With `remember_contrast`, on the hinged
+    /// box half hidden at 10 px/frame, seed 1, where the memory alone slid
+    /// onto the band (7 false frames), 1.2 leaves none false (294 of 300
+    /// frames tracking, as by default): see RESULTS.md. Range: [0, 10].
     pub ambiguous_carry_ratio: f64,
     /// Whether a model edge's contrast, as its matches showed it on the
     /// last verified frames, chooses between two lines of opposite
