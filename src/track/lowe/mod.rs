@@ -851,13 +851,14 @@ impl LoweTracker {
                     return None;
                 }
                 let distance_px = mean_point_distance(&corners, &self.corners_at(&rival.solution.state));
-                (distance_px > self.params.ambiguous_distance_px).then(|| Ambiguity {
-                    support_ratio,
-                    distance_px,
-                    rival: rival.solution.clone(),
-                })
+                (distance_px > self.params.ambiguous_distance_px).then_some((support_ratio, distance_px, rival))
             })
-            .max_by(|a, b| a.support_ratio.total_cmp(&b.support_ratio))
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(support_ratio, distance_px, rival)| Ambiguity {
+                support_ratio,
+                distance_px,
+                rival: rival.solution.clone(),
+            })
     }
 
     /// The joint swing of step 9 (module doc): each joint of `state` set to
