@@ -42,9 +42,8 @@ struct Case {
     max_lid_frames_over_2deg: usize,
     /// Largest lid angle error, degrees (hinged box).
     max_lid_deg: f64,
-    /// `LoweParams::remember_contrast` (the other parameters' defaults).
-    remember_contrast: bool,
-    /// `LoweParams::ambiguous_carry_ratio`.
+    /// `LoweParams::ambiguous_carry_ratio` (the other parameters'
+    /// defaults).
     carry_ratio: f64,
 }
 
@@ -59,17 +58,21 @@ const BOX_SLOW: Case = Case {
     max_mean_px: 1.0,
     max_lid_frames_over_2deg: 0,
     max_lid_deg: 0.0,
-    remember_contrast: false,
     carry_ratio: 0.0,
 };
 const BOX_FAST: Case = Case { speed: 20.0, ..BOX_SLOW };
 const BOX_OCCLUDED: Case = Case { occlude: 0.5, ..BOX_SLOW };
-const HINGED_SLOW: Case = Case { kind: BoxKind::Hinged, max_lid_frames_over_2deg: 3, max_lid_deg: 6.0, ..BOX_SLOW };
+/// With the contrast memory (`remember_contrast`), no frame of the slow
+/// hinged box has the lid more than 2° off (2 without: frames 233 and 234,
+/// where a stripe of the background beside the lid's side joined it), and
+/// the mean vertex error is 0.141 px (0.200 without).
+const HINGED_SLOW: Case =
+    Case { kind: BoxKind::Hinged, max_mean_px: 0.17, max_lid_frames_over_2deg: 0, max_lid_deg: 2.0, ..BOX_SLOW };
 /// At 20 px/frame the lid stays within 2° on every frame: on frame 104
 /// its 1 cm front, 2–3 px wide, showed one line, taken by the wrong one of
 /// its two edges (2.1° off) until a swap with a clearly closer fit is kept
 /// (`swap_residual_ratio`).
-const HINGED_FAST: Case = Case { speed: 20.0, max_lid_frames_over_2deg: 0, max_lid_deg: 2.0, ..HINGED_SLOW };
+const HINGED_FAST: Case = Case { speed: 20.0, max_mean_px: 1.0, ..HINGED_SLOW };
 /// Beyond the goal's 20 px/frame: the box turns up to ≈ 17° per frame, the
 /// hinged box ≈ 10°; at least 95 % of the frames tracking, at most 1 % of
 /// them more than 5 px off.
@@ -78,6 +81,7 @@ const HINGED_25: Case = Case {
     speed: 25.0,
     min_tracked: 285,
     max_false: 3,
+    max_mean_px: 1.0,
     max_lid_frames_over_2deg: 300,
     max_lid_deg: 180.0,
     ..HINGED_SLOW
@@ -102,24 +106,11 @@ const BOX_OCCLUDED_10: Case = Case { speed: 10.0, occlude: 0.5, min_tracked: 295
 /// as the box seen face on with the rotation's σ 3.1–4.8° (9 frames
 /// tracking off target). A re-acquisition must now fix the rotation.
 const BOX_OCCLUDED_10_SEED_9: Case = Case { seed: 9, min_tracked: 250, ..BOX_OCCLUDED_10 };
-/// A joint's velocity only from frames that measured it: 7 frames with the
-/// lid more than 2° off (13 with a step from an unmeasured lid
+/// Half the edges hidden: 4 frames with the lid more than 2° off (7
+/// without the contrast memory; 13 with a step from an unmeasured lid
 /// extrapolated, frames 245–255 behind the band).
-const HINGED_OCCLUDED: Case = Case { occlude: 0.5, max_lid_frames_over_2deg: 8, max_lid_deg: 6.0, ..HINGED_SLOW };
-/// With the contrast memory, no frame of the slow hinged box has the lid
-/// more than 2° off (2 without: frames 233 and 234, where a stripe of the
-/// background beside the lid's side joined it), and 4 with half the edges
-/// hidden (7 without); the mean vertex errors, 0.144 and 0.239 px, are
-/// below those without it (0.200 and 0.294 px).
-const HINGED_SLOW_CONTRAST: Case =
-    Case { remember_contrast: true, max_mean_px: 0.17, max_lid_frames_over_2deg: 0, max_lid_deg: 2.0, ..HINGED_SLOW };
-const HINGED_OCCLUDED_CONTRAST: Case = Case {
-    remember_contrast: true,
-    max_mean_px: 0.27,
-    max_lid_frames_over_2deg: 4,
-    max_lid_deg: 5.0,
-    ..HINGED_OCCLUDED
-};
+const HINGED_OCCLUDED: Case =
+    Case { occlude: 0.5, max_mean_px: 1.0, max_lid_frames_over_2deg: 4, max_lid_deg: 5.0, ..HINGED_SLOW };
 
 /// The scene of `case`.
 fn render(case: &Case) -> SyntheticSequence {
@@ -149,11 +140,7 @@ fn track(
 /// Track `case` on `backend`, assert its figures and return the results.
 fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<FrameResult> {
     let seq = render(case);
-    let params = LoweParams {
-        remember_contrast: case.remember_contrast,
-        ambiguous_carry_ratio: case.carry_ratio,
-        ..LoweParams::default()
-    };
+    let params = LoweParams { ambiguous_carry_ratio: case.carry_ratio, ..LoweParams::default() };
     let (results, lost) = track(&seq, params, backend);
     let s = score(&seq.truth, &results).expect("score");
     let stats = s.stats.expect("scored frames");
@@ -175,13 +162,12 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<
         .map(|&(f, e)| format!("{f}: {e:.1}° (σ {:.1}°)", lid_sigma(f)))
         .collect();
     let label = format!(
-        "{backend_name}, {}, {} px/frame, occlude {}, noise {}, seed {}{}{}",
+        "{backend_name}, {}, {} px/frame, occlude {}, noise {}, seed {}{}",
         case.kind.name(),
         case.speed,
         case.occlude,
         case.noise,
         case.seed,
-        if case.remember_contrast { ", contrast memory" } else { "" },
         if case.carry_ratio > 0.0 { format!(", rivals carried from {}", case.carry_ratio) } else { String::new() }
     );
     eprintln!(
@@ -238,13 +224,6 @@ fn lowe_holds_hinged_box_occluded_cpu() {
 }
 
 #[test]
-fn lowe_with_contrast_memory_holds_the_lid_within_2_degrees_on_the_slow_hinged_box_cpu() {
-    for case in [&HINGED_SLOW_CONTRAST, &HINGED_OCCLUDED_CONTRAST] {
-        check(case, &mut CpuBackend::new(), "cpu");
-    }
-}
-
-#[test]
 fn lowe_holds_25_px_per_frame_without_false_tracking_cpu() {
     for case in [BOX_25, Case { seed: 2, ..BOX_25 }, HINGED_25, Case { seed: 1, ..HINGED_25 }] {
         check(&case, &mut CpuBackend::new(), "cpu");
@@ -294,8 +273,10 @@ fn lowe_swings_the_box_about_the_hinge_under_a_well_fitted_lid_cpu() {
 /// ten frames, and searched with the lid at its last verified angle, the
 /// whole image gave the box back only where the lid came near that angle
 /// again (233 of 300 frames, lost for 33 and 34 frames). Searched with the
-/// best supported lid angle at each position of the grid, it holds 284.
-const HINGED_30_SEED_10: Case = Case { seed: 10, min_tracked: 275, ..HINGED_30 };
+/// best supported lid angle at each position of the grid, it holds 283
+/// without the contrast memory and 254 with it (lost on frames 72–83 and
+/// 143–176, found again each time).
+const HINGED_30_SEED_10: Case = Case { seed: 10, min_tracked: 250, ..HINGED_30 };
 
 #[test]
 fn lowe_reacquires_the_hinged_box_with_its_lid_moved_cpu() {
@@ -307,8 +288,10 @@ fn lowe_reacquires_the_hinged_box_with_its_lid_moved_cpu() {
 /// box at 25 px/frame seed 8 held 235 of its frames and the box at
 /// 30 px/frame seed 12 held 260 (one of them 14 px off); searched again
 /// from slower predictions (`search_slower_predictions`), each holds every
-/// frame, none more than 5 px off.
-const HINGED_25_SEED_8: Case = Case { seed: 8, min_tracked: 300, max_false: 0, ..HINGED_25 };
+/// frame but frame 40 of the hinged box, reported ambiguous (step 10: a
+/// rival 13.6 px away with 0.95 of the answer's support; with the contrast
+/// memory), none more than 5 px off.
+const HINGED_25_SEED_8: Case = Case { seed: 8, min_tracked: 299, max_false: 0, ..HINGED_25 };
 const BOX_30_SEED_12: Case = Case { seed: 12, min_tracked: 300, max_false: 0, ..BOX_30 };
 
 #[test]
@@ -359,10 +342,11 @@ const HINGED_OCCLUDED_30: Case = Case { speed: 30.0, occlude: 0.5, seed: 1, min_
 /// from the fold, and the fold stayed for five frames, 7–22 px off. The
 /// margin now counts from the prediction when that is nearer. Frames 47
 /// and 50, their lid 9.5° and 13.8° off, are ambiguous (step 10) and lost.
-/// Lost behind the band from frame 85, the box is found again at frame 107
-/// (at 99 before the closer-fit swaps of `swap_residual_ratio`): 271
-/// frames tracking, none false.
-const HINGED_OCCLUDED_30_SEED_0: Case = Case { seed: 0, min_tracked: 270, ..HINGED_OCCLUDED_30 };
+/// Lost behind the band from frame 85, the box is found again at frame 98
+/// (at 107 without the contrast memory), and lost again from 279 to the
+/// end (without it only frame 280): 260 frames tracking, one false (frame
+/// 245; 271 and none without).
+const HINGED_OCCLUDED_30_SEED_0: Case = Case { seed: 0, min_tracked: 255, ..HINGED_OCCLUDED_30 };
 
 /// Half the edges hidden at 20 px/frame, seed 14: on frames 73–80 the
 /// lid, opening from 15° to 53° behind the band, was held shut on the box's
@@ -385,26 +369,34 @@ fn lowe_does_not_claim_an_ambiguous_answer_cpu() {
     }
 }
 
-/// Half the edges hidden at 10 px/frame, seed 1, with the contrast memory:
-/// at frame 127, 3.6 px off, a rival 5.3 px away had 1.29 times the
-/// answer's supported outline; carried on, the answer slid onto the band's
-/// long edges, verified on frames 128–134 (7 false frames). Carrying the
-/// rival instead (`ambiguous_carry_ratio` 1.2) leaves no frame false, with
-/// 294 of 300 tracking, as many as without the memory.
-const HINGED_OCCLUDED_10_SEED_1_CARRIED: Case = Case {
-    speed: 10.0,
-    occlude: 0.5,
-    seed: 1,
-    min_tracked: 290,
-    max_false: 0,
-    remember_contrast: true,
-    carry_ratio: 1.2,
-    ..HINGED_25
-};
+/// The contrast memory learns only from frames with at least 0.6 of the
+/// outline supported (`remember_contrast_min_support`). Half the edges
+/// hidden at 10 px/frame, seed 1: learning from every verified frame, the
+/// answer slid onto the band's long edges, verified on frames 128–134
+/// (7 false frames). At 20 px/frame, seed 7: at frame 239, under the band,
+/// a lid edge took a line 10 px from its own and the memory learnt that
+/// line's contrast (4 false frames). Both now have none.
+const HINGED_OCCLUDED_10_SEED_1: Case =
+    Case { speed: 10.0, occlude: 0.5, seed: 1, min_tracked: 290, max_false: 0, ..HINGED_25 };
+const HINGED_OCCLUDED_FAST_SEED_7: Case = Case { seed: 7, min_tracked: 275, max_false: 0, ..HINGED_OCCLUDED_FAST };
+/// A rival carried in the answer's place (`ambiguous_carry_ratio` 1.2, off
+/// by default): the box half hidden at 20 px/frame, seed 1, had at frame
+/// 129 a rival 13.6 px away with 1.27 times the answer's supported outline;
+/// the answer carried on, frame 130 was tracking 5 px off or more (279
+/// frames tracking); the rival carried, 284 and none false.
+const BOX_OCCLUDED_FAST_SEED_1_CARRIED: Case =
+    Case { speed: 20.0, occlude: 0.5, seed: 1, min_tracked: 280, max_false: 0, carry_ratio: 1.2, ..BOX_SLOW };
+
+#[test]
+fn lowe_contrast_memory_learns_only_from_well_supported_frames_cpu() {
+    for case in [HINGED_OCCLUDED_10_SEED_1, HINGED_OCCLUDED_FAST_SEED_7] {
+        check(&case, &mut CpuBackend::new(), "cpu");
+    }
+}
 
 #[test]
 fn lowe_carries_a_clearly_better_supported_rival_cpu() {
-    check(&HINGED_OCCLUDED_10_SEED_1_CARRIED, &mut CpuBackend::new(), "cpu");
+    check(&BOX_OCCLUDED_FAST_SEED_1_CARRIED, &mut CpuBackend::new(), "cpu");
 }
 
 #[test]

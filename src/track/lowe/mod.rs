@@ -42,9 +42,10 @@
 //!    when the system is unable to find the object").
 //! 6. **Best-first search and locking on** ([`search`]), each solution a
 //!    stabilised Gauss–Newton fit ([`estimation`], eq. 1); with
-//!    `remember_contrast`, each verified frame's matches add to the
-//!    contrast memory of their edges that locking on consults ([`search`],
-//!    step 4). A verified solution (step 7) whose outline support is below
+//!    `remember_contrast`, each verified frame's matches (of a frame with
+//!    at least `remember_contrast_min_support` of its outline supported)
+//!    add to the contrast memory of their edges that locking on consults
+//!    ([`search`], step 4). A verified solution (step 7) whose outline support is below
 //!    `confident_support` does not end the search (our addition): the
 //!    wider ranges are searched as well, and the first verified solution
 //!    there with that support replaces it. At an abrupt reversal the first range's best set can fit
@@ -315,7 +316,8 @@ pub struct LoweTracker {
 }
 
 /// The contrast a model edge's matches have shown on the verified frames
-/// with the same faces facing the camera.
+/// the memory learns from (`remember_contrast_min_support`) with the same
+/// faces facing the camera.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct EdgeContrast {
     /// [`ModelSegment::facing`] of the edge on those frames.
@@ -323,11 +325,12 @@ struct EdgeContrast {
     /// The matched image segments' lengths, px, signed by the side of the
     /// model segment they are dark on (+ along its normal), summed over
     /// the frames whose matches of the edge all had one contrast, each
-    /// frame's weight [`CONTRAST_MEMORY_DECAY`] times the next one's.
+    /// learning frame's weight [`CONTRAST_MEMORY_DECAY`] times the next
+    /// one's (frames it does not learn from do not fade it).
     dark_side_px: f64,
 }
 
-/// Weight of a frame's contrast evidence against the next frame's.
+/// Weight of a learning frame's contrast evidence against the next one's.
 const CONTRAST_MEMORY_DECAY: f64 = 0.9;
 /// Least remembered length, px, for an edge's contrast to count as known.
 const CONTRAST_MEMORY_MIN_PX: f64 = 20.0;
@@ -916,8 +919,8 @@ impl LoweTracker {
             && residual.is_some_and(|r| r > self.params.loose_fit_residual_ratio * self.params.measurement_sigma_px)
     }
 
-    /// Each frame weighs [`CONTRAST_MEMORY_DECAY`] times the next one in
-    /// the edges' contrast memory.
+    /// Each learning frame weighs [`CONTRAST_MEMORY_DECAY`] times the next
+    /// one in the edges' contrast memory.
     fn fade_contrast_memory(&mut self) {
         for memory in &mut self.contrast_memory {
             memory.dark_side_px *= CONTRAST_MEMORY_DECAY;
@@ -1457,7 +1460,6 @@ impl Tracker for LoweTracker {
         );
         let segmented = std::time::Instant::now();
         let _ = estimation::take_solve_time();
-        self.fade_contrast_memory();
 
         let n = self.n();
         let ctx = MatchContext {
@@ -1600,7 +1602,10 @@ impl Tracker for LoweTracker {
                     Some(rival_segs) => rival_segs,
                     None => accepted
                         .map(|found| {
-                            if self.params.remember_contrast {
+                            if self.params.remember_contrast
+                                && diag.support >= self.params.remember_contrast_min_support
+                            {
+                                self.fade_contrast_memory();
                                 self.remember_contrast(&found.segs, &found.matches);
                             }
                             found.segs
@@ -1776,7 +1781,7 @@ mod tests {
     /// An edge's matches of one contrast add their length on its dark
     /// side; matches of both contrasts add nothing; a match running along
     /// the edge is not counted; the memory fades by
-    /// [`super::CONTRAST_MEMORY_DECAY`] a frame and starts again when other
+    /// [`super::CONTRAST_MEMORY_DECAY`] a learning frame and starts again when other
     /// faces of the edge face the camera.
     #[test]
     fn an_edge_remembers_the_contrast_of_its_matches_while_its_faces_stay() {

@@ -231,30 +231,39 @@ pub struct LoweParams {
     /// least this share of the answer's supported outline samples is
     /// carried on to the next frame in the answer's place (its pose, joint
     /// values and covariance; the frame is still reported `lost`). 0 never
-    /// carries a rival. Alone it changes little: over the 180 stress runs
-    /// (seeds 0–14, `swap_residual_ratio` 0) 50 964 → 50 813 frames
-    /// tracking, 26 → 24 false. With `remember_contrast`, on the hinged
-    /// box half hidden at 10 px/frame, seed 1, where the memory alone slid
-    /// onto the band (7 false frames), 1.2 leaves none false (294 of 300
-    /// frames tracking, as by default): see RESULTS.md. Range: [0, 10].
+    /// carries a rival. The rival is often the worse answer: over the 180
+    /// stress runs of seeds 0–14 (`benches/lowe_sweep.sh`, the other
+    /// settings by default) 1.2 leaves the false frames at 24 and takes
+    /// the frames tracking from 50 787 to 50 561; the box half hidden at 10
+    /// px/frame, seed 0, carried a rival 23.5 px off the box at frame 66
+    /// and was lost for 29 frames (RESULTS.md). Range: [0, 10].
     pub ambiguous_carry_ratio: f64,
     /// Whether a model edge's contrast, as its matches showed it on the
     /// last verified frames, chooses between two lines of opposite
     /// contrast side by side on it while locking on ([`super::search`],
     /// step 4), and whether the verification then counts along it only the
     /// zero crossings of that contrast (the tracker's module doc, step 7).
-    /// Off by default. On the 360 runs of the stress sweep
-    /// (`benches/lowe_sweep.sh`, seeds 0–14 and 15–29) it lowered the mean
-    /// vertex error of the frames on target by 12–21 % in every scene, the
-    /// hinged-box frames with the lid more than 2° off from 914 to 719 and
-    /// 822 to 664, and the frames tracking more than 5 px off from 26 to 23
-    /// and 20 to 14, with 0.7 % fewer frames tracking; but two runs of seeds
-    /// 0–14 had more than 1 % of their frames that far off (none without;
-    /// these figures with `swap_residual_ratio` 0). With
-    /// `ambiguous_carry_ratio` 1.2 as well (and `swap_residual_ratio` 0.8),
-    /// seeds 0–14: 50 637 frames tracking, 18 false, the lid more than 2°
-    /// off on 559 hinged-box frames, one run above 1 % (RESULTS.md).
+    /// On by default, with `remember_contrast_min_support` 0.6. Over the
+    /// 360 runs of the stress sweep (`benches/lowe_sweep.sh`, seeds 0–14
+    /// and 15–29), against the memory off: the mean vertex error of the
+    /// frames on target 12–21 % lower in every scene, the hinged-box frames
+    /// with the lid more than 2° off 788 → 580 and 597 → 487, the frames
+    /// tracking more than 5 px off 28 → 24 and 20 → 14, no run above
+    /// 1 % either way, for 50 882 → 50 787 and 50 750 → 50 402 frames
+    /// tracking. The slow hinged box of the acceptance runs has no frame
+    /// with the lid more than 2° off (2 without).
     pub remember_contrast: bool,
+    /// With `remember_contrast`, the contrast memory learns only from
+    /// verified frames with at least this share of their visible outline
+    /// supported (zero crossings along it, the tracker's module doc, step
+    /// 7), and fades only on those: behind an occluder, where a fit to a
+    /// line beside an edge is the likelier, it keeps what it learnt before.
+    /// 0 learns from every verified frame. With 0, the hinged box half
+    /// hidden at 20 px/frame, seed 7, has 4 false frames (at 239, under the
+    /// band, a lid edge took a line 10 px from its own and the memory
+    /// learnt that line's contrast), and at 10 px/frame, seed 1, 7; with
+    /// 0.6 none. Range: [0, 1].
+    pub remember_contrast_min_support: f64,
     /// Linking, segmentation and indexing of the zero crossings (a
     /// `[segments]` table in a file of top-level keys, `[lowe.segments]`
     /// in one with a `[lowe]` table; see [`SegmentParams`]).
@@ -297,7 +306,8 @@ impl Default for LoweParams {
             ambiguous_support_ratio: 0.95,
             ambiguous_distance_px: 5.0,
             ambiguous_carry_ratio: 0.0,
-            remember_contrast: false,
+            remember_contrast: true,
+            remember_contrast_min_support: 0.6,
             segments: SegmentParams::default(),
         }
     }
@@ -349,6 +359,12 @@ impl LoweParams {
         Interval::closed(0.0, 10.0).check(WHO, "ambiguous_support_ratio", self.ambiguous_support_ratio, "")?;
         Interval::open_closed(0.0, 4096.0).check(WHO, "ambiguous_distance_px", self.ambiguous_distance_px, " px")?;
         Interval::closed(0.0, 10.0).check(WHO, "ambiguous_carry_ratio", self.ambiguous_carry_ratio, "")?;
+        Interval::closed(0.0, 1.0).check(
+            WHO,
+            "remember_contrast_min_support",
+            self.remember_contrast_min_support,
+            "",
+        )?;
         self.segments.validate()
     }
 }

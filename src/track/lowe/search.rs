@@ -26,7 +26,7 @@
 //!    matches more probable than before (the threshold moves half way to
 //!    1). This repeats until the set stops changing, at most
 //!    `lock_iterations` times.
-//!    With `remember_contrast` (our addition, off by default), an edge of
+//!    With `remember_contrast` (our addition, on by default), an edge of
 //!    the model keeps one contrast along its length (it separates the same
 //!    two surfaces), and the side of it its matches were dark on over the
 //!    last verified frames is remembered, while the same faces of it face
@@ -42,8 +42,8 @@
 //!    over the matches of that run, wherever an edge held pieces of both
 //!    contrasts and the true pose told which was its own, the remembered
 //!    contrast was the right one in all 96 such cases (an edge on a frame)
-//!    where one was known, and in 107 of 109 at 20 px/frame. Why it is not
-//!    the default: `LoweParams::remember_contrast`.
+//!    where one was known, and in 107 of 109 at 20 px/frame. What it
+//!    gains over the stress runs: `LoweParams::remember_contrast`.
 //! 5. **Verification**: the branch ends the search only when its locked-on
 //!    solution is verified (overdetermined enough: see
 //!    [`SearchFrame::verify`]); otherwise the node counts as rejected (step
