@@ -106,11 +106,12 @@ const BOX_OCCLUDED_10: Case = Case { speed: 10.0, occlude: 0.5, min_tracked: 295
 /// as the box seen face on with the rotation's σ 3.1–4.8° (9 frames
 /// tracking off target). A re-acquisition must now fix the rotation.
 const BOX_OCCLUDED_10_SEED_9: Case = Case { seed: 9, min_tracked: 250, ..BOX_OCCLUDED_10 };
-/// Half the edges hidden: 4 frames with the lid more than 2° off (7
-/// without the contrast memory; 13 with a step from an unmeasured lid
-/// extrapolated, frames 245–255 behind the band).
+/// Half the edges hidden: 4 frames with the lid more than 2° off and a
+/// mean vertex error of 0.238 px (7 and 0.291 px without the contrast
+/// memory; 13 frames with a step from an unmeasured lid extrapolated,
+/// frames 245–255 behind the band).
 const HINGED_OCCLUDED: Case =
-    Case { occlude: 0.5, max_mean_px: 1.0, max_lid_frames_over_2deg: 4, max_lid_deg: 5.0, ..HINGED_SLOW };
+    Case { occlude: 0.5, max_mean_px: 0.27, max_lid_frames_over_2deg: 4, max_lid_deg: 5.0, ..HINGED_SLOW };
 
 /// The scene of `case`.
 fn render(case: &Case) -> SyntheticSequence {
@@ -135,6 +136,13 @@ fn track(
     let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, params).expect("lowe tracker");
     let size = (seq.camera.width as usize, seq.camera.height as usize);
     common::track_lost(&mut tracker, backend, seq.frames.iter().cloned(), size)
+}
+
+/// [`check`] each of `cases` on the CPU backend.
+fn check_each_cpu(cases: &[Case]) {
+    for case in cases {
+        check(case, &mut CpuBackend::new(), "cpu");
+    }
 }
 
 /// Track `case` on `backend`, assert its figures and return the results.
@@ -203,9 +211,7 @@ fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<
 
 #[test]
 fn lowe_holds_box_slow_fast_and_occluded_cpu() {
-    for case in [&BOX_SLOW, &BOX_FAST, &BOX_OCCLUDED, &BOX_OCCLUDED_10, &BOX_OCCLUDED_10_SEED_9] {
-        check(case, &mut CpuBackend::new(), "cpu");
-    }
+    check_each_cpu(&[BOX_SLOW, BOX_FAST, BOX_OCCLUDED, BOX_OCCLUDED_10, BOX_OCCLUDED_10_SEED_9]);
 }
 
 #[test]
@@ -225,9 +231,7 @@ fn lowe_holds_hinged_box_occluded_cpu() {
 
 #[test]
 fn lowe_holds_25_px_per_frame_without_false_tracking_cpu() {
-    for case in [BOX_25, Case { seed: 2, ..BOX_25 }, HINGED_25, Case { seed: 1, ..HINGED_25 }] {
-        check(&case, &mut CpuBackend::new(), "cpu");
-    }
+    check_each_cpu(&[BOX_25, Case { seed: 2, ..BOX_25 }, HINGED_25, Case { seed: 1, ..HINGED_25 }]);
 }
 
 /// Seed 5: frames 14, 60, 106, 243, 268 and 289 began losses after abrupt
@@ -238,9 +242,7 @@ const BOX_30_SEED_5: Case = Case { seed: 5, min_tracked: 270, ..BOX_30 };
 
 #[test]
 fn lowe_at_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
-    for case in [BOX_30, Case { seed: 1, ..BOX_30 }, BOX_30_SEED_5, HINGED_30] {
-        check(&case, &mut CpuBackend::new(), "cpu");
-    }
+    check_each_cpu(&[BOX_30, Case { seed: 1, ..BOX_30 }, BOX_30_SEED_5, HINGED_30]);
 }
 
 /// The box half hidden at 10 px/frame, seed 8: with its sides behind the
@@ -296,9 +298,7 @@ const BOX_30_SEED_12: Case = Case { seed: 12, min_tracked: 300, max_false: 0, ..
 
 #[test]
 fn lowe_holds_abrupt_reversals_by_searching_from_slower_predictions_cpu() {
-    for case in [HINGED_25_SEED_8, BOX_30_SEED_12] {
-        check(&case, &mut CpuBackend::new(), "cpu");
-    }
+    check_each_cpu(&[HINGED_25_SEED_8, BOX_30_SEED_12]);
 }
 
 /// The second look from slower predictions is made at a drop of support,
@@ -341,7 +341,8 @@ const HINGED_OCCLUDED_30: Case = Case { speed: 30.0, occlude: 0.5, seed: 1, min_
 /// open, 6° from the prediction, was held to the margin of a 20° jump
 /// from the fold, and the fold stayed for five frames, 7–22 px off. The
 /// margin now counts from the prediction when that is nearer. Frames 47
-/// and 50, their lid 9.5° and 13.8° off, are ambiguous (step 10) and lost.
+/// and 50, their lid 9.5° and 13.8° off, are ambiguous (step 10) and lost
+/// (and frame 45 with the contrast memory).
 /// Lost behind the band from frame 85, the box is found again at frame 98
 /// (at 107 without the contrast memory), and lost again from 279 to the
 /// end (without it only frame 280): 260 frames tracking, one false (frame
@@ -364,9 +365,7 @@ const BOX_OCCLUDED_FAST_SEED_25: Case =
 
 #[test]
 fn lowe_does_not_claim_an_ambiguous_answer_cpu() {
-    for case in [&HINGED_OCCLUDED_FAST_SEED_14, &BOX_OCCLUDED_FAST_SEED_25] {
-        check(case, &mut CpuBackend::new(), "cpu");
-    }
+    check_each_cpu(&[HINGED_OCCLUDED_FAST_SEED_14, BOX_OCCLUDED_FAST_SEED_25]);
 }
 
 /// The contrast memory learns only from frames with at least 0.6 of the
@@ -389,9 +388,7 @@ const BOX_OCCLUDED_FAST_SEED_1_CARRIED: Case =
 
 #[test]
 fn lowe_contrast_memory_learns_only_from_well_supported_frames_cpu() {
-    for case in [HINGED_OCCLUDED_10_SEED_1, HINGED_OCCLUDED_FAST_SEED_7] {
-        check(&case, &mut CpuBackend::new(), "cpu");
-    }
+    check_each_cpu(&[HINGED_OCCLUDED_10_SEED_1, HINGED_OCCLUDED_FAST_SEED_7]);
 }
 
 #[test]
@@ -402,9 +399,7 @@ fn lowe_carries_a_clearly_better_supported_rival_cpu() {
 #[test]
 fn lowe_hinged_box_occluded_at_20_and_30_px_per_frame_has_no_more_than_1_percent_false_tracking_cpu() {
     let seed_0 = Case { seed: 0, ..HINGED_OCCLUDED_FAST };
-    for case in [HINGED_OCCLUDED_FAST, seed_0, HINGED_OCCLUDED_30, HINGED_OCCLUDED_30_SEED_0] {
-        check(&case, &mut CpuBackend::new(), "cpu");
-    }
+    check_each_cpu(&[HINGED_OCCLUDED_FAST, seed_0, HINGED_OCCLUDED_30, HINGED_OCCLUDED_30_SEED_0]);
 }
 
 /// Noise σ 8 at 20 px/frame, seed 0: at frames 26 and 276 the lid,
@@ -425,9 +420,7 @@ const HINGED_NOISY_SEED_6: Case = Case { seed: 6, ..HINGED_NOISY };
 
 #[test]
 fn lowe_hinged_box_with_noise_has_no_more_than_1_percent_false_tracking_cpu() {
-    for case in [HINGED_NOISY, HINGED_NOISY_SEED_6] {
-        check(&case, &mut CpuBackend::new(), "cpu");
-    }
+    check_each_cpu(&[HINGED_NOISY, HINGED_NOISY_SEED_6]);
 }
 
 /// The GPU backend holds all six scenes as the CPU backend does, with the
