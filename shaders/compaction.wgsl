@@ -4,7 +4,9 @@
 // atomics (atomic append order is unspecified, e.g. on lavapipe).
 //
 // The window's pixels are numbered i = 0..area row-major inside the window
-// and cut into blocks of BLOCK consecutive numbers, one workgroup each.
+// and cut into blocks of BLOCK consecutive numbers, one workgroup each; each
+// of the workgroup's GROUP invocations takes a run of RUN consecutive pixels
+// of its block, so a workgroup's scan (its barriers) serves BLOCK pixels.
 // Four entry points, one per pass:
 //   count_blocks  how many pixels of each block are selected
 //   scan_blocks   one workgroup: exclusive offsets of the blocks, and the header
@@ -23,7 +25,9 @@
 // Kept in sync with `CompactionUniform`, `LayerWindow` and `Header` in
 // src/early/compaction.rs and `Feature` in src/early/mod.rs.
 
-const BLOCK: u32 = 256u;
+const GROUP: u32 = 256u;
+const RUN: u32 = 32u;
+const BLOCK: u32 = GROUP * RUN;
 
 struct Params {
     image_width: u32,
@@ -92,14 +96,14 @@ struct Header {
 @group(0) @binding(3) var<storage, read> gather_list: array<Feature>;
 @group(0) @binding(4) var<storage, read_write> gather_out: array<Feature>;
 
-var<workgroup> partial: array<u32, BLOCK>;
+var<workgroup> partial: array<u32, GROUP>;
 
-// Inclusive prefix sum of `value` over the workgroup (Hillis–Steele, log2 BLOCK
+// Inclusive prefix sum of `value` over the workgroup (Hillis–Steele, log2 GROUP
 // steps). Every invocation of the workgroup must call it.
 fn inclusive_scan(lid: u32, value: u32) -> u32 {
     partial[lid] = value;
     workgroupBarrier();
-    for (var d = 1u; d < BLOCK; d = d << 1u) {
+    for (var d = 1u; d < GROUP; d = d << 1u) {
         var left = 0u;
         if (lid >= d) {
             left = partial[lid - d];
@@ -148,20 +152,30 @@ fn subsample_rank(j: u32, n: u32, cap: u32, seed: u32) -> u32 {
     return lo + lowbias32(seed ^ (j * 0x9e3779b9u)) % (hi - lo);
 }
 
+// Bit r of the result: whether pixel (run start) + r of window `win` of
+// `layer` is selected (pixels past the window's area are not).
+fn run_flags(win: LayerWindow, layer: u32, start: u32) -> u32 {
+    var flags = 0u;
+    let end = min(start + RUN, win.area);
+    for (var i = start; i < end; i++) {
+        if (count_select[pixel_index(layer, window_xy(win, i))] > win.threshold) {
+            flags |= 1u << (i - start);
+        }
+    }
+    return flags;
+}
+
 // Pass 1: count_out[block] = number of selected pixels in the block.
 @compute @workgroup_size(256)
 fn count_blocks(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let win = count_windows[wg.z];
     let block = wg.y * params.grid_x + wg.x;
-    let i = block * BLOCK + lid;
-    var flag = 0u;
-    if (block < win.num_blocks && i < win.area) {
-        if (count_select[pixel_index(wg.z, window_xy(win, i))] > win.threshold) {
-            flag = 1u;
-        }
+    var count = 0u;
+    if (block < win.num_blocks) {
+        count = countOneBits(run_flags(win, wg.z, block * BLOCK + lid * RUN));
     }
-    let sum = inclusive_scan(lid, flag);
-    if (lid == BLOCK - 1u && block < win.num_blocks) {
+    let sum = inclusive_scan(lid, count);
+    if (lid == GROUP - 1u && block < win.num_blocks) {
         count_out[wg.z * params.max_blocks + block] = sum;
     }
 }
@@ -173,7 +187,7 @@ fn count_blocks(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
 fn scan_blocks(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let win = scan_windows[wg.z];
     let base = wg.z * params.max_blocks;
-    let chunk = (win.num_blocks + BLOCK - 1u) / BLOCK;
+    let chunk = (win.num_blocks + GROUP - 1u) / GROUP;
     let begin = min(lid * chunk, win.num_blocks);
     let end = min(begin + chunk, win.num_blocks);
     var sum = 0u;
@@ -187,33 +201,42 @@ fn scan_blocks(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
         scan_offsets[base + b] = offset;
         offset += c;
     }
-    if (lid == BLOCK - 1u) {
+    if (lid == GROUP - 1u) {
         scan_header[wg.z] = Header(inclusive, min(inclusive, win.cap), 0u, 0u);
     }
 }
 
-// Pass 3: rescan the block's flags and write each selected pixel at
-// offset(block) + (its rank in the block).
+// Pass 3: rescan the block's runs and write each selected pixel at
+// offset(block) + (the selected pixels of the block's earlier runs) + (its
+// rank in its run).
 @compute @workgroup_size(256)
 fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let win = scatter_windows[wg.z];
     let block = wg.y * params.grid_x + wg.x;
-    let i = block * BLOCK + lid;
-    var flag = 0u;
-    var xy = vec2<u32>(0u, 0u);
-    var p = 0u;
-    if (block < win.num_blocks && i < win.area) {
-        xy = window_xy(win, i);
-        p = pixel_index(wg.z, xy);
-        if (scatter_select[p] > win.threshold) {
-            flag = 1u;
+    let start = block * BLOCK + lid * RUN;
+    var flags = 0u;
+    if (block < win.num_blocks) {
+        let end = min(start + RUN, win.area);
+        for (var i = start; i < end; i++) {
+            if (scatter_select[pixel_index(wg.z, window_xy(win, i))] > win.threshold) {
+                flags |= 1u << (i - start);
+            }
         }
     }
-    let inclusive = inclusive_scan(lid, flag);
-    if (flag == 1u) {
-        let slot = scatter_offsets[wg.z * params.max_blocks + block] + inclusive - 1u;
-        scatter_list[wg.z * params.list_stride + slot] =
-            Feature(xy.x, xy.y, scatter_theta[p], scatter_magnitude[p]);
+    let count = countOneBits(flags);
+    let inclusive = inclusive_scan(lid, count);
+    if (count == 0u) {
+        return;
+    }
+    var slot = wg.z * params.list_stride + scatter_offsets[wg.z * params.max_blocks + block] + inclusive - count;
+    var left = flags;
+    while (left != 0u) {
+        let r = firstTrailingBit(left);
+        left &= left - 1u;
+        let xy = window_xy(win, start + r);
+        let p = pixel_index(wg.z, xy);
+        scatter_list[slot] = Feature(xy.x, xy.y, scatter_theta[p], scatter_magnitude[p]);
+        slot++;
     }
 }
 

@@ -23,7 +23,9 @@
 //!
 //! GPU: four passes over blocks of [`BLOCK`] window pixels (a scan, since
 //! atomic append gives an unspecified order), see `encode`; only the header
-//! and the final list are read back.
+//! and the final list are read back. Each of a block's [`GROUP`]
+//! invocations reads a run of [`RUN`] consecutive pixels, so the
+//! workgroup's scan and its barriers serve `RUN` pixels an invocation.
 
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -46,17 +48,22 @@ pub const SHADER: ShaderDef = ShaderDef {
     source: include_str!("../../shaders/compaction.wgsl"),
     includes: &[],
     entry_points: &[
-        EntryPoint::linear("count_blocks", BLOCK, &[Uniform, ReadOnly, ReadOnly, Storage]),
-        EntryPoint::linear("scan_blocks", BLOCK, &[Uniform, ReadOnly, ReadOnly, Storage, Storage]),
-        EntryPoint::linear("scatter", BLOCK, &[Uniform, ReadOnly, ReadOnly, ReadOnly, ReadOnly, ReadOnly, Storage]),
-        EntryPoint::linear("gather", BLOCK, &[Uniform, ReadOnly, ReadOnly, ReadOnly, Storage]),
+        EntryPoint::linear("count_blocks", GROUP, &[Uniform, ReadOnly, ReadOnly, Storage]),
+        EntryPoint::linear("scan_blocks", GROUP, &[Uniform, ReadOnly, ReadOnly, Storage, Storage]),
+        EntryPoint::linear("scatter", GROUP, &[Uniform, ReadOnly, ReadOnly, ReadOnly, ReadOnly, ReadOnly, Storage]),
+        EntryPoint::linear("gather", GROUP, &[Uniform, ReadOnly, ReadOnly, ReadOnly, Storage]),
     ],
 };
 
 /// Largest cap accepted: keeps `j·(n % cap)` below 2³² in the stratum bounds.
 pub const MAX_CAP: u32 = 65_535;
+/// Invocations per workgroup of every pass (the shader's `GROUP`).
+pub const GROUP: u32 = 256;
+/// Consecutive window pixels per invocation of the count and scatter passes
+/// (the shader's `RUN`).
+pub const RUN: u32 = 32;
 /// Window pixels per workgroup of the count and scatter passes (the shader's `BLOCK`).
-pub const BLOCK: u32 = 256;
+pub const BLOCK: u32 = GROUP * RUN;
 /// Most workgroups per grid dimension (wgpu's downlevel limit); longer block
 /// grids wrap onto a second dimension.
 const MAX_GROUPS_PER_DIM: u32 = 65_535;
@@ -543,7 +550,7 @@ fn block_grid(blocks: u32) -> [u32; 3] {
 /// (count_blocks, scan_blocks, scatter; the first and last over
 /// `ceil(area / BLOCK)` workgroups, skipped for an empty window, scan_blocks
 /// always one workgroup so the header is always written), 4 with a cap
-/// (gather over `ceil(min(cap, area) / BLOCK)` workgroups). Follow with
+/// (gather over `ceil(min(cap, area) / GROUP)` workgroups). Follow with
 /// [`CompactionGpu::encode_readback`] in the same submission.
 pub(crate) fn encode(
     rec: &mut Recorder<'_>,
@@ -645,7 +652,7 @@ pub(crate) fn encode_layers(
         grid,
     )?;
     if capped {
-        let groups = windows.iter().map(|w| w.cap.min(w.area).div_ceil(BLOCK)).max().unwrap_or(0);
+        let groups = windows.iter().map(|w| w.cap.min(w.area).div_ceil(GROUP)).max().unwrap_or(0);
         rec.dispatch(
             &SHADER,
             "gather",
