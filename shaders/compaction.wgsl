@@ -14,7 +14,8 @@
 //   gather        only with a cap: the stratified random subsample
 //
 // The entry points bind different buffers: each declares its own below, at
-// bindings 1, 2, … in the order src/early/compaction.rs passes them.
+// bindings 1, 2, … in the order src/early/compaction.rs passes them (count_blocks
+// and scatter share binding 2, the image that selects the pixels).
 //
 // Layers: one dispatch compacts a window of each layer of stacked images
 // (workgroup_id.z is the layer), each into its own part of every buffer:
@@ -71,9 +72,11 @@ struct Header {
 
 @group(0) @binding(0) var<uniform> params: Params;
 
+// count_blocks and scatter: the image whose values select the pixels.
+@group(0) @binding(2) var<storage, read> select_values: array<f32>;
+
 // count_blocks
 @group(0) @binding(1) var<storage, read> count_windows: array<LayerWindow>;
-@group(0) @binding(2) var<storage, read> count_select: array<f32>;
 @group(0) @binding(3) var<storage, read_write> count_out: array<u32>;
 
 // scan_blocks
@@ -84,7 +87,6 @@ struct Header {
 
 // scatter
 @group(0) @binding(1) var<storage, read> scatter_windows: array<LayerWindow>;
-@group(0) @binding(2) var<storage, read> scatter_select: array<f32>;
 @group(0) @binding(3) var<storage, read> scatter_theta: array<f32>;
 @group(0) @binding(4) var<storage, read> scatter_magnitude: array<f32>;
 @group(0) @binding(5) var<storage, read> scatter_offsets: array<u32>;
@@ -158,7 +160,7 @@ fn run_flags(win: LayerWindow, layer: u32, start: u32) -> u32 {
     var flags = 0u;
     let end = min(start + RUN, win.area);
     for (var i = start; i < end; i++) {
-        if (count_select[pixel_index(layer, window_xy(win, i))] > win.threshold) {
+        if (select_values[pixel_index(layer, window_xy(win, i))] > win.threshold) {
             flags |= 1u << (i - start);
         }
     }
@@ -216,12 +218,7 @@ fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index
     let start = block * BLOCK + lid * RUN;
     var flags = 0u;
     if (block < win.num_blocks) {
-        let end = min(start + RUN, win.area);
-        for (var i = start; i < end; i++) {
-            if (scatter_select[pixel_index(wg.z, window_xy(win, i))] > win.threshold) {
-                flags |= 1u << (i - start);
-            }
-        }
+        flags = run_flags(win, wg.z, start);
     }
     let count = countOneBits(flags);
     let inclusive = inclusive_scan(lid, count);

@@ -138,18 +138,16 @@ fn track(
     common::track_lost(&mut tracker, backend, seq.frames.iter().cloned(), size)
 }
 
-/// [`check`] each of `cases` on the CPU backend.
-fn check_each_cpu(cases: &[Case]) {
-    for case in cases {
-        check(case, &mut CpuBackend::new(), "cpu");
-    }
+/// [`check`] each of `cases` on the CPU backend; their results.
+fn check_each_cpu(cases: &[Case]) -> Vec<Vec<FrameResult>> {
+    cases.iter().map(|case| check(case, &mut CpuBackend::new(), "cpu")).collect()
 }
 
 /// [`check`] each of `cases` on the CPU backend, then, where there is a GPU
 /// adapter, on the GPU backend, and assert that both give the same statuses
 /// and corners. `test` names the test in the message of a missing adapter.
 fn check_on_both_backends(test: &str, cases: &[Case]) {
-    let cpu: Vec<Vec<FrameResult>> = cases.iter().map(|case| check(case, &mut CpuBackend::new(), "cpu")).collect();
+    let cpu = check_each_cpu(cases);
     let Some((ctx, _guard)) = common::gpu(test) else {
         return;
     };
