@@ -8,12 +8,16 @@
 // Kept in sync with `LogUniform` in src/early/log.rs.
 // Stacked images (a stack of layers, each width×height after the one
 // before) are one dispatch: the grid's z is the layer (`id.z`).
+// Each pass computes the pixels of `region` (x0, y0, x1, y1: columns x0..x1,
+// rows y0..y1 of every layer), the grid covering the region; a pixel's value
+// is the whole frame's (borders clamp to the frame, not to the region).
 
 struct Params {
     width: u32,
     height: u32,
     radius: u32,
     _pad: u32,
+    region: vec4<u32>,
     // Half kernels for offsets ±k, k = 0..=radius, 4 per vec4: g (Gaussian,
     // sums to 1) and d (its second derivative, sums to 0, Σ k²·d_k = 2).
     gauss: array<vec4<f32>, 7>,
@@ -45,13 +49,15 @@ fn d(k: u32) -> f32 {
 //   tmp_d(x) = d0·src(x) + Σ_k d_k·(src(x−k) + src(x+k)).
 @compute @workgroup_size(16, 16)
 fn rows(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (id.x >= params.width || id.y >= params.height) {
+    let px = params.region.x + id.x;
+    let py = params.region.y + id.y;
+    if (px >= params.region.z || py >= params.region.w) {
         return;
     }
-    let row = (id.z * params.height + id.y) * params.width;
+    let row = (id.z * params.height + py) * params.width;
     let last = i32(params.width) - 1;
-    let x = i32(id.x);
-    let centre = src[row + id.x];
+    let x = i32(px);
+    let centre = src[row + px];
     var sum_g = g(0u) * centre;
     var sum_d = d(0u) * centre;
     for (var k = 1u; k <= params.radius; k++) {
@@ -61,22 +67,24 @@ fn rows(@builtin(global_invocation_id) id: vec3<u32>) {
         sum_g += g(k) * pair;
         sum_d += d(k) * pair;
     }
-    tmp_g_out[row + id.x] = sum_g;
-    tmp_d_out[row + id.x] = sum_d;
+    tmp_g_out[row + px] = sum_g;
+    tmp_d_out[row + px] = sum_d;
 }
 
 // Vertical pass: dst = cols_d(tmp_g) + cols_g(tmp_d), each column sum
 // accumulated separately and added last.
 @compute @workgroup_size(16, 16)
 fn cols(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (id.x >= params.width || id.y >= params.height) {
+    let px = params.region.x + id.x;
+    let py = params.region.y + id.y;
+    if (px >= params.region.z || py >= params.region.w) {
         return;
     }
     let w = params.width;
     let last = i32(params.height) - 1;
-    let y = i32(id.y);
-    let base = id.z * params.height * w + id.x;
-    let i = base + id.y * w;
+    let y = i32(py);
+    let base = id.z * params.height * w + px;
+    let i = base + py * w;
     var sum_dg = d(0u) * tmp_g_in[i];
     var sum_gd = g(0u) * tmp_d_in[i];
     for (var k = 1u; k <= params.radius; k++) {

@@ -9,6 +9,9 @@
 // module is built.
 // Stacked images (a stack of layers, each width×height after the one
 // before) are one dispatch: the grid's z is the layer (`id.z`).
+// The dispatch computes the pixels of `region` (x0, y0, x1, y1: columns
+// x0..x1, rows y0..y1 of every layer), the grid covering the region; a
+// pixel's outputs are the whole frame's (its neighbours clamp to the frame).
 
 struct Params {
     width: u32,
@@ -16,6 +19,7 @@ struct Params {
     // Least |b − a| across a crossing (already floored on the Rust side).
     min_slope: f32,
     _pad: u32,
+    region: vec4<u32>,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -47,19 +51,21 @@ fn axis(prev: f32, c: f32, next: f32) -> vec2<f32> {
 
 @compute @workgroup_size(16, 16)
 fn edgels(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (id.x >= params.width || id.y >= params.height) {
+    let x = params.region.x + id.x;
+    let y = params.region.y + id.y;
+    if (x >= params.region.z || y >= params.region.w) {
         return;
     }
     let w = params.width;
     let base = id.z * params.height * w;
-    let i = base + id.y * w + id.x;
-    let xl = max(id.x, 1u) - 1u;
-    let xr = min(id.x + 1u, w - 1u);
-    let yu = max(id.y, 1u) - 1u;
-    let yd = min(id.y + 1u, params.height - 1u);
+    let i = base + y * w + x;
+    let xl = max(x, 1u) - 1u;
+    let xr = min(x + 1u, w - 1u);
+    let yu = max(y, 1u) - 1u;
+    let yd = min(y + 1u, params.height - 1u);
     let c = lap[i];
-    let h = axis(lap[base + id.y * w + xl], c, lap[base + id.y * w + xr]);
-    let v = axis(lap[base + yu * w + id.x], c, lap[base + yd * w + id.x]);
+    let h = axis(lap[base + y * w + xl], c, lap[base + y * w + xr]);
+    let v = axis(lap[base + yu * w + x], c, lap[base + yd * w + x]);
     let s = sqrt(h.x * h.x + v.x * v.x);
     strength[i] = s;
     // No edgel: gx = gy = 0 and fast_atan2(0, 0) = 0, as on the CPU.

@@ -296,7 +296,9 @@ impl CpuBackend {
                     &mut img.edgels.strength,
                     &mut img.edgels.direction,
                 ),
-                Step::Compact { list, select, theta, magnitude, params } if log_part.is_some() && reads_log(select) => {
+                Step::Compact { list, select, theta, magnitude, params }
+                    if log_part.is_some() && select.reads_log() =>
+                {
                     let part = log_part.unwrap_or_default();
                     let mut features = recycled_list(self.spare.list_mut(list));
                     let window = params.window.clipped(w, h);
@@ -426,44 +428,23 @@ impl CpuBackend {
     }
 }
 
-/// Whether `source` is the LoG or one of its edgel images.
-fn reads_log(source: Source) -> bool {
-    matches!(source, Source::Plane(Plane::Log) | Source::Edgels(_))
-}
-
 /// The part of a `width`×`height` frame the LoG and its zero crossings need
-/// to be computed on, when that is less than the frame: when every step
-/// reading them is a compaction that reads nothing else and lists no
-/// subsample (`cap`), the union of those compactions' windows grown by the
-/// LoG's radius plus the zero crossings' one pixel. Inside the windows the
-/// values are bit for bit those of the whole frame: every pixel a window's
-/// LoG or crossing reads lies in the part, and the part's borders clamp
-/// only where they are the frame's own.
+/// to be computed on, when that is less than the frame: the windows of the
+/// lists reading them ([`FramePlan::log_windows`]) grown by the LoG's
+/// radius plus the zero crossings' one pixel. Inside the windows the values
+/// are bit for bit those of the whole frame: every pixel a window's LoG or
+/// crossing reads lies in the part, and the part's borders clamp only where
+/// they are the frame's own.
 fn log_region(plan: &FramePlan, width: usize, height: usize) -> Option<Window> {
-    let mut radius = None;
-    let mut union = Window::default();
-    for step in plan.steps() {
-        match *step {
-            Step::Log(p) => radius = Some(log_kernels(p.sigma).ok()?.radius() as u32),
-            Step::Sobel { input: Plane::Log, .. } => return None,
-            Step::Compact { select, theta, magnitude, params, .. } => {
-                let reading = [select, theta, magnitude].map(reads_log);
-                if reading.iter().all(|&r| !r) {
-                    continue;
-                }
-                if reading.iter().any(|&r| !r) || params.cap.is_some() {
-                    return None;
-                }
-                union = union.union(&params.window.clipped(width, height));
-            }
-            _ => {}
-        }
-    }
-    let margin = radius? + 1;
+    let radius = plan.steps().iter().find_map(|step| match *step {
+        Step::Log(p) => log_kernels(p.sigma).ok().map(|k| k.radius() as u32),
+        _ => None,
+    })?;
+    let union = plan.log_windows(width, height)?;
     if union.is_empty() {
         return None;
     }
-    let part = union.grown(margin).clipped(width, height);
+    let part = union.grown(radius + 1).clipped(width, height);
     (part.area() < width * height).then_some(part)
 }
 

@@ -23,7 +23,7 @@ use crate::early::edge_pyramid::{self, EdgePyramidGpu};
 use crate::early::sobel::{self, SobelGpu};
 use crate::early::window_energy::{self, WindowEnergyGpu};
 use crate::early::zero_crossing::{self, EdgelsGpu};
-use crate::early::{Feature, gaussian, ingest, log, temporal_diff};
+use crate::early::{Feature, Window, gaussian, ingest, log, temporal_diff};
 use crate::gpu::{FrameArena, GpuContext, GpuImage, Recorder};
 use crate::image::{GrayImage, RgbImage};
 use crate::{Error, Result};
@@ -872,6 +872,7 @@ fn record(
     if inputs.iter().all(|i| matches!(i, Input::Bytes(..))) {
         ingest::encode(&mut rec, &s.packed, &s.luma)?;
     }
+    let crossings_part = crossings_part(plans, s.width, s.height);
     for (i, step) in plan.steps().iter().enumerate() {
         match *step {
             Step::Smooth(p) => gaussian::encode(&mut rec, &s.luma, &s.tmp, &s.smoothed, &p)?,
@@ -882,9 +883,12 @@ fn record(
                 temporal_diff::encode_with_sum(&mut rec, prev, cur, mask, sum, &p)?;
             }
             Step::Sobel { input, output } => sobel::encode(&mut rec, images.plane(input)?, s.sobel_set(output)?)?,
-            Step::Log(p) => log::encode(&mut rec, &s.luma, &s.tmp, &s.tmp2, images.plane(Plane::Log)?, &p)?,
+            Step::Log(p) => {
+                let part = crossings_part.grown(1);
+                log::encode(&mut rec, &s.luma, &s.tmp, &s.tmp2, images.plane(Plane::Log)?, &p, part)?;
+            }
             Step::ZeroCrossings(p) => {
-                zero_crossing::encode(&mut rec, images.plane(Plane::Log)?, opt(&s.edgels)?, &p)?;
+                zero_crossing::encode(&mut rec, images.plane(Plane::Log)?, opt(&s.edgels)?, &p, crossings_part)?;
             }
             Step::Compact { list, select, theta, magnitude, .. } => {
                 let scratch = s.list(list)?;
@@ -929,6 +933,21 @@ fn record(
     }
     stats.dispatches = rec.dispatch_count();
     Ok((rec.finish(), stats))
+}
+
+/// Where the zero crossings are computed (and the LoG, one pixel around):
+/// the union of every layer's windows of the lists reading them
+/// ([`FramePlan::log_windows`]), or the whole frame when a layer reads them
+/// elsewhere. The lists are those of the whole frame's crossings.
+fn crossings_part(plans: &[FramePlan], width: usize, height: usize) -> Window {
+    let mut union = Window::default();
+    for plan in plans {
+        match plan.log_windows(width, height) {
+            Some(windows) => union = union.union(&windows),
+            None => return Window::full(width, height),
+        }
+    }
+    union
 }
 
 fn first_layer(mut features: Vec<FrameFeatures>) -> Result<FrameFeatures> {

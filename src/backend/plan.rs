@@ -17,7 +17,7 @@ use crate::early::gaussian::{self, GaussianParams};
 use crate::early::log::{self, LogParams};
 use crate::early::temporal_diff::{self, TemporalDiffParams};
 use crate::early::zero_crossing::{self, ZeroCrossingParams};
-use crate::early::{cpf, edge_pyramid, frame_sum, sobel, window_energy};
+use crate::early::{Window, cpf, edge_pyramid, frame_sum, sobel, window_energy};
 
 /// The motion mask is 0 or 1: pixels above one half are moving.
 const MASK_THRESHOLD: f32 = 0.5;
@@ -85,6 +85,14 @@ pub enum Source {
     Sobel(SobelPlanes, SobelPart),
     /// One image of the edgels.
     Edgels(EdgelPart),
+}
+
+impl Source {
+    /// Whether this is the LoG or one of its edgel images.
+    #[must_use]
+    pub fn reads_log(self) -> bool {
+        matches!(self, Source::Plane(Plane::Log) | Source::Edgels(_))
+    }
 }
 
 /// The feature lists a frame can hand back.
@@ -370,6 +378,38 @@ impl FramePlan {
                 params.window = crate::early::Window { x0: 0, y0: 0, x1: 0, y1: 0 };
             }
         }
+    }
+
+    /// Where the LoG and its edgels are read, when only windowed lists read
+    /// them: the union of the windows (clipped to the `width`×`height`
+    /// frame, possibly empty) of the compactions reading them, when every
+    /// step reading them is a compaction that reads nothing else and lists
+    /// no subsample (`cap`). `None` when the plan runs no LoG or another
+    /// step reads it (a Sobel of the LoG, a subsample), so the whole frame
+    /// is needed. A backend computing the LoG and its crossings on a part of
+    /// the frame around these windows gives the lists of the whole frame.
+    #[must_use]
+    pub fn log_windows(&self, width: usize, height: usize) -> Option<Window> {
+        let mut runs_log = false;
+        let mut union = Window::default();
+        for step in &self.steps {
+            match *step {
+                Step::Log(_) => runs_log = true,
+                Step::Sobel { input: Plane::Log, .. } => return None,
+                Step::Compact { select, theta, magnitude, params, .. } => {
+                    let reading = [select, theta, magnitude].map(Source::reads_log);
+                    if reading.iter().all(|&r| !r) {
+                        continue;
+                    }
+                    if reading.iter().any(|&r| !r) || params.cap.is_some() {
+                        return None;
+                    }
+                    union = union.union(&params.window.clipped(width, height));
+                }
+                _ => {}
+            }
+        }
+        runs_log.then_some(union)
     }
 
     /// Whether the plan reads the previous frame's smoothed image.

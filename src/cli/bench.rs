@@ -201,7 +201,7 @@ pub fn gpu_body<'a>(stage: &str, ctx: &'a GpuContext, inp: &'a Inputs) -> Result
     // Inputs that are outputs of earlier stages are computed once up front.
     crate::gpu::run_once(ctx, |rec| {
         sobel::encode(rec, &luma, &sob)?;
-        log::encode(rec, &luma, &t1, &t2, &t3, &LogParams::default())
+        log::encode(rec, &luma, &t1, &t2, &t3, &LogParams::default(), Window::full(w, h))
     })?;
     Ok(Box::new(move || {
         let mut last = None;
@@ -244,14 +244,15 @@ fn record_stage(
     w: usize,
     h: usize,
 ) -> Result<()> {
+    let full = Window::full(w, h);
     match stage {
         "gaussian" => gaussian::encode(rec, luma, t[0], t[1], &GaussianParams::default()),
         "temporal_diff" => temporal_diff::encode(rec, s0, s1, t[0], &TemporalDiffParams::default()),
         "frame_sum" => frame_sum::encode(rec, s0, s1, t[0]),
         "sobel" => sobel::encode(rec, luma, sob),
         // t[2] holds the LoG computed up front; LoG writes into other buffers.
-        "log" => log::encode(rec, luma, t[0], t[1], s1, &LogParams::default()),
-        "zero_crossing" => zero_crossing::encode(rec, t[2], edg, &ZeroCrossingParams::default()),
+        "log" => log::encode(rec, luma, t[0], t[1], s1, &LogParams::default(), full),
+        "zero_crossing" => zero_crossing::encode(rec, t[2], edg, &ZeroCrossingParams::default(), full),
         "cpf" => cpf::encode(rec, luma, pyr),
         "edge_pyramid" => edge_pyramid::encode(rec, &sob.gx, &sob.gy, edge_pyr),
         "compaction" => {

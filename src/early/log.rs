@@ -24,6 +24,7 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
+use super::Window;
 use super::rows::{RowStore, for_each_row, parallel};
 use crate::bounds::Interval;
 use crate::gpu::{
@@ -123,6 +124,8 @@ struct LogUniform {
     height: u32,
     radius: u32,
     _pad: u32,
+    /// The pixels a pass computes: x0, y0, x1, y1.
+    region: [u32; 4],
     gauss: [f32; MAX_TAPS],
     second: [f32; MAX_TAPS],
 }
@@ -131,12 +134,20 @@ struct LogUniform {
 const _: () = assert!(std::mem::size_of::<LogUniform>() <= 256);
 
 impl LogUniform {
-    fn new(width: usize, height: usize, k: &LogKernels) -> Self {
+    fn new(width: usize, height: usize, k: &LogKernels, region: Window) -> Self {
         let mut gauss = [0.0; MAX_TAPS];
         let mut second = [0.0; MAX_TAPS];
         gauss[..k.gauss.len()].copy_from_slice(&k.gauss);
         second[..k.second.len()].copy_from_slice(&k.second);
-        Self { width: width as u32, height: height as u32, radius: k.radius() as u32, _pad: 0, gauss, second }
+        Self {
+            width: width as u32,
+            height: height as u32,
+            radius: k.radius() as u32,
+            _pad: 0,
+            region: [region.x0, region.y0, region.x1, region.y1],
+            gauss,
+            second,
+        }
     }
 }
 
@@ -432,7 +443,10 @@ pub fn log(src: &FloatImage, params: &LogParams) -> Result<FloatImage> {
     Ok(out)
 }
 
-/// Record the two passes `src → (tmp_g, tmp_d) → out` (all the same size).
+/// Record the two passes `src → (tmp_g, tmp_d) → out` (all the same size)
+/// over `part` of the frame (clipped to it): `out` there holds the whole
+/// frame's LoG, the row pass covering the rows the column pass reads above
+/// and below it. Elsewhere `out` keeps what it held.
 pub(crate) fn encode(
     rec: &mut Recorder<'_>,
     src: &GpuImage,
@@ -440,16 +454,27 @@ pub(crate) fn encode(
     tmp_d: &GpuImage,
     out: &GpuImage,
     params: &LogParams,
+    part: Window,
 ) -> Result<()> {
     let k = log_kernels(params.sigma)?;
     let (w, h) = (src.width(), src.height());
     for (img, what) in [(tmp_g, "LoG src/tmp_g"), (tmp_d, "LoG src/tmp_d"), (out, "LoG src/out")] {
         src.check_same_size(img, what)?;
     }
-    let u = LogUniform::new(w, h, &k);
-    let groups = src.grid();
-    rec.dispatch(&SHADER, "rows", &u, &[&src.buffer, &tmp_g.buffer, &tmp_d.buffer], groups)?;
-    rec.dispatch(&SHADER, "cols", &u, &[&tmp_g.buffer, &tmp_d.buffer, &out.buffer], groups)
+    let part = part.clipped(w, h);
+    if part.is_empty() {
+        return Ok(());
+    }
+    let r = k.radius() as u32;
+    let rows = Window { y0: part.y0.saturating_sub(r), y1: part.y1.saturating_add(r), ..part }.clipped(w, h);
+    for (entry, region, buffers) in [
+        ("rows", rows, [&src.buffer, &tmp_g.buffer, &tmp_d.buffer]),
+        ("cols", part, [&tmp_g.buffer, &tmp_d.buffer, &out.buffer]),
+    ] {
+        let u = LogUniform::new(w, h, &k, region);
+        rec.dispatch(&SHADER, entry, &u, &buffers, src.region_grid(region.width(), region.height()))?;
+    }
+    Ok(())
 }
 
 /// GPU: the LoG of a CPU image, read back (tests and benches).
@@ -459,7 +484,7 @@ pub fn log_gpu(ctx: &GpuContext, src: &FloatImage, params: &LogParams) -> Result
     let tmp_g = GpuImage::new(ctx, w, h, "log.tmp_g");
     let tmp_d = GpuImage::new(ctx, w, h, "log.tmp_d");
     let out = GpuImage::new(ctx, w, h, "log.out");
-    run_once(ctx, |rec| encode(rec, &input, &tmp_g, &tmp_d, &out, params))?;
+    run_once(ctx, |rec| encode(rec, &input, &tmp_g, &tmp_d, &out, params, Window::full(w, h)))?;
     out.download(ctx)
 }
 

@@ -35,6 +35,7 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
+use super::Window;
 use super::angle::fast_atan2;
 use super::rows::for_each_row;
 use crate::Result;
@@ -143,6 +144,8 @@ struct ZeroCrossingUniform {
     height: u32,
     min_slope: f32,
     _pad: u32,
+    /// The pixels the dispatch computes: x0, y0, x1, y1.
+    region: [u32; 4],
 }
 
 /// The crossing kept by the centre pixel `c` along one axis, from the pairs
@@ -349,12 +352,15 @@ impl EdgelsGpu {
     }
 }
 
-/// Record the one dispatch `log → out` (same size).
+/// Record the one dispatch `log → out` (same size) over `part` of the
+/// frame (clipped to it): the outputs there are the whole frame's, given
+/// the LoG of `part` grown by one pixel. Elsewhere they keep what they held.
 pub(crate) fn encode(
     rec: &mut Recorder<'_>,
     log: &GpuImage,
     out: &EdgelsGpu,
     params: &ZeroCrossingParams,
+    part: Window,
 ) -> Result<()> {
     let (w, h) = (log.width(), log.height());
     for (plane, what) in [
@@ -365,13 +371,20 @@ pub(crate) fn encode(
     ] {
         log.check_same_size(plane, what)?;
     }
-    let u = ZeroCrossingUniform { width: w as u32, height: h as u32, min_slope: params.effective_min_slope(), _pad: 0 };
+    let part = part.clipped(w, h);
+    let u = ZeroCrossingUniform {
+        width: w as u32,
+        height: h as u32,
+        min_slope: params.effective_min_slope(),
+        _pad: 0,
+        region: [part.x0, part.y0, part.x1, part.y1],
+    };
     rec.dispatch(
         &SHADER,
         "edgels",
         &u,
         &[&log.buffer, &out.strength.buffer, &out.direction.buffer, &out.offset_x.buffer, &out.offset_y.buffer],
-        log.grid(),
+        log.region_grid(part.width(), part.height()),
     )
 }
 
@@ -380,7 +393,7 @@ pub fn zero_crossing_gpu(ctx: &GpuContext, log: &FloatImage, params: &ZeroCrossi
     let (w, h) = log.size();
     let input = GpuImage::from_image(ctx, log, "zero_crossing.log");
     let out = EdgelsGpu::new(ctx, w, h);
-    run_once(ctx, |rec| encode(rec, &input, &out, params))?;
+    run_once(ctx, |rec| encode(rec, &input, &out, params, Window::full(w, h)))?;
     out.download(ctx)
 }
 

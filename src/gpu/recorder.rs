@@ -142,6 +142,14 @@ impl GpuImage {
         [x, y, self.layers as u32]
     }
 
+    /// Workgroups covering a `width`×`height` region of every layer with
+    /// 16×16 tiles (a shader adds the region's corner to its invocation id).
+    #[must_use]
+    pub(crate) fn region_grid(&self, width: u32, height: u32) -> [u32; 3] {
+        let [x, y, _] = workgroups_2d(width as usize, height as usize);
+        [x, y, self.layers as u32]
+    }
+
     /// Width in pixels.
     #[must_use]
     pub fn width(&self) -> usize {
@@ -416,7 +424,7 @@ pub(crate) fn run_once(ctx: &GpuContext, record: impl FnOnce(&mut Recorder<'_>) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::early::{frame_sum, gaussian, log, sobel, temporal_diff, zero_crossing};
+    use crate::early::{Window, frame_sum, gaussian, log, sobel, temporal_diff, zero_crossing};
 
     /// A context for the GPU unit tests, or `None` (printing that the test
     /// skipped) without an adapter, unless `PIPETRACK_REQUIRE_GPU=1`.
@@ -456,7 +464,10 @@ mod tests {
                 "temporal difference prev/out",
                 Box::new(|r, x| temporal_diff::encode(r, &a, &b, x, &temporal_diff::TemporalDiffParams::default())),
             ),
-            ("LoG src/tmp_d", Box::new(|r, x| log::encode(r, &a, &b, x, &d, &log::LogParams::default()))),
+            (
+                "LoG src/tmp_d",
+                Box::new(|r, x| log::encode(r, &a, &b, x, &d, &log::LogParams::default(), Window::full(5, 3))),
+            ),
         ];
         for (what, encode) in &cases {
             let mut rec = Recorder::new(&ctx, &arena);
@@ -475,10 +486,12 @@ mod tests {
         assert!(matches!(sobel::encode(&mut rec, &a, &sob), Err(Error::Size(m)) if m.starts_with("sobel src/theta")));
         edg.offset_y = img(4, 3);
         let p = zero_crossing::ZeroCrossingParams::default();
-        assert!(matches!(zero_crossing::encode(&mut rec, &a, &edg, &p), Err(Error::Size(m)) if m.contains("offset_y")));
+        assert!(
+            matches!(zero_crossing::encode(&mut rec, &a, &edg, &p, Window::full(5, 3)), Err(Error::Size(m)) if m.contains("offset_y"))
+        );
         assert_eq!(rec.dispatch_count(), 0);
         sobel::encode(&mut rec, &a, &planes(5, 3)).unwrap();
-        zero_crossing::encode(&mut rec, &a, &edgels(5, 3), &p).unwrap();
+        zero_crossing::encode(&mut rec, &a, &edgels(5, 3), &p, Window::full(5, 3)).unwrap();
         assert_eq!(rec.dispatch_count(), 2);
     }
 }

@@ -285,6 +285,53 @@ fn changing_requests_with_moving_shrinking_windows_and_caps() {
     run_changing_requests("changing_requests_with_moving_shrinking_windows_and_caps", (w, h), &requests);
 }
 
+/// Zero crossings alone, in windows that move from frame to frame: a
+/// one-pixel window at the corner, a column and a row on the far borders,
+/// windows off-centre and partly outside, an empty one, the whole frame.
+/// Each backend computes the LoG and its crossings only around the windows
+/// (the GPU leaves the rest of its images as earlier frames left them), and
+/// each list is the whole frame's crossings inside the window, the same on
+/// both backends.
+#[test]
+fn crossings_in_awkward_windows_are_the_whole_frames() {
+    let test = "crossings_in_awkward_windows_are_the_whole_frames";
+    let Some((ctx, _g)) = common::gpu(test) else { return };
+    let (w, h) = CHANGING;
+    let (wu, hu) = (w as u32, h as u32);
+    let windows = [
+        Window { x0: 0, y0: 0, x1: 1, y1: 1 },
+        Window::full(w, h),
+        Window { x0: wu - 1, y0: 0, x1: wu, y1: hu },
+        Window { x0: 5, y0: 7, x1: 12, y1: 30 },
+        Window { x0: 0, y0: hu - 1, x1: wu, y1: hu },
+        Window { x0: 40, y0: 30, x1: wu + 20, y1: hu + 9 },
+        Window { x0: 20, y0: 20, x1: 20, y1: 25 },
+        Window { x0: 1, y0: 1, x1: wu - 1, y1: hu - 1 },
+        Window { x0: 30, y0: 2, x1: 33, y1: 41 },
+    ];
+    let frames = sequence(w, h, windows.len());
+    let request = |window| FrameRequest {
+        zero_crossings: Some(crossings(ListSpec { window, cap: None, seed: 0 })),
+        ..FrameRequest::default()
+    };
+    let (mut cpu, mut gpu, mut whole) = (CpuBackend::new(), GpuBackend::new(ctx.clone()), CpuBackend::new());
+    let mut listed = 0;
+    for (i, (f, &window)) in frames.iter().zip(&windows).enumerate() {
+        let what = format!("{test}/frame{i}/{window:?}");
+        let c = cpu.process(f, &request(window)).unwrap().zero_crossings.unwrap();
+        let g = gpu.process(f, &request(window)).unwrap().zero_crossings.unwrap();
+        same_lists(&what, &c, &g);
+        let all = whole.process(f, &request(Window::full(w, h))).unwrap().zero_crossings.unwrap();
+        let inside: Vec<Feature> = all
+            .into_iter()
+            .filter(|p| (window.x0..window.x1).contains(&p.x) && (window.y0..window.y1).contains(&p.y))
+            .collect();
+        same_lists(&format!("{what} against the whole frame"), &inside, &g);
+        listed += g.len();
+    }
+    assert!(listed > 100, "{test}: only {listed} crossings listed");
+}
+
 #[test]
 fn changing_smoothing_restarts_motion() {
     let (w, h) = CHANGING;

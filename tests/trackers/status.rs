@@ -512,46 +512,52 @@ fn condensation_reacquires_after_covers_and_jumps_across_seeds() {
     // frame 60 (the window 31 and 66 px away). Never tracking off the window,
     // and tracking again within 30 frames of the evidence returning (70
     // with the roll, a third dimension to search: seeds 1–16 take 3–58).
+    // (scene, motion, frames jumped ahead at 60, or covered for 60–79)
+    let scenes = [
+        ("cover", PlaneMotion::Translation, None),
+        ("roll cover", PlaneMotion::Roll, None),
+        ("jump 15", PlaneMotion::Translation, Some(15)),
+        ("jump 30", PlaneMotion::Translation, Some(30)),
+    ];
+    let runs: Vec<_> = sweep_seeds().flat_map(|seed| scenes.map(|scene| (seed, scene))).collect();
+    // The runs are independent: each on its own thread, checked in order.
+    let statuses: Vec<String> = std::thread::scope(|threads| {
+        let handles: Vec<_> = runs
+            .iter()
+            .map(|&(seed, (scene, motion, ahead))| {
+                threads.spawn(move || {
+                    let opts = TexturedPlaneOptions { frames: 150, seed, motion, ..TexturedPlaneOptions::default() };
+                    let mut seq = render_textured_plane(&opts).expect("render");
+                    match ahead {
+                        Some(ahead) => jump(&mut seq, 60, ahead),
+                        None => cover(&mut seq, 60..80),
+                    }
+                    let mut params = crate::condensation_e2e::params(motion);
+                    if let Ok(spread) = std::env::var("PIPETRACK_STATUS_SEARCH_SPREAD") {
+                        params.search_spread_px = spread.parse().expect("a spread in px");
+                    }
+                    let out = run(&seq, condensation_with(&seq, params), &mut CpuBackend::new());
+                    check_no_false_tracking(&format!("condensation seed {seed} {scene}"), &seq, &out)
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().expect("a sweep run panicked")).collect()
+    });
     let (mut tracked, mut frames, mut late) = (0, 0, Vec::new());
-    for seed in sweep_seeds() {
-        // (scene, motion, frames jumped ahead at 60, or covered for 60–79)
-        for (scene, motion, ahead) in [
-            ("cover", PlaneMotion::Translation, None),
-            ("roll cover", PlaneMotion::Roll, None),
-            ("jump 15", PlaneMotion::Translation, Some(15)),
-            ("jump 30", PlaneMotion::Translation, Some(30)),
-        ] {
-            let opts = TexturedPlaneOptions { frames: 150, seed, motion, ..TexturedPlaneOptions::default() };
-            let mut seq = render_textured_plane(&opts).expect("render");
-            // The frame from which the window can be seen again.
-            let returns = match ahead {
-                Some(ahead) => {
-                    jump(&mut seq, 60, ahead);
-                    60
-                }
-                None => {
-                    cover(&mut seq, 60..80);
-                    80
-                }
-            };
-            let mut params = crate::condensation_e2e::params(motion);
-            if let Ok(spread) = std::env::var("PIPETRACK_STATUS_SEARCH_SPREAD") {
-                params.search_spread_px = spread.parse().expect("a spread in px");
-            }
-            let out = run(&seq, condensation_with(&seq, params), &mut CpuBackend::new());
-            let label = format!("condensation seed {seed} {scene}");
-            let st = check_no_false_tracking(&label, &seq, &out);
-            assert!(st[..60].chars().all(|c| c == 'T'), "{label}: tracking before frame 60");
-            assert_eq!(&st[60..61], "L", "{label}: lost at frame 60");
-            let back = first(&st, returns, 'T');
-            println!("{label}: re-acquired at {back:?}");
-            let within = if motion == PlaneMotion::Roll { 70 } else { 30 };
-            if back.is_none_or(|b| b > returns + within) {
-                late.push(format!("{label}: {back:?}"));
-            }
-            tracked += st.chars().filter(|&c| c == 'T').count();
-            frames += st.len();
+    for (&(seed, (scene, motion, ahead)), st) in runs.iter().zip(&statuses) {
+        let label = format!("condensation seed {seed} {scene}");
+        // The frame from which the window can be seen again.
+        let returns = if ahead.is_some() { 60 } else { 80 };
+        assert!(st[..60].chars().all(|c| c == 'T'), "{label}: tracking before frame 60");
+        assert_eq!(&st[60..61], "L", "{label}: lost at frame 60");
+        let back = first(st, returns, 'T');
+        println!("{label}: re-acquired at {back:?}");
+        let within = if motion == PlaneMotion::Roll { 70 } else { 30 };
+        if back.is_none_or(|b| b > returns + within) {
+            late.push(format!("{label}: {back:?}"));
         }
+        tracked += st.chars().filter(|&c| c == 'T').count();
+        frames += st.len();
     }
     println!("condensation sweep, seeds {:?}: {tracked} of {frames} frames tracking", sweep_seeds());
     assert!(late.is_empty(), "not re-acquired in time: {}", late.join("; "));
