@@ -7,7 +7,8 @@
 //! the Sobel sets made from them ([`smoothing_region`]), a Sobel set's
 //! gradients and magnitude ([`dense_region`]). Inside the part every value
 //! is the whole frame's, bit for bit, so the lists are those of the GPU
-//! backend, which computes whole frames.
+//! backend, which computes whole frames but for the LoG and its zero
+//! crossings (computed there around the same windows).
 
 use super::plan::{EdgelPart, FramePlan, Plane, PreviousFrame, SobelPart, SobelPlanes, Source, Step};
 use super::{EarlyVision, FrameFeatures, FrameRequest, WindowRequest};

@@ -9,6 +9,11 @@
 //! each lane into one `queue.submit`. The single-sequence API
 //! ([`EarlyVision`], [`GpuBackend::submit`]) uses lane 0.
 //!
+//! Stages run over the whole frame, except the LoG and its zero crossings
+//! when only windowed lists read them ([`FramePlan::log_windows`]): they
+//! run over those windows (the union of every layer's), the LoG one pixel
+//! around them, each value the whole frame's.
+//!
 //! A [`GpuStack`] goes further for sequences of one frame size whose
 //! requests differ only in their lists' windows: their frames are stacked
 //! in the same buffers, layer after layer, and each stage is dispatched once
