@@ -222,6 +222,7 @@ impl WindowMap {
 
     /// Frame position of window point `(s, t)`; the shader's `frame_position`.
     #[must_use]
+    #[inline(always)]
     pub fn position(&self, s: f32, t: f32) -> [f32; 2] {
         let [a, b, c, d, e, f, g, h, kind, ..] = self.0;
         if kind == MAP_BILINEAR {
@@ -286,6 +287,7 @@ pub(crate) fn check_windows(
 // ---------------------------------------------------------------- CPU twin
 
 /// Bilinear sample of `frame` at `(x, y)`, clamped to the frame: the shader's `sample_rgb`.
+#[inline(always)]
 fn sample_rgb(frame: &RgbImage, x: f32, y: f32) -> [f32; 3] {
     let (w, h) = frame.size();
     let x = x.clamp(0.0, (w - 1) as f32);
@@ -306,6 +308,7 @@ fn sample_rgb(frame: &RgbImage, x: f32, y: f32) -> [f32; 3] {
 }
 
 /// Window pixel `(px, py)` as (I, R, G, B): the shader's `window_pixel`.
+#[inline(always)]
 fn window_pixel(frame: &RgbImage, map: &WindowMap, side_log2: u32, px: usize, py: usize) -> [f32; 4] {
     let side = (1u32 << side_log2) as f32;
     let s = (px as f32 + 0.5) / side;
@@ -318,6 +321,7 @@ fn window_pixel(frame: &RgbImage, map: &WindowMap, side_log2: u32, px: usize, py
 /// The chroma vector `(S cos 2πH, S sin 2πH)` of (R, G, B) by eq. 7–8 as
 /// the module documentation reads them; (0, 0) for grey and black.
 #[must_use]
+#[inline(always)]
 pub fn chroma(rgb: [f32; 3]) -> [f32; 2] {
     let [r, g, b] = rgb;
     let sum = r + g + b;
@@ -333,16 +337,19 @@ pub fn chroma(rgb: [f32; 3]) -> [f32; 2] {
     [saturation * num / den, saturation * HALF_SQRT3 * gb / den]
 }
 
+#[inline(always)]
 fn min4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
     std::array::from_fn(|i| a[i].min(b[i]))
 }
 
+#[inline(always)]
 fn max4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
     std::array::from_fn(|i| a[i].max(b[i]))
 }
 
 /// The four hierarchies' (I, R, G, B) at output pixel `(ox, oy)` (eq. 1–4
 /// over its block, in Z order): the shader's `cpf_block`.
+#[inline(always)]
 fn cpf_block(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, ox: usize, oy: usize) -> [[f32; 4]; 4] {
     let depth = (params.side_log2 - params.cpf_log2) as usize;
     let block = 1usize << depth;
@@ -393,8 +400,14 @@ fn cpf_block(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, ox:
     [lo, s1, s2, hi]
 }
 
+// The per-window loops are compiled for AVX-512 or AVX2 where the CPU has
+// them (the same operations in the same order: the results do not change;
+// the rounding to integers of the bilinear sampling then runs inline).
+simd_dispatch!(fn window_values(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, out: &mut [f32]) => window_values_body);
+
 /// One window's filtered values (layout of [`WindowTemplate::values`]).
-fn window_values(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, out: &mut [f32]) {
+#[inline(always)]
+fn window_values_body(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, out: &mut [f32]) {
     let side = params.level_side();
     let pixels = side * side;
     for p in 0..pixels {
@@ -407,9 +420,25 @@ fn window_values(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams,
     }
 }
 
+simd_dispatch!(fn window_terms_into(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate, out: &mut [f32; 2]) => window_terms_body);
+
+/// [`window_terms`] into `out`.
+#[inline(always)]
+fn window_terms_body(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate, out: &mut [f32; 2]) {
+    *out = window_terms_of(frame, map, template);
+}
+
+/// (C_I, C_HS) of one window against `template` (eq. 23–24).
+fn window_terms(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate) -> [f32; 2] {
+    let mut out = [0.0; 2];
+    window_terms_into(frame, map, template, &mut out);
+    out
+}
+
 /// (C_I, C_HS) of one window against `template` (eq. 23–24), in the
 /// shader's order: 64 strided partial sums halved by a tree.
-fn window_terms(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate) -> [f32; 2] {
+#[inline(always)]
+fn window_terms_of(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate) -> [f32; 2] {
     let params = &template.params;
     let side = params.level_side();
     let pixels = side * side;
