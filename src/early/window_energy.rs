@@ -348,8 +348,9 @@ fn max4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
 }
 
 /// The four hierarchies' (I, R, G, B) at output pixel `(ox, oy)` (eq. 1–4
-/// over its block, in Z order): the shader's `cpf_block`.
-#[inline(always)]
+/// over its block, in Z order): the shader's `cpf_block`, one block at a
+/// time (the unit tests' reference for [`window_levels`]).
+#[cfg(test)]
 fn cpf_block(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, ox: usize, oy: usize) -> [[f32; 4]; 4] {
     let depth = (params.side_log2 - params.cpf_log2) as usize;
     let block = 1usize << depth;
@@ -400,19 +401,69 @@ fn cpf_block(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, ox:
     [lo, s1, s2, hi]
 }
 
+/// The four hierarchies of a whole window at the output level, into
+/// `levels` (one entry per output pixel, row by row: `[lo, s1, s2, hi]`,
+/// each (I, R, G, B)): every window pixel sampled once, then each level of
+/// the pyramid made from the one below, 2×2 cells at a time. A cell's
+/// children in the shader's Z order are top-left, bottom-left, top-right,
+/// bottom-right (c0–c3), and eq. 2 (m = 1) is max(min(c0, c1), min(c2, c3)),
+/// eq. 3 (m = 2) min(max(c0, c1), max(c2, c3)), eq. 1 and 4 the min and max
+/// of all four: the values of `cpf_block`, bit for bit (eq. 2 and 3 group
+/// as it does; min and max of the same values, NaN ignored as `f32::min`
+/// ignores it, do not depend on the grouping).
+#[inline(always)]
+fn window_levels(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, levels: &mut Vec<[[f32; 4]; 4]>) {
+    let mut n = 1usize << params.side_log2;
+    levels.clear();
+    // Plain loops, not closures: a closure is not compiled with the
+    // caller's target features.
+    for py in 0..n {
+        for px in 0..n {
+            let v = window_pixel(frame, map, params.side_log2, px, py);
+            // As `cpf_block` folds them from f32::MAX and f32::MIN.
+            levels.push([min4([f32::MAX; 4], v), v, v, max4([f32::MIN; 4], v)]);
+        }
+    }
+    for _ in params.cpf_log2..params.side_log2 {
+        let half = n / 2;
+        // Cell (cx, cy) is written at cy·half + cx, never past the first of
+        // the children it reads (at 2cy·n + 2cx): the level shrinks in place.
+        for cy in 0..half {
+            for cx in 0..half {
+                let top = 2 * cy * n + 2 * cx;
+                let [c0, c2] = [levels[top], levels[top + 1]];
+                let [c1, c3] = [levels[top + n], levels[top + n + 1]];
+                levels[cy * half + cx] = [
+                    min4(min4(c0[0], c1[0]), min4(c2[0], c3[0])),
+                    max4(min4(c0[1], c1[1]), min4(c2[1], c3[1])),
+                    min4(max4(c0[2], c1[2]), max4(c2[2], c3[2])),
+                    max4(max4(c0[3], c1[3]), max4(c2[3], c3[3])),
+                ];
+            }
+        }
+        n = half;
+    }
+    levels.truncate(n * n);
+}
+
 // The per-window loops are compiled for AVX-512 or AVX2 where the CPU has
 // them (the same operations in the same order: the results do not change;
 // the rounding to integers of the bilinear sampling then runs inline).
-simd_dispatch!(fn window_values(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, out: &mut [f32]) => window_values_body);
+simd_dispatch!(fn window_values(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, levels: &mut Vec<[[f32; 4]; 4]>, out: &mut [f32]) => window_values_body);
 
 /// One window's filtered values (layout of [`WindowTemplate::values`]).
 #[inline(always)]
-fn window_values_body(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams, out: &mut [f32]) {
-    let side = params.level_side();
-    let pixels = side * side;
-    for p in 0..pixels {
-        let levels = cpf_block(frame, map, params, p % side, p / side);
-        for (m, v) in levels.iter().enumerate() {
+fn window_values_body(
+    frame: &RgbImage,
+    map: &WindowMap,
+    params: &WindowEnergyParams,
+    levels: &mut Vec<[[f32; 4]; 4]>,
+    out: &mut [f32],
+) {
+    window_levels(frame, map, params, levels);
+    let pixels = levels.len();
+    for (p, hierarchies) in levels.iter().enumerate() {
+        for (m, v) in hierarchies.iter().enumerate() {
             let c = chroma([v[1], v[2], v[3]]);
             let o = (m * pixels + p) * CHANNELS;
             out[o..o + CHANNELS].copy_from_slice(&[v[0], c[0], c[1]]);
@@ -420,34 +471,25 @@ fn window_values_body(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyPa
     }
 }
 
-simd_dispatch!(fn window_terms_into(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate, out: &mut [f32; 2]) => window_terms_body);
-
-/// [`window_terms`] into `out`.
-#[inline(always)]
-fn window_terms_body(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate, out: &mut [f32; 2]) {
-    *out = window_terms_of(frame, map, template);
-}
-
-/// (C_I, C_HS) of one window against `template` (eq. 23–24).
-fn window_terms(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate) -> [f32; 2] {
-    let mut out = [0.0; 2];
-    window_terms_into(frame, map, template, &mut out);
-    out
-}
+simd_dispatch!(fn window_terms_into(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate, levels: &mut Vec<[[f32; 4]; 4]>, out: &mut [f32; 2]) => window_terms_body);
 
 /// (C_I, C_HS) of one window against `template` (eq. 23–24), in the
 /// shader's order: 64 strided partial sums halved by a tree.
 #[inline(always)]
-fn window_terms_of(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate) -> [f32; 2] {
-    let params = &template.params;
-    let side = params.level_side();
-    let pixels = side * side;
+fn window_terms_body(
+    frame: &RgbImage,
+    map: &WindowMap,
+    template: &WindowTemplate,
+    levels: &mut Vec<[[f32; 4]; 4]>,
+    out: &mut [f32; 2],
+) {
+    window_levels(frame, map, &template.params, levels);
+    let pixels = levels.len();
     let t = &template.values;
     let mut partial = [[0.0f32; 2]; GROUP];
     for (lane, sums) in partial.iter_mut().enumerate() {
         for p in (lane..pixels).step_by(GROUP) {
-            let levels = cpf_block(frame, map, params, p % side, p / side);
-            for (m, v) in levels.iter().enumerate() {
+            for (m, v) in levels[p].iter().enumerate() {
                 let cd = chroma([v[1], v[2], v[3]]);
                 let o = (m * pixels + p) * CHANNELS;
                 let di = t[o] - v[0];
@@ -457,7 +499,20 @@ fn window_terms_of(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate)
             }
         }
     }
-    tree_sum(&mut partial)
+    *out = tree_sum(&mut partial);
+}
+
+/// (C_I, C_HS) of one window against `template` (eq. 23–24), with
+/// `levels` as scratch.
+fn window_terms(
+    frame: &RgbImage,
+    map: &WindowMap,
+    template: &WindowTemplate,
+    levels: &mut Vec<[[f32; 4]; 4]>,
+) -> [f32; 2] {
+    let mut out = [0.0; 2];
+    window_terms_into(frame, map, template, levels, &mut out);
+    out
 }
 
 /// Sum `values` by halving: `v[i] += v[i + stride]` for stride = len/2, …, 1
@@ -512,9 +567,9 @@ pub fn window_features_cpu(
     check_inputs(frame, params, quads, None)?;
     Ok(quads
         .par_iter()
-        .map(|q| {
+        .map_init(Vec::new, |levels, q| {
             let mut values = vec![0.0; params.window_len()];
-            window_values(frame, &WindowMap::from_quad(q), params, &mut values);
+            window_values(frame, &WindowMap::from_quad(q), params, levels, &mut values);
             WindowTemplate { params: *params, values }
         })
         .collect())
@@ -523,7 +578,10 @@ pub fn window_features_cpu(
 /// CPU twin: the per-window `(C_I, C_HS)` of eq. 23–24 against `template`.
 pub fn window_terms_cpu(frame: &RgbImage, quads: &[Quad], template: &WindowTemplate) -> Result<Vec<[f32; 2]>> {
     check_inputs(frame, &template.params, quads, Some(template))?;
-    Ok(quads.par_iter().map(|q| window_terms(frame, &WindowMap::from_quad(q), template)).collect())
+    Ok(quads
+        .par_iter()
+        .map_init(Vec::new, |levels, q| window_terms(frame, &WindowMap::from_quad(q), template, levels))
+        .collect())
 }
 
 /// CPU twin: the energies of eq. 22 (normalised by eq. 25–26) of the windows
@@ -889,6 +947,41 @@ mod tests {
     }
 
     /// Eq. 22–26 on two windows: one the template itself (energy 0), one shifted.
+    /// The whole window's levels at once equal `cpf_block`'s, block by
+    /// block, bit for bit: every depth from none to six levels, windows
+    /// inside, turned, partly outside the frame, perspective and folded
+    /// (a self-crossing quadrilateral, whose map divides by values through
+    /// zero).
+    #[test]
+    fn window_levels_equal_the_blocks_one_at_a_time() {
+        let frame = RgbImage::from_fn(37, 29, |x, y| [(x * 7 + y) as u8, (y * 9) as u8, ((x * y * 13) % 251) as u8]);
+        let quads: [Quad; 5] = [
+            [[3.0, 2.0], [30.0, 2.0], [30.0, 25.0], [3.0, 25.0]],
+            [[18.0, -4.0], [40.0, 12.0], [20.0, 33.0], [-3.0, 15.0]],
+            [[-10.0, -6.0], [12.0, -6.0], [12.0, 9.0], [-10.0, 9.0]],
+            [[3.0, 4.0], [34.0, 1.0], [30.0, 27.0], [0.5, 20.0]],
+            [[2.0, 2.0], [30.0, 26.0], [30.0, 2.0], [2.0, 26.0]],
+        ];
+        let mut levels = Vec::new();
+        let mut compared = 0;
+        for (side_log2, cpf_log2) in [(1, 1), (2, 1), (3, 2), (4, 1), (5, 4), (6, 4), (7, 1)] {
+            let params = WindowEnergyParams { side_log2, cpf_log2 };
+            let side = params.level_side();
+            for quad in &quads {
+                let map = WindowMap::from_quad(quad);
+                window_levels(&frame, &map, &params, &mut levels);
+                assert_eq!(levels.len(), side * side);
+                for (p, got) in levels.iter().enumerate() {
+                    let want = cpf_block(&frame, &map, &params, p % side, p / side);
+                    let bits = |v: &[[f32; 4]; 4]| v.map(|c| c.map(f32::to_bits));
+                    assert_eq!(bits(got), bits(&want), "L {side_log2}, k {cpf_log2}, {quad:?}, pixel {p}");
+                    compared += 1;
+                }
+            }
+        }
+        assert!(compared > 1000);
+    }
+
     #[test]
     fn the_template_window_has_zero_energy_and_energies_sum_to_two() {
         let frame = RgbImage::from_fn(40, 30, |x, y| [(x * 6) as u8, (y * 8) as u8, ((x * y) % 251) as u8]);
