@@ -138,23 +138,26 @@ fn track(
     common::track_lost(&mut tracker, backend, seq.frames.iter().cloned(), size)
 }
 
-/// [`check`] each of `cases` on the CPU backend; their results.
-fn check_each_cpu(cases: &[Case]) -> Vec<Vec<FrameResult>> {
-    cases.iter().map(|case| check(case, &mut CpuBackend::new(), "cpu")).collect()
+/// [`check`] each of `cases` on the CPU backend.
+fn check_each_cpu(cases: &[Case]) {
+    for case in cases {
+        check(case, &mut CpuBackend::new(), "cpu");
+    }
 }
 
 /// [`check`] each of `cases` on the CPU backend, then, where there is a GPU
-/// adapter, on the GPU backend, and assert that both give the same statuses
-/// and corners. `test` names the test in the message of a missing adapter.
+/// adapter, on the GPU backend (the scene rendered once for both), and
+/// assert that both give the same statuses and corners. `test` names the
+/// test in the message of a missing adapter.
 fn check_on_both_backends(test: &str, cases: &[Case]) {
-    let cpu = check_each_cpu(cases);
-    let Some((ctx, _guard)) = common::gpu(test) else {
-        return;
-    };
-    for (case, cpu) in cases.iter().zip(&cpu) {
-        let gpu = check(case, &mut GpuBackend::new(ctx.clone()), "gpu");
+    for case in cases {
+        let seq = render(case);
+        let cpu = check_scene(case, &seq, &mut CpuBackend::new(), "cpu");
+        // The GPU tests take turns: the adapter is held for the GPU run only.
+        let Some((ctx, _guard)) = common::gpu(test) else { continue };
+        let gpu = check_scene(case, &seq, &mut GpuBackend::new(ctx.clone()), "gpu");
         assert_eq!(gpu.len(), cpu.len(), "frames tracked on the GPU and on the CPU");
-        for (g, c) in gpu.iter().zip(cpu) {
+        for (g, c) in gpu.iter().zip(&cpu) {
             assert_eq!(g.status, c.status, "frame {}", g.frame);
             for (a, b) in g.corners.iter().zip(&c.corners) {
                 assert!((a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6, "frame {}: {a:?} vs {b:?}", g.frame);
@@ -165,9 +168,18 @@ fn check_on_both_backends(test: &str, cases: &[Case]) {
 
 /// Track `case` on `backend`, assert its figures and return the results.
 fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<FrameResult> {
-    let seq = render(case);
+    check_scene(case, &render(case), backend, backend_name)
+}
+
+/// [`check`] on `seq`, the scene of `case` already rendered.
+fn check_scene(
+    case: &Case,
+    seq: &SyntheticSequence,
+    backend: &mut dyn EarlyVision,
+    backend_name: &str,
+) -> Vec<FrameResult> {
     let params = LoweParams { ambiguous_carry_ratio: case.carry_ratio, ..LoweParams::default() };
-    let (results, lost) = track(&seq, params, backend);
+    let (results, lost) = track(seq, params, backend);
     let s = score(&seq.truth, &results).expect("score");
     let stats = s.stats.expect("scored frames");
     let lid_errors: Vec<(usize, f64)> = results
