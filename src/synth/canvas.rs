@@ -235,11 +235,21 @@ impl Canvas {
                 let alpha = &mut scratch.alpha[at..at + fw];
                 let premultiplied = &mut scratch.premultiplied[at..at + fw];
                 let mut winding = 0.0f64;
-                for ((a, p), acc) in alpha.iter_mut().zip(premultiplied.iter_mut()).zip(acc_row) {
-                    winding += acc;
+                let mut x = 0;
+                while x < fw {
+                    winding += acc_row[x];
+                    // Up to the next cell an edge touches the winding number
+                    // stays (adding 0 changes nothing): one coverage for the
+                    // run, and nothing to add where it is 0.
+                    let run = acc_row[x + 1..fw].iter().position(|&v| v != 0.0).map_or(fw, |k| x + 1 + k);
                     let coverage = rule.coverage(winding) as f32;
-                    *a += coverage;
-                    *p += coverage * face.grey;
+                    if coverage != 0.0 {
+                        for (a, p) in alpha[x..run].iter_mut().zip(&mut premultiplied[x..run]) {
+                            *a += coverage;
+                            *p += coverage * face.grey;
+                        }
+                    }
+                    x = run;
                 }
             }
         }
