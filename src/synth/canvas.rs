@@ -241,7 +241,7 @@ impl Canvas {
                     // Up to the next cell an edge touches the winding number
                     // stays (adding 0 changes nothing): one coverage for the
                     // run, and nothing to add where it is 0.
-                    let run = acc_row[x + 1..fw].iter().position(|&v| v != 0.0).map_or(fw, |k| x + 1 + k);
+                    let run = next_nonzero(acc_row, x + 1, fw);
                     let coverage = rule.coverage(winding) as f32;
                     if coverage != 0.0 {
                         for (a, p) in alpha[x..run].iter_mut().zip(&mut premultiplied[x..run]) {
@@ -259,12 +259,18 @@ impl Canvas {
             let alpha = &scratch.alpha[r * lw..(r + 1) * lw];
             let premultiplied = &scratch.premultiplied[r * lw..(r + 1) * lw];
             for ((v, &a), &p) in row.iter_mut().zip(alpha).zip(premultiplied) {
-                if a >= 1.0 {
-                    // Fully covered (or faces overlapping after all): their mean grey.
-                    *v = p / a;
+                // Both candidates computed and one selected, so the loop has
+                // no branch to take per sample.
+                let mean = p / a;
+                let blended = *v * (1.0 - a) + p;
+                // Fully covered (or faces overlapping after all): their mean grey.
+                *v = if a >= 1.0 {
+                    mean
                 } else if a > 0.0 {
-                    *v = *v * (1.0 - a) + p;
-                }
+                    blended
+                } else {
+                    *v
+                };
             }
         }
         self.scratch = scratch;
@@ -421,6 +427,21 @@ impl FillRule {
             }
         }
     }
+}
+
+/// The first index in `from..to` where `values` is not ±0 (`to` if none),
+/// testing eight at a time.
+fn next_nonzero(values: &[f64], from: usize, to: usize) -> usize {
+    const CHUNK: usize = 8;
+    let mut i = from;
+    while i + CHUNK <= to {
+        // The bits of ±0 shifted past the sign are 0.
+        if values[i..i + CHUNK].iter().fold(0u64, |any, v| any | (v.to_bits() << 1)) != 0 {
+            break;
+        }
+        i += CHUNK;
+    }
+    values[i..to].iter().position(|&v| v != 0.0).map_or(to, |k| i + k)
 }
 
 /// A half-open range of canvas cells `x0..x1`, `y0..y1`, non-empty.
