@@ -122,13 +122,15 @@ impl CrossingMap {
                 samples += 1;
                 let c = [p[0] + s * ux, p[1] + s * uy];
                 let (x0, y0) = (c[0].round() as i64, c[1].round() as i64);
+                // Most pixels hold no crossing: look first, measure after.
                 let hit = (-1..=1).any(|j| {
                     (-1..=1).any(|i| {
-                        let (rx, ry) = ((x0 + i) as f64 - c[0], (y0 + j) as f64 - c[1]);
-                        (rx * uy - ry * ux).abs() <= 1.0
-                            && (rx * ux + ry * uy).abs() <= 1.0
-                            && matches_level(self.level(x0 + i, y0 + j))
-                            && dark_on_side(x0 + i, y0 + j)
+                        matches_level(self.level(x0 + i, y0 + j)) && {
+                            let (rx, ry) = ((x0 + i) as f64 - c[0], (y0 + j) as f64 - c[1]);
+                            (rx * uy - ry * ux).abs() <= 1.0
+                                && (rx * ux + ry * uy).abs() <= 1.0
+                                && dark_on_side(x0 + i, y0 + j)
+                        }
                     })
                 });
                 if hit {
