@@ -6,7 +6,7 @@
 //! convenience `<stage>` over it, its GPU recording `encode`, and the
 //! standalone `<stage>_gpu` (upload, run, read back) for tests and benches.
 
-/// `fn $name(args)` that runs `$body(args)` compiled for AVX-512 or AVX2
+/// `fn $name(args) [-> ret]` that runs `$body(args)` compiled for AVX-512 or AVX2
 /// where the CPU has them (std caches the detection) and for the baseline
 /// target otherwise. The row loops of the twins vectorise either way; AVX2
 /// doubles the lanes and AVX-512 doubles them again. Results are
@@ -15,13 +15,13 @@
 /// `$body` should be `#[inline(always)]` so it is compiled inside the AVX2
 /// function.
 macro_rules! simd_dispatch {
-    ($(#[$m:meta])* fn $name:ident($($arg:ident: $ty:ty),* $(,)?) => $body:ident) => {
+    ($(#[$m:meta])* fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? => $body:ident) => {
         $(#[$m])*
-        fn $name($($arg: $ty),*) {
+        fn $name($($arg: $ty),*) $(-> $ret)? {
             #[cfg(target_arch = "x86_64")]
             {
                 #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
-                fn widest($($arg: $ty),*) {
+                fn widest($($arg: $ty),*) $(-> $ret)? {
                     $body($($arg),*)
                 }
                 if std::arch::is_x86_feature_detected!("avx512f")
@@ -33,7 +33,7 @@ macro_rules! simd_dispatch {
                     return unsafe { widest($($arg),*) };
                 }
                 #[target_feature(enable = "avx2")]
-                fn wide($($arg: $ty),*) {
+                fn wide($($arg: $ty),*) $(-> $ret)? {
                     $body($($arg),*)
                 }
                 if std::arch::is_x86_feature_detected!("avx2") {

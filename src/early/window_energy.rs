@@ -471,18 +471,18 @@ fn window_values_body(
     }
 }
 
-simd_dispatch!(fn window_terms_into(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate, levels: &mut Vec<[[f32; 4]; 4]>, out: &mut [f32; 2]) => window_terms_body);
+simd_dispatch!(fn window_terms(frame: &RgbImage, map: &WindowMap, template: &WindowTemplate, levels: &mut Vec<[[f32; 4]; 4]>) -> [f32; 2] => window_terms_body);
 
 /// (C_I, C_HS) of one window against `template` (eq. 23–24), in the
-/// shader's order: 64 strided partial sums halved by a tree.
+/// shader's order: 64 strided partial sums halved by a tree; `levels` is
+/// scratch.
 #[inline(always)]
 fn window_terms_body(
     frame: &RgbImage,
     map: &WindowMap,
     template: &WindowTemplate,
     levels: &mut Vec<[[f32; 4]; 4]>,
-    out: &mut [f32; 2],
-) {
+) -> [f32; 2] {
     window_levels(frame, map, &template.params, levels);
     let pixels = levels.len();
     let t = &template.values;
@@ -499,20 +499,7 @@ fn window_terms_body(
             }
         }
     }
-    *out = tree_sum(&mut partial);
-}
-
-/// (C_I, C_HS) of one window against `template` (eq. 23–24), with
-/// `levels` as scratch.
-fn window_terms(
-    frame: &RgbImage,
-    map: &WindowMap,
-    template: &WindowTemplate,
-    levels: &mut Vec<[[f32; 4]; 4]>,
-) -> [f32; 2] {
-    let mut out = [0.0; 2];
-    window_terms_into(frame, map, template, levels, &mut out);
-    out
+    tree_sum(&mut partial)
 }
 
 /// Sum `values` by halving: `v[i] += v[i + stride]` for stride = len/2, …, 1
@@ -946,7 +933,6 @@ mod tests {
         assert_eq!([i_of(0, 3), i_of(1, 3), i_of(2, 3), i_of(3, 3)], [1.0, 1.0, 3.0, 7.0]);
     }
 
-    /// Eq. 22–26 on two windows: one the template itself (energy 0), one shifted.
     /// The whole window's levels at once equal `cpf_block`'s, block by
     /// block, bit for bit: every depth from none to six levels, windows
     /// inside, turned, partly outside the frame, perspective and folded
@@ -982,6 +968,7 @@ mod tests {
         assert!(compared > 1000);
     }
 
+    /// Eq. 22–26 on two windows: one the template itself (energy 0), one shifted.
     #[test]
     fn the_template_window_has_zero_energy_and_energies_sum_to_two() {
         let frame = RgbImage::from_fn(40, 30, |x, y| [(x * 6) as u8, (y * 8) as u8, ((x * y) % 251) as u8]);

@@ -138,8 +138,7 @@ impl GpuImage {
     /// step of the grid's third dimension.
     #[must_use]
     pub(crate) fn grid(&self) -> [u32; 3] {
-        let [x, y, _] = workgroups_2d(self.width, self.height);
-        [x, y, self.layers as u32]
+        self.region_grid(self.width as u32, self.height as u32)
     }
 
     /// Workgroups covering a `width`×`height` region of every layer with
