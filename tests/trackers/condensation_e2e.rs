@@ -11,6 +11,8 @@
 //! and ω_z too with roll. With all six free, the window drifts along the
 //! directions a 64 px window barely sees (RESULTS.md).
 
+use std::sync::{Arc, Mutex, OnceLock};
+
 use crate::common;
 
 use pipetrack::backend::{CpuBackend, EarlyVision, GpuBackend};
@@ -24,8 +26,27 @@ const FRAMES: usize = 200;
 const MAX_MEAN_ERROR_PX: f64 = 0.5;
 
 fn render(motion: PlaneMotion) -> SyntheticSequence {
-    render_textured_plane(&TexturedPlaneOptions { frames: FRAMES, motion, ..TexturedPlaneOptions::default() })
-        .expect("render textured-plane")
+    textured_plane(&TexturedPlaneOptions { frames: FRAMES, motion, ..TexturedPlaneOptions::default() })
+}
+
+/// The scene of `opts`, rendered once in this test binary however many
+/// tests track it (each gets its own copy).
+pub(crate) fn textured_plane(opts: &TexturedPlaneOptions) -> SyntheticSequence {
+    type Scenes = Mutex<Vec<(TexturedPlaneOptions, Arc<OnceLock<SyntheticSequence>>)>>;
+    static SCENES: Scenes = Mutex::new(Vec::new());
+    let scene = {
+        let mut scenes = SCENES.lock().unwrap_or_else(|p| p.into_inner());
+        match scenes.iter().find(|(o, _)| o == opts) {
+            Some((_, scene)) => scene.clone(),
+            None => {
+                let scene = Arc::new(OnceLock::new());
+                scenes.push((opts.clone(), scene.clone()));
+                scene
+            }
+        }
+    };
+    // Rendered outside the list's lock, so other scenes render meanwhile.
+    scene.get_or_init(|| render_textured_plane(opts).expect("render textured-plane")).clone()
 }
 
 /// The defaults, sampling the screw components `motion` has (004 §IV).

@@ -22,7 +22,7 @@ use pipetrack::synth::SyntheticSequence;
 use pipetrack::synth::boxes::{BoxOptions, render_box};
 use pipetrack::synth::pendulum::{PendulumOptions, render_pendulum};
 use pipetrack::synth::target3dof::{Target3dofOptions, render_target3dof};
-use pipetrack::synth::textured_plane::{PlaneMotion, TexturedPlaneOptions, render_textured_plane};
+use pipetrack::synth::textured_plane::{PlaneMotion, TexturedPlaneOptions};
 use pipetrack::track::{
     BlueParams, BlueTracker, CondensationParams, CondensationTracker, FrameOutcome, LoweParams, LoweTracker,
     MotionEdgeParams, MotionEdgeTracker, Tracker,
@@ -451,12 +451,11 @@ fn lowe_jump_is_lost_at_once_then_found_by_the_whole_image_search() {
 // wrong-initialisation case has no condensation counterpart.
 
 fn plane() -> SyntheticSequence {
-    render_textured_plane(&TexturedPlaneOptions {
+    crate::condensation_e2e::textured_plane(&TexturedPlaneOptions {
         frames: 150,
         motion: PlaneMotion::Translation,
         ..TexturedPlaneOptions::default()
     })
-    .expect("render")
 }
 
 fn condensation(seq: &SyntheticSequence) -> Box<dyn Tracker> {
@@ -527,7 +526,8 @@ fn condensation_reacquires_after_covers_and_jumps_across_seeds() {
             .map(|&(seed, (scene, motion, ahead))| {
                 threads.spawn(move || {
                     let opts = TexturedPlaneOptions { frames: 150, seed, motion, ..TexturedPlaneOptions::default() };
-                    let mut seq = render_textured_plane(&opts).expect("render");
+                    // A cover and the jumps share one rendering per seed.
+                    let mut seq = crate::condensation_e2e::textured_plane(&opts);
                     match ahead {
                         Some(ahead) => jump(&mut seq, 60, ahead),
                         None => cover(&mut seq, 60..80),
