@@ -24,7 +24,7 @@ pub fn add_noise_and_quantise(image: &FloatImage, noise_sigma: f32, rng: &mut im
         quantise(image.data(), out.data_mut());
         return;
     }
-    // The noisy values of a piece of the row, then the piece quantised.
+    // The noisy values of a piece of the image, then the piece quantised.
     let mut noisy = [0.0f32; NOISE_PIECE];
     for (o, v) in out.data_mut().chunks_mut(NOISE_PIECE).zip(image.data().chunks(NOISE_PIECE)) {
         for (n, v) in noisy.chunks_mut(2).zip(v.chunks(2)) {
@@ -259,7 +259,9 @@ mod tests {
         let mut values = vec![-3.0, -0.5, -0.0, 0.5, 1.5, 2.5, 127.5, 254.5, 255.0, 255.49998, 300.0, f32::NAN];
         for k in 0..=255u8 {
             let half = f32::from(k) + 0.5;
-            values.extend([half, half.next_down(), half.next_up(), f32::from(k)]);
+            // One ulp below and above (positive values: the next bit patterns).
+            let (below, above) = (f32::from_bits(half.to_bits() - 1), f32::from_bits(half.to_bits() + 1));
+            values.extend([half, below, above, f32::from(k)]);
         }
         let mut out = vec![0u8; values.len()];
         quantise(&values, &mut out);
