@@ -166,12 +166,12 @@ fn check_on_both_backends(test: &str, cases: &[Case]) {
     }
 }
 
-/// Track `case` on `backend`, assert its figures and return the results.
-fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<FrameResult> {
-    check_scene(case, &render(case), backend, backend_name)
+/// Track `case` on `backend` and assert its figures.
+fn check(case: &Case, backend: &mut dyn EarlyVision, backend_name: &str) {
+    check_scene(case, &render(case), backend, backend_name);
 }
 
-/// [`check`] on `seq`, the scene of `case` already rendered.
+/// [`check`] on `seq`, the scene of `case` already rendered; the results.
 fn check_scene(
     case: &Case,
     seq: &SyntheticSequence,
