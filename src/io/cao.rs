@@ -869,12 +869,12 @@ mod tests {
         assert!(msg.starts_with("line 11: vertex 7 repeats vertex 6"), "{msg}");
     }
 
-    /// A fresh folder holding `files` (relative path, text).
-    fn folder(name: &str, files: &[(&str, &str)]) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("pipetrack-cao-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+    /// A fresh folder under the temp folder holding `files` (relative path,
+    /// text), removed when dropped.
+    fn folder(name: &str, files: &[(&str, &str)]) -> tempfile::TempDir {
+        let dir = tempfile::Builder::new().prefix(&format!("pipetrack-cao-{name}-")).tempdir().unwrap();
         for (path, text) in files {
-            let path = dir.join(path);
+            let path = dir.path().join(path);
             std::fs::create_dir_all(path.parent().unwrap()).unwrap();
             std::fs::write(path, text).unwrap();
         }
@@ -902,8 +902,8 @@ mod tests {
             &[("parts/leaf.cao", leaf), ("parts/mid.cao", &mid.replace("2\n0 0\n0 0", "0")), ("top.cao", "")],
         );
         let top = "V1\nload(\"parts/mid.cao\")  # base and apex\n3\n5 0 0\n6 0 0\n5 1 0\n1\n0 1\n0\n1\n3 0 1 2\n";
-        std::fs::write(dir.join("top.cao"), top).unwrap();
-        let m = read_cao(&dir.join("top.cao")).unwrap();
+        std::fs::write(dir.path().join("top.cao"), top).unwrap();
+        let m = read_cao(&dir.path().join("top.cao")).unwrap();
         assert_eq!(m.name, "top");
         // Depth first: leaf's 4 points, mid's apex, then top's 3.
         assert_eq!(m.vertices.len(), 8);
@@ -929,7 +929,7 @@ mod tests {
         ] {
             let top = format!("V1\nload(\"row.cao\")\nload(\"row.cao\", {second_row})\n");
             let dir = folder("placements", &[("tile.cao", tile), ("row.cao", row), ("top.cao", &top)]);
-            let m = read_cao(&dir.join("top.cao")).unwrap();
+            let m = read_cao(&dir.path().join("top.cao")).unwrap();
             // 3 × 3 grid points, each once: the tiles' shared corners are one vertex.
             assert_eq!(m.vertices.len(), 9, "{second_row}: {:?}", m.vertices);
             let mut grid: Vec<[i64; 3]> = m.vertices.iter().map(|v| v.map(|c| (c * 1e6).round() as i64)).collect();
@@ -952,7 +952,7 @@ mod tests {
     #[test]
     fn a_file_of_includes_only_is_a_model_and_a_file_of_nothing_is_not() {
         let dir = folder("only-includes", &[("square.cao", SQUARE), ("top.cao", "V1\nload(\"square.cao\")\n")]);
-        assert_eq!(read_cao(&dir.join("top.cao")).unwrap().edges.len(), 4);
+        assert_eq!(read_cao(&dir.path().join("top.cao")).unwrap().edges.len(), 4);
         let msg = err("V1\n0\n0\n0\n0\n");
         assert!(msg.starts_with("line 2: 0 3-D points"), "{msg}");
     }
@@ -969,16 +969,16 @@ mod tests {
                 ("self.cao", "V1\nload(\"self.cao\")\n"),
             ],
         );
-        let (path, msg) = read_err(&dir.join("a.cao"));
+        let (path, msg) = read_err(&dir.path().join("a.cao"));
         assert!(path.ends_with("sub/b.cao"), "{}", path.display());
         assert!(
             msg.starts_with("line 3: load(\"../a.cao\") makes a cycle of includes (a.cao → b.cao → a.cao)"),
             "{msg}"
         );
-        let (path, msg) = read_err(&dir.join("c.cao"));
+        let (path, msg) = read_err(&dir.path().join("c.cao"));
         assert!(path.ends_with("c.cao"));
         assert!(msg.starts_with("line 2: load(\"nothere.cao\"): no such file"), "{msg}");
-        let (path, msg) = read_err(&dir.join("self.cao"));
+        let (path, msg) = read_err(&dir.path().join("self.cao"));
         assert!(path.ends_with("self.cao") && msg.contains("(self.cao → self.cao)"), "{msg}");
     }
 
@@ -986,13 +986,13 @@ mod tests {
     fn errors_in_an_included_file_name_it() {
         let bad = SQUARE.replace("2 3\n", "2 9\n");
         let dir = folder("bad-part", &[("part.cao", &bad), ("top.cao", "V1\nload(\"part.cao\")\n")]);
-        let (path, msg) = read_err(&dir.join("top.cao"));
+        let (path, msg) = read_err(&dir.path().join("top.cao"));
         assert!(path.ends_with("part.cao"), "{}", path.display());
         assert!(msg.starts_with("line 10: 3-D line 2: point index 9 is out of range"), "{msg}");
         // A problem of the merged model names the part's file and line too.
         let flat = "V1\n5\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0 0 0.5\n0\n0\n1\n5 0 1 2 3 4\n";
         let dir = folder("bent-part", &[("part.cao", flat), ("top.cao", "V1\nload(\"part.cao\")\n")]);
-        let (path, msg) = read_err(&dir.join("top.cao"));
+        let (path, msg) = read_err(&dir.path().join("top.cao"));
         assert!(path.ends_with("part.cao") && msg.starts_with("line 11: face 0 is not planar"), "{msg}");
     }
 
@@ -1037,7 +1037,7 @@ mod tests {
         files.push(("l20.cao".to_string(), SQUARE.to_string()));
         let files: Vec<(&str, &str)> = files.iter().map(|(p, t)| (p.as_str(), t.as_str())).collect();
         let dir = folder("many-times", &files);
-        let (_, msg) = read_err(&dir.join("l0.cao"));
+        let (_, msg) = read_err(&dir.path().join("l0.cao"));
         assert!(msg.contains("more than 10000 files read"), "{msg}");
     }
 }

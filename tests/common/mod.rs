@@ -2,7 +2,7 @@
 //! binary, and comparison helpers that explain their failures.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::{LazyLock, Mutex, MutexGuard};
 
 use pipetrack::backend::EarlyVision;
@@ -229,13 +229,50 @@ pub fn pipetrack(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
 }
 
-/// A fresh, empty scratch folder for one test: `pipetrack-<prefix>-<pid>-<name>`
-/// under the system temp folder (removed first if a previous run left it).
-pub fn scratch(prefix: &str, name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pipetrack-{prefix}-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
+/// A fresh, empty scratch folder for one test, `pipetrack-<prefix>-<name>-XXXXXX`
+/// under the system temp folder: removed with everything in it when the
+/// value is dropped, so a passing test leaves nothing behind, and kept (its
+/// path printed) when it is dropped by a failing test, to look at its files.
+pub struct Scratch(Option<tempfile::TempDir>);
+
+impl Scratch {
+    pub fn path(&self) -> &Path {
+        self.0.as_ref().expect("scratch folder present until dropped").path()
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+
+    fn deref(&self) -> &Path {
+        self.path()
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        self.path()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            return;
+        }
+        if let Some(dir) = self.0.take() {
+            eprintln!("scratch folder of the failed test kept: {}", dir.keep().display());
+        }
+    }
+}
+
+/// A new [`Scratch`] folder for the test `name` of the group `prefix`.
+pub fn scratch(prefix: &str, name: &str) -> Scratch {
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("pipetrack-{prefix}-{name}-"))
+        .tempdir()
+        .expect("scratch folder in the temp folder");
+    Scratch(Some(dir))
 }
 
 /// A 0.2 × 0.15 × 0.1 m box centred on its origin; vertex i has coordinate

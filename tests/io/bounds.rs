@@ -27,7 +27,7 @@ fn pipetrack(args: &[&str], stdin: &[u8]) -> Output {
     child.wait_with_output().expect("binary runs")
 }
 
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> crate::common::Scratch {
     crate::common::scratch("bounds", name)
 }
 

@@ -14,7 +14,7 @@ fn track_motion_edge_cpu(seq: &Path, extra: &[&str]) -> Output {
     pipetrack(&args)
 }
 
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> crate::common::Scratch {
     crate::common::scratch("cli", name)
 }
 

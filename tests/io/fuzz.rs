@@ -58,8 +58,9 @@ struct Target<C> {
     rng_seed: u64,
     seeds: Vec<Vec<u8>>,
     dictionary: Vec<String>,
-    /// Builds the fixture (temp folder, good files) once, in the worker.
-    setup: fn(&str) -> C,
+    /// Builds the fixture (good files in the target's scratch folder) once,
+    /// in the worker.
+    setup: fn(&Path) -> C,
     /// Runs one input; `Err` describes a violated property.
     check: fn(&C, &[u8]) -> Result<(), String>,
 }
@@ -80,37 +81,14 @@ fn run<C: 'static>(target: Target<C>) {
     // A plain thread, not a scoped one: a hung worker must not keep the
     // test from failing.
     std::thread::spawn(move || {
-        let context = (target.setup)(target.name);
-        let (seed, cases_wanted, time_box) = budget(target.rng_seed);
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let start = Instant::now();
-        let mut cases = 0;
-        let mut checking = Duration::ZERO;
-        let mut slowest = (Duration::ZERO, 0);
-        while cases < cases_wanted && start.elapsed() < time_box {
-            let input = generate(&mut rng, &target.seeds, &target.dictionary);
-            if let Ok(mut slot) = shared.lock() {
-                *slot = (cases, input.clone());
-            }
-            let t0 = Instant::now();
-            let outcome = catch_unwind(AssertUnwindSafe(|| (target.check)(&context, &input)));
-            let took = t0.elapsed();
-            checking += took;
-            slowest = slowest.max((took, input.len()));
-            let failure = match outcome {
-                Err(panic) => Some(format!("panicked: {}", panic_text(&panic))),
-                Ok(Err(message)) => Some(message),
-                Ok(Ok(())) if took > SLOW_CASE => Some(format!("took {took:?} (limit {SLOW_CASE:?})")),
-                Ok(Ok(())) => None,
-            };
-            if let Some(message) = failure {
-                let _ = tx.send(Report::Failed { case: cases, message: format!("(seed {seed:#x}) {message}") });
-                return;
-            }
-            cases += 1;
-            let _ = tx.send(Report::Tick);
-        }
-        let _ = tx.send(Report::Done { cases, elapsed: start.elapsed(), checking, slowest });
+        let folder = scratch(target.name);
+        let context = (target.setup)(&folder);
+        let report = run_cases(&target, &context, &shared, &tx);
+        // The folder goes before the last report, after which the test
+        // binary may exit.
+        drop(context);
+        drop(folder);
+        let _ = tx.send(report);
     });
     loop {
         match rx.recv_timeout(HANG) {
@@ -137,6 +115,46 @@ fn run<C: 'static>(target: Target<C>) {
             }
         }
     }
+}
+
+/// The inputs of `target` on `context`, one after another: `current` holds
+/// the case running (for the watchdog), a tick goes to `tx` after each, and
+/// the result is the report of the first failing case or of them all.
+fn run_cases<C>(
+    target: &Target<C>,
+    context: &C,
+    current: &Mutex<(usize, Vec<u8>)>,
+    tx: &mpsc::Sender<Report>,
+) -> Report {
+    let (seed, cases_wanted, time_box) = budget(target.rng_seed);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let start = Instant::now();
+    let mut cases = 0;
+    let mut checking = Duration::ZERO;
+    let mut slowest = (Duration::ZERO, 0);
+    while cases < cases_wanted && start.elapsed() < time_box {
+        let input = generate(&mut rng, &target.seeds, &target.dictionary);
+        if let Ok(mut slot) = current.lock() {
+            *slot = (cases, input.clone());
+        }
+        let t0 = Instant::now();
+        let outcome = catch_unwind(AssertUnwindSafe(|| (target.check)(context, &input)));
+        let took = t0.elapsed();
+        checking += took;
+        slowest = slowest.max((took, input.len()));
+        let failure = match outcome {
+            Err(panic) => Some(format!("panicked: {}", panic_text(&panic))),
+            Ok(Err(message)) => Some(message),
+            Ok(Ok(())) if took > SLOW_CASE => Some(format!("took {took:?} (limit {SLOW_CASE:?})")),
+            Ok(Ok(())) => None,
+        };
+        if let Some(message) = failure {
+            return Report::Failed { case: cases, message: format!("(seed {seed:#x}) {message}") };
+        }
+        cases += 1;
+        let _ = tx.send(Report::Tick);
+    }
+    Report::Done { cases, elapsed: start.elapsed(), checking, slowest }
 }
 
 /// The RNG seed, the number of inputs and the time box of a run: the
@@ -527,7 +545,7 @@ fn put(path: &Path, input: &[u8]) -> Result<(), String> {
 }
 
 /// A folder under the temp dir for one target, emptied first.
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> crate::common::Scratch {
     crate::common::scratch("fuzz", name)
 }
 
@@ -552,8 +570,8 @@ struct SeqFixture {
     frame: PathBuf,
 }
 
-fn sequence_fixture(name: &str) -> SeqFixture {
-    let dir = scratch(name);
+fn sequence_fixture(folder: &Path) -> SeqFixture {
+    let dir = folder.to_path_buf();
     fs::create_dir_all(dir.join("frames")).expect("frames folder");
     let f = SeqFixture {
         camera: dir.join("camera.json"),
@@ -671,8 +689,8 @@ fn fuzz_truth_jsonl() {
         rng_seed: 0xC0FF_EE04,
         seeds: seeds(&[TRUTH, "{\"frame\":0,\"visible\":false}\n\n{\"frame\":1}\n"]),
         dictionary: dict(JSON_WORDS),
-        setup: |name| {
-            let f = sequence_fixture(name);
+        setup: |folder| {
+            let f = sequence_fixture(folder);
             let seq = Sequence::open(&f.dir, false).expect("good sequence");
             TruthFixture { truth: seq.truth_path(), model: f.model, seq }
         },
@@ -700,8 +718,8 @@ fn fuzz_predictions_jsonl() {
         rng_seed: 0xC0FF_EE05,
         seeds: seeds(&[PREDICTIONS, "{\"frame\":0,\"status\":\"lost\",\"corners\":[],\"ms\":0}\n"]),
         dictionary: dict(JSON_WORDS),
-        setup: |name| {
-            let f = sequence_fixture(name);
+        setup: |folder| {
+            let f = sequence_fixture(folder);
             fs::write(f.dir.join("truth.jsonl"), TRUTH).expect("truth");
             let truth = Sequence::open(&f.dir, false).and_then(|s| s.read_truth()).expect("good truth");
             PredictionFixture { truth, path: f.dir.join("pred.jsonl") }
@@ -770,8 +788,8 @@ fn fuzz_cao() {
             "#",
             "=",
         ]),
-        setup: |name| {
-            let dir = scratch(name);
+        setup: |folder| {
+            let dir = folder.to_path_buf();
             fs::create_dir_all(dir.join("sub")).expect("sub folder");
             fs::write(dir.join("part.cao"), SQUARE_FROM_LINES_CAO).expect("include");
             fs::write(dir.join("sub/part.cao"), "V1\nload(\"../part.cao\")\n0\n0\n0\n0\n").expect("include");
@@ -827,7 +845,7 @@ fn fuzz_obj() {
         dictionary: dict(&[
             "v", "f", "l", "vn", "vt", "o", "g", "s", "-1", "0", "/", "//", "#", "curv", "nan", "1e308",
         ]),
-        setup: |name| scratch(name).join("model.obj"),
+        setup: |folder| folder.join("model.obj"),
         check: |path, input| {
             put(path, input)?;
             check_result(pipetrack::io::obj::read_obj(path), &[path])
@@ -938,8 +956,8 @@ const TRACKING_CAMERA: &str = r#"{"width":48,"height":36,"fx":200.0,"fy":200.0,"
 const TRACKING_INIT: &str =
     r#"{"pose":{"rotation":[0,0,0],"translation":[-0.05,-0.05,1]},"corners":[[14,8],[34,8],[34,28],[14,28]]}"#;
 
-fn config_fixture(name: &str) -> ConfigFixture {
-    let dir = scratch(name);
+fn config_fixture(folder: &Path) -> ConfigFixture {
+    let dir = folder.to_path_buf();
     fs::create_dir_all(dir.join("frames")).expect("frames folder");
     fs::write(dir.join("camera.json"), TRACKING_CAMERA).expect("camera");
     fs::write(dir.join("model.json"), SQUARE).expect("model");
@@ -1091,7 +1109,7 @@ fn fuzz_visp_pose() {
         rng_seed: 0xC0FF_EE0D,
         seeds: seeds(&["0.1 0.02 0.6 0.1 -0.2 0.05\n", "1 0 0 0.1\n0 1 0 0.02\n0 0 1 0.6\n0 0 0 1\n"]),
         dictionary: dict(VISP_WORDS),
-        setup: |name| scratch(name).join("cube.0.pos"),
+        setup: |folder| folder.join("cube.0.pos"),
         check: |path, input| {
             put(path, input)?;
             check_result(read_pose_file(path), &[path])
@@ -1109,7 +1127,7 @@ fn fuzz_visp_camera() {
             "<conf><camera><image_width>4</image_width><image_height>3</image_height><model><px>120.5</px><py>119</py><u0>2</u0><v0>1.5</v0><kud>0</kud></model></camera></conf>\n",
         ]),
         dictionary: dict(VISP_WORDS),
-        setup: |name| scratch(name).join("cube.xml"),
+        setup: |folder| folder.join("cube.xml"),
         check: |path, input| {
             put(path, input)?;
             check_result(read_camera(path, 4, 3), &[path])
@@ -1130,7 +1148,8 @@ fn time_model(f: &SeqFixture, model: &str) -> (Duration, Result<(), String>) {
 
 #[test]
 fn large_models_of_30000_vertices_are_checked_quickly() {
-    let f = sequence_fixture("large-models");
+    let folder = scratch("large-models");
+    let f = sequence_fixture(&folder);
     let n = 30_000;
     let list = |item: &dyn Fn(usize) -> String| (0..n).map(item).collect::<Vec<_>>().join(",");
     let cases = [
@@ -1217,7 +1236,8 @@ fn messages_quoting_the_file_stay_one_short_line() {
 
     // Found by fuzz_model_json: a long string where the object belongs was
     // quoted whole.
-    let f = sequence_fixture("messages-model");
+    let folder = scratch("messages-model");
+    let f = sequence_fixture(&folder);
     put(&f.model, format!(" \"edges{long}\"").as_bytes()).expect("write");
     let message = input_message("a long string for a model", &f.model, || Sequence::open(&f.dir, false));
     assert!(message.starts_with("wrong content at line 1 column 2008: invalid type: string \"edgesa.a."), "{message}");
@@ -1237,7 +1257,8 @@ fn messages_quoting_the_file_stay_one_short_line() {
 
     // Found by fuzz_config_motion_edge: a long unknown variant of an enum
     // parameter was quoted whole.
-    let f = config_fixture("messages-config");
+    let folder = scratch("messages-config");
+    let f = config_fixture(&folder);
     put(&f.path, format!("missing = \"last-measureme{}\"", "[".repeat(2000)).as_bytes()).expect("write");
     let message = input_message("a long variant", &f.path, || make_tracker("motion-edge", &f.seq, Some(&f.path)));
     assert!(

@@ -5,7 +5,7 @@
 //! 2 and no output file.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Output;
 
 use pipetrack::Sequence;
@@ -13,7 +13,7 @@ use pipetrack::io::formats::Model;
 
 use crate::common::pipetrack;
 
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> crate::common::Scratch {
     crate::common::scratch("model-files", name)
 }
 

@@ -4,7 +4,7 @@
 //! smallest and largest accepted ones, and the last guard in
 //! [`FrameOutcome::to_result`].
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use glam::DVec3;
@@ -45,7 +45,7 @@ fn assert_all_finite(value: &serde_json::Value, at: &str) {
     }
 }
 
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> crate::common::Scratch {
     crate::common::scratch("finite", name)
 }
 
@@ -61,7 +61,8 @@ fn write_check_and_score(name: &str, results: &[FrameResult], truth: &[TruthFram
         text.push_str(&line);
         text.push('\n');
     }
-    let path = scratch(name).join("pred.jsonl");
+    let folder = scratch(name);
+    let path = folder.join("pred.jsonl");
     std::fs::write(&path, text).expect("write predictions");
     let read = read_predictions(&path).unwrap_or_else(|e| panic!("score cannot read the output: {e}"));
     assert_eq!(read.len(), results.len());
