@@ -663,7 +663,7 @@ impl SegmentExtractor {
     fn subdivide_chain(&mut self, c: usize, segments: &mut Vec<ImageSegment>) {
         let chain = self.chains[c];
         let pixels = &self.chain_pixels[chain.first..chain.end];
-        if pixels.len() < 2 {
+        if pixels.len() < 2 || !could_reach(self.extent(pixels), self.params.min_length) {
             return;
         }
         self.points.clear();
@@ -693,6 +693,17 @@ impl SegmentExtractor {
             let edgels = self.point_edgels[i..=j].iter().map(|&e| &self.edgels[e as usize]);
             segments.extend(fit_segment(&self.points[i..=j], edgels, self.params.min_length));
         }
+    }
+
+    /// The sides of the bounding box of `pixels` (edgel numbers), px: no
+    /// two of them lie farther apart than its diagonal.
+    fn extent(&self, pixels: &[u32]) -> [f64; 2] {
+        let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
+        for &e in pixels {
+            let f = &self.edgels[e as usize];
+            (x0, y0, x1, y1) = (x0.min(f.x), y0.min(f.y), x1.max(f.x), y1.max(f.y));
+        }
+        [f64::from(x1 - x0), f64::from(y1 - y0)]
     }
 
     /// Append to `pieces` the representation of `points[i ..= j]` (module
@@ -764,6 +775,17 @@ fn largest_deviation(points: &[[f64; 2]]) -> (f64, usize, f64) {
     (best.0, best.1, chord)
 }
 
+/// Whether points at most `|apart|` apart (a vector, px) can give a segment
+/// `min_length` long. A segment's length is the distance of its piece's
+/// first and last points measured along its axis, so at most their distance
+/// (times the axis vector's length, 1 within rounding, which the margin
+/// covers): when this is false the segment would be dropped, and neither
+/// the subdivision nor the fit needs to run.
+fn could_reach(apart: [f64; 2], min_length: f64) -> bool {
+    let reach = min_length * (1.0 - 1e-9);
+    apart[0] * apart[0] + apart[1] * apart[1] >= reach * reach
+}
+
 /// The segment of a piece: the total least squares line through `points`
 /// (principal axis of their scatter), its ends the projections of the first
 /// and last points; strength and direction the means over `edgels`. None
@@ -773,6 +795,10 @@ fn fit_segment<'a>(
     edgels: impl Iterator<Item = &'a Feature>,
     min_length: f64,
 ) -> Option<ImageSegment> {
+    let (first, last) = (points[0], points[points.len() - 1]);
+    if !could_reach([last[0] - first[0], last[1] - first[1]], min_length) {
+        return None;
+    }
     let n = points.len() as f64;
     let (sx, sy) = points.iter().fold((0.0, 0.0), |(sx, sy), p| (sx + p[0], sy + p[1]));
     let c = [sx / n, sy / n];
@@ -1330,6 +1356,39 @@ mod tests {
         assert_eq!(segments, fresh);
         extractor.extract(&crossings(&frame_a, wa), wa, &mut segments);
         assert_eq!(segments, segments_of(&frame_a, wa, SegmentParams::default()));
+    }
+
+    /// Chains and pieces too short to give a segment of `min_length` are
+    /// skipped before the subdivision and the fit; the segments are exactly
+    /// those of `min_length` 0 (where nothing is skipped) that are at least
+    /// `min_length` long, on noisy frames full of short chains and at the
+    /// lengths of segments found (the bound's edge case).
+    #[test]
+    fn short_chains_skipped_lose_no_segment() {
+        let shapes = |c: &mut Canvas| {
+            c.fill_polygon(&[[20.0, 20.0], [140.0, 30.0], [60.0, 100.0]], FillRule::EvenOdd, 170.0);
+            c.fill_ellipse([110.0, 80.0], [30.0, 18.0], 0.3, 20.0);
+        };
+        let mut lengths_checked = 0;
+        for noise in [2.0, 8.0, 16.0] {
+            let frame = render(160, 120, 90.0, noise, shapes);
+            let win = Window::full(160, 120);
+            let loose = SegmentParams { low_threshold: 0.5, high_threshold: 1.0, ..SegmentParams::default() };
+            let all = segments_of(&frame, win, SegmentParams { min_length: 0.0, ..loose });
+            assert!(all.len() > 200, "noise {noise}: {} segments", all.len());
+            let mut min_lengths = vec![2.0, 3.5, 8.0, 12.0];
+            min_lengths.extend(all.iter().step_by(17).map(|s| s.length));
+            for min_length in min_lengths {
+                let kept: Vec<_> = all.iter().filter(|s| s.length >= min_length).cloned().collect();
+                assert_eq!(
+                    segments_of(&frame, win, SegmentParams { min_length, ..loose }),
+                    kept,
+                    "noise {noise}, min_length {min_length}"
+                );
+                lengths_checked += 1;
+            }
+        }
+        assert!(lengths_checked > 30);
     }
 
     /// Defaults: flat frames with the synthetic scenes' noise (σ = 2) give
