@@ -81,7 +81,7 @@ echo "|---|---|---|---:|---:|---:|---:|"
 for spec in "${seqs[@]}"; do
     seq="${spec%%:*}"
     settings=()
-    if [ "$spec" != "$seq" ]; then settings=("${spec#*:}"); fi
+    if [ "$spec" != "$seq" ]; then settings=(--settings "${spec#*:}"); fi
     dir="$work/$(basename "$seq")"
     mkdir -p "$dir"
     if ! args="$(python3 "$root/benches/visp/prepare.py" "$seq" "$dir/visp" 2>"$dir/prepare.log")"; then
@@ -94,5 +94,7 @@ for spec in "${seqs[@]}"; do
     RAYON_NUM_THREADS=1 "$pipetrack" track "$seq" --tracker lowe --backend cpu --out "$dir/pipetrack.jsonl" \
         2>"$dir/pipetrack.log"
     row "$seq" "pipetrack lowe" "$dir/pipetrack.jsonl"
-    row "$seq" "ViSP edge${settings:+ (${settings[0]##*/})}" "$dir/visp.jsonl"
+    label="ViSP edge"
+    if [ ${#settings[@]} -gt 0 ]; then label="ViSP edge (${settings[1]##*/})"; fi
+    row "$seq" "$label" "$dir/visp.jsonl"
 done

@@ -2,16 +2,20 @@
 // pipetrack sequence's frames, writing pipetrack's prediction lines, so that
 // `pipetrack score` scores it as it scores pipetrack's own trackers.
 //
-//   edge_tracker FRAMES MODEL.cao VERTICES OUT.jsonl px py u0 v0 tx ty tz rx ry rz [SETTINGS.xml]
+//   edge_tracker FRAMES MODEL.cao VERTICES OUT.jsonl px py u0 v0 tx ty tz rx ry rz
+//                [--settings SETTINGS.xml] [--overlay DIR]
 //
 // FRAMES     folder of the frames 000000.png, 000001.png, ... (a sequence's frames/)
 // MODEL.cao  the model in ViSP's format
 // VERTICES   the model's vertices in pipetrack's order, one "x y z" (metres) per
 //            line: each line's `corners` are these projected with the frame's pose
+//            ("-": none, for a sequence without truth to score against)
 // px .. v0   the camera intrinsics (pixels)
 // tx .. rz   the first frame's pose cMo: translation (m) and axis-angle (rad)
-// SETTINGS   optional ViSP tracker settings (moving edges, clipping, camera);
-//            without it the tracker keeps ViSP's defaults
+// SETTINGS   ViSP tracker settings (moving edges, clipping, camera); without
+//            them the tracker keeps ViSP's defaults
+// DIR        an existing folder for overlays: each frame with the visible model
+//            drawn in red at the pose tracked, DIR/NNNNNN.png
 //
 // A frame is "lost" when vpMbEdgeTracker::track throws (ViSP's only sign of
 // failure; the next frame is tracked on from the pose it keeps), "tracking"
@@ -20,6 +24,8 @@
 // OMP_NUM_THREADS=1 for one thread. Exit status 2 on bad arguments or files.
 #include <visp3/core/vpHomogeneousMatrix.h>
 #include <visp3/core/vpImage.h>
+#include <visp3/core/vpImageConvert.h>
+#include <visp3/core/vpImageDraw.h>
 #include <visp3/core/vpPoseVector.h>
 #include <visp3/io/vpImageIo.h>
 #include <visp3/mbt/vpMbEdgeTracker.h>
@@ -40,6 +46,7 @@ struct Vertex {
 };
 
 std::vector<Vertex> read_vertices(const std::string &path) {
+    if (path == "-") return {};
     std::ifstream in(path);
     if (!in) throw std::runtime_error(path + ": cannot open");
     std::vector<Vertex> vertices;
@@ -57,6 +64,21 @@ std::string frame_path(const std::string &folder, int k) {
     char name[32];
     std::snprintf(name, sizeof name, "/%06d.png", k);
     return folder + name;
+}
+
+// Frame `image` with the model's visible edges at `cMo` drawn in red, as
+// DIR/NNNNNN.png.
+void write_overlay(const std::string &folder, int k, const vpImage<unsigned char> &image, vpMbEdgeTracker &tracker,
+                   const vpHomogeneousMatrix &cMo, const vpCameraParameters &cam) {
+    vpImage<vpRGBa> colour;
+    vpImageConvert::convert(image, colour);
+    // Each entry: 0 for a line, then its ends as (row, column) pairs.
+    for (const std::vector<double> &line : tracker.getModelForDisplay(image.getWidth(), image.getHeight(), cMo, cam)) {
+        if (line.size() >= 5 && line[0] == 0) {
+            vpImageDraw::drawLine(colour, vpImagePoint(line[1], line[2]), vpImagePoint(line[3], line[4]), vpColor::red);
+        }
+    }
+    vpImageIo::write(colour, frame_path(folder, k));
 }
 
 bool exists(const std::string &path) { return std::ifstream(path).good(); }
@@ -83,9 +105,20 @@ void write_line(std::ostream &out, int k, bool tracking, const vpHomogeneousMatr
 }  // namespace
 
 int main(int argc, char **argv) {
-    if (argc != 15 && argc != 16) {
+    std::string settings, overlay;
+    for (int i = 15; i + 1 < argc; i += 2) {
+        const std::string option = argv[i];
+        if (option == "--settings") {
+            settings = argv[i + 1];
+        } else if (option == "--overlay") {
+            overlay = argv[i + 1];
+        } else {
+            argc = 0;
+        }
+    }
+    if (argc < 15 || argc % 2 == 0) {
         std::cerr << "usage: edge_tracker FRAMES MODEL.cao VERTICES OUT.jsonl px py u0 v0 tx ty tz rx ry rz "
-                     "[SETTINGS.xml]\n";
+                     "[--settings SETTINGS.xml] [--overlay DIR]\n";
         return 2;
     }
     const std::string frames = argv[1], model = argv[2], vertices_file = argv[3], out_file = argv[4];
@@ -102,7 +135,7 @@ int main(int argc, char **argv) {
         const std::vector<Vertex> vertices = read_vertices(vertices_file);
         vpMbEdgeTracker tracker;
         vpCameraParameters cam(a[0], a[1], a[2], a[3]);
-        if (argc == 16) tracker.loadConfigFile(argv[15], false);
+        if (!settings.empty()) tracker.loadConfigFile(settings, false);
         tracker.setCameraParameters(cam);
         tracker.loadModel(model);
         const vpHomogeneousMatrix start(vpPoseVector(a[4], a[5], a[6], a[7], a[8], a[9]));
@@ -131,6 +164,7 @@ int main(int argc, char **argv) {
             vpHomogeneousMatrix cMo;
             tracker.getPose(cMo);
             write_line(out, k, tracking, cMo, vertices, cam, ms);
+            if (!overlay.empty()) write_overlay(overlay, k, image, tracker, cMo, cam);
         }
     } catch (const std::exception &e) {
         std::cerr << "edge_tracker: " << e.what() << "\n";
