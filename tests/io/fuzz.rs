@@ -544,7 +544,7 @@ fn put(path: &Path, input: &[u8]) -> Result<(), String> {
     fs::write(path, input).map_err(|e| format!("writing the input to {}: {e}", path.display()))
 }
 
-/// A folder under the temp dir for one target, emptied first.
+/// A new scratch folder for the target or test `name`.
 fn scratch(name: &str) -> crate::common::Scratch {
     crate::common::scratch("fuzz", name)
 }
