@@ -3,7 +3,7 @@
 # (vpMbEdgeTracker) on the same sequence folders, one thread each, scored
 # by `pipetrack score` against each folder's truth.jsonl.
 #
-#   benches/vs_visp.sh [--visp PROGRAM] [--work DIR] SEQ[:SETTINGS.xml] ...
+#   benches/vs_visp.sh [--visp PROGRAM] [--rounds N] [--work DIR] SEQ[:SETTINGS.xml] ...
 #
 # PROGRAM (or VISP_EDGE_TRACKER; the option wins) is benches/visp/edge_tracker.cpp
 # built by benches/visp/build.sh. SETTINGS is a ViSP tracker settings file
@@ -20,23 +20,31 @@
 # median and mean milliseconds per frame of the tracker's own timing: `ms` of
 # `track` (early vision and tracking, RAYON_NUM_THREADS=1) and the time of
 # vpMbEdgeTracker::track (OMP_NUM_THREADS=1), frame reading excluded in both,
-# the first frame (initialisation) left out.
+# the first frame (initialisation) left out. With --rounds N (default 1) both
+# trackers run N times, alternately, and each row shows the round with the
+# lowest median; the rounds' outputs must agree but for `ms`.
 set -euo pipefail
 
 visp="${VISP_EDGE_TRACKER:-}"
+rounds=1
 work=""
 seqs=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --visp) visp="$2"; shift 2 ;;
+        --rounds) rounds="$2"; shift 2 ;;
         --work) work="$2"; shift 2 ;;
-        -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
         -*) echo "vs_visp.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
         *) seqs+=("$1"); shift ;;
     esac
 done
 if [ ${#seqs[@]} -eq 0 ]; then
     echo "vs_visp.sh: name at least one sequence folder (see --help)" >&2
+    exit 2
+fi
+if ! [ "$rounds" -ge 1 ] 2>/dev/null; then
+    echo "vs_visp.sh: --rounds takes a whole number from 1 (got $rounds)" >&2
     exit 2
 fi
 if [ -z "$visp" ] || [ ! -x "$visp" ]; then
@@ -54,6 +62,22 @@ if [ -z "$work" ]; then
     work="$(mktemp -d)"
     trap 'rm -rf "$work"' EXIT
 fi
+
+# Of the rounds' output files given, the one with the lowest median `ms`;
+# fails when they differ in anything but `ms`.
+fastest() {
+    python3 - "$@" <<'PY'
+import json, statistics, sys
+runs = []
+for path in sys.argv[1:]:
+    lines = [json.loads(line) for line in open(path) if line.strip()]
+    ms = [line.pop("ms") for line in lines][1:]
+    runs.append((statistics.median(ms) if ms else 0.0, path, lines))
+if any(lines != runs[0][2] for _, _, lines in runs):
+    sys.exit(f"the rounds' outputs differ: {' '.join(sys.argv[1:])}")
+print(min(runs)[1])
+PY
+}
 
 # One table row from a sequence, a tracker's name and its output lines.
 row() {
@@ -78,23 +102,34 @@ PY
 
 echo "| sequence | tracker | frames tracking | false tracking | mean corner error | median | ms per frame, median / mean |"
 echo "|---|---|---|---:|---:|---:|---:|"
+index=0
 for spec in "${seqs[@]}"; do
     seq="${spec%%:*}"
     settings=()
     if [ "$spec" != "$seq" ]; then settings=(--settings "${spec#*:}"); fi
-    dir="$work/$(basename "$seq")"
+    index=$((index + 1))
+    dir="$work/$index-$(basename "$seq")"
     mkdir -p "$dir"
     if ! args="$(python3 "$root/benches/visp/prepare.py" "$seq" "$dir/visp" 2>"$dir/prepare.log")"; then
         echo "| $(basename "$seq") | — | skipped: $(tail -1 "$dir/prepare.log") | | | | |"
         continue
     fi
-    # shellcheck disable=SC2086 # the ten numbers are separate arguments
-    OMP_NUM_THREADS=1 "$visp" "$seq/frames" "$dir/visp/model.cao" "$dir/visp/vertices.txt" "$dir/visp.jsonl" \
-        $args "${settings[@]}" >"$dir/visp.log" 2>&1
-    RAYON_NUM_THREADS=1 "$pipetrack" track "$seq" --tracker lowe --backend cpu --out "$dir/pipetrack.jsonl" \
-        2>"$dir/pipetrack.log"
-    row "$seq" "pipetrack lowe" "$dir/pipetrack.jsonl"
+    for round in $(seq "$rounds"); do
+        # shellcheck disable=SC2086 # the ten numbers are separate arguments
+        OMP_NUM_THREADS=1 "$visp" "$seq/frames" "$dir/visp/model.cao" "$dir/visp/vertices.txt" \
+            "$dir/visp.$round.jsonl" $args "${settings[@]}" >"$dir/visp.log" 2>&1
+        RAYON_NUM_THREADS=1 "$pipetrack" track "$seq" --tracker lowe --backend cpu \
+            --out "$dir/pipetrack.$round.jsonl" 2>"$dir/pipetrack.log"
+    done
     label="ViSP edge"
     if [ ${#settings[@]} -gt 0 ]; then label="ViSP edge (${settings[1]##*/})"; fi
-    row "$seq" "$label" "$dir/visp.jsonl"
+    for tracker in pipetrack visp; do
+        name="pipetrack lowe"
+        if [ "$tracker" = visp ]; then name="$label"; fi
+        if best="$(fastest "$dir/$tracker".*.jsonl 2>&1)"; then
+            row "$seq" "$name" "$best"
+        else
+            echo "| $(basename "$seq") | $name | ${best##*: } | | | | |"
+        fi
+    done
 done
