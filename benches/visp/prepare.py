@@ -69,6 +69,20 @@ def triangulate(seq, cam):
                     for k in range(3):
                         ata[j][k] += coef[j] * coef[k]
         vertices.append(solve3(ata, atb))
+    # The truth's corners are exact projections of one rigid model: each
+    # vertex found must project onto them again.
+    worst = 0.0
+    for f in frames:
+        r = rotation(f["pose"]["rotation"])
+        t = f["pose"]["translation"]
+        for x, (u, v) in zip(vertices, f["corners"]):
+            c = [sum(r[i][j] * x[j] for j in range(3)) + t[i] for i in range(3)]
+            if c[2] > 0:
+                du = cam["cx"] + cam["fx"] * c[0] / c[2] - u
+                dv = cam["cy"] + cam["fy"] * c[1] / c[2] - v
+                worst = max(worst, math.hypot(du, dv))
+    if worst > 0.01:
+        sys.exit(f"{seq}: the truth's corners do not fit one rigid model ({worst:.3g} px off)")
     return vertices
 
 
