@@ -15,14 +15,15 @@
 # python3 (benches/visp/prepare.py: the model in ViSP's format and its
 # vertices in pipetrack's order).
 #
-# Per sequence and tracker: frames reported tracking, false tracking (more
-# than 5 px off), mean and median corner error (`pipetrack score`), and the
-# median and mean milliseconds per frame of the tracker's own timing: `ms` of
+# Per sequence and tracker (benches/visp/row.py): frames reported tracking,
+# false tracking (more than 5 px off), mean and median corner error
+# (`pipetrack score`), and the median and mean milliseconds per frame of the tracker's own timing: `ms` of
 # `track` (early vision and tracking, RAYON_NUM_THREADS=1) and the time of
 # vpMbEdgeTracker::track (OMP_NUM_THREADS=1), frame reading excluded in both,
 # the first frame (initialisation) left out. With --rounds N (default 1) both
 # trackers run N times, alternately, and each row shows the round with the
-# lowest median; the rounds' outputs must agree but for `ms`.
+# lowest median; the rounds' outputs must agree but for `ms`. A sequence
+# named twice (with two ViSP settings) gets one pipetrack row.
 set -euo pipefail
 
 visp="${VISP_EDGE_TRACKER:-}"
@@ -63,45 +64,10 @@ if [ -z "$work" ]; then
     trap 'rm -rf "$work"' EXIT
 fi
 
-# Of the rounds' output files given, the one with the lowest median `ms`;
-# fails when they differ in anything but `ms`.
-fastest() {
-    python3 - "$@" <<'PY'
-import json, statistics, sys
-runs = []
-for path in sys.argv[1:]:
-    lines = [json.loads(line) for line in open(path) if line.strip()]
-    ms = [line.pop("ms") for line in lines][1:]
-    runs.append((statistics.median(ms) if ms else 0.0, path, lines))
-if any(lines != runs[0][2] for _, _, lines in runs):
-    sys.exit(f"the rounds' outputs differ: {' '.join(sys.argv[1:])}")
-print(min(runs)[1])
-PY
-}
-
-# One table row from a sequence, a tracker's name and its output lines.
-row() {
-    local seq="$1" name="$2" out="$3" score
-    if ! score="$("$pipetrack" score "$seq" "$out" 2>&1)"; then
-        echo "| $(basename "$seq") | $name | score failed: $score | | | | |"
-        return
-    fi
-    python3 - "$seq" "$name" "$out" "$score" <<'PY'
-import json, re, statistics, sys
-seq, name, out, score = sys.argv[1:]
-def field(label):
-    m = re.search(rf"^{label}:\s+(.*)$", score, re.M)
-    return m.group(1) if m else "-"
-tracked = field("frames tracked")
-false = field("false tracking").split(" (")[0]
-ms = [json.loads(line)["ms"] for line in open(out) if line.strip()][1:]
-print(f"| {seq.rstrip('/').split('/')[-1]} | {name} | {tracked} | {false} | {field('mean corner error')} "
-      f"| {field('median corner error')} | {statistics.median(ms):.2f} / {statistics.mean(ms):.2f} |")
-PY
-}
-
 echo "| sequence | tracker | frames tracking | false tracking | mean corner error | median | ms per frame, median / mean |"
 echo "|---|---|---|---:|---:|---:|---:|"
+# The sequences pipetrack has tracked.
+declare -A tracked
 index=0
 for spec in "${seqs[@]}"; do
     seq="${spec%%:*}"
@@ -114,22 +80,21 @@ for spec in "${seqs[@]}"; do
         echo "| $(basename "$seq") | — | skipped: $(tail -1 "$dir/prepare.log") | | | | |"
         continue
     fi
+    ours=()
+    if [ -z "${tracked[$seq]:-}" ]; then ours=("$dir/pipetrack"); tracked[$seq]=1; fi
     for round in $(seq "$rounds"); do
         # shellcheck disable=SC2086 # the ten numbers are separate arguments
         OMP_NUM_THREADS=1 "$visp" "$seq/frames" "$dir/visp/model.cao" "$dir/visp/vertices.txt" \
             "$dir/visp.$round.jsonl" $args "${settings[@]}" >"$dir/visp.log" 2>&1
-        RAYON_NUM_THREADS=1 "$pipetrack" track "$seq" --tracker lowe --backend cpu \
-            --out "$dir/pipetrack.$round.jsonl" 2>"$dir/pipetrack.log"
+        for out in "${ours[@]}"; do
+            RAYON_NUM_THREADS=1 "$pipetrack" track "$seq" --tracker lowe --backend cpu \
+                --out "$out.$round.jsonl" 2>"$dir/pipetrack.log"
+        done
     done
     label="ViSP edge"
     if [ ${#settings[@]} -gt 0 ]; then label="ViSP edge (${settings[1]##*/})"; fi
-    for tracker in pipetrack visp; do
-        name="pipetrack lowe"
-        if [ "$tracker" = visp ]; then name="$label"; fi
-        if best="$(fastest "$dir/$tracker".*.jsonl 2>&1)"; then
-            row "$seq" "$name" "$best"
-        else
-            echo "| $(basename "$seq") | $name | ${best##*: } | | | | |"
-        fi
-    done
+    if [ ${#ours[@]} -gt 0 ]; then
+        python3 "$root/benches/visp/row.py" "$pipetrack" "$seq" "pipetrack lowe" "$dir"/pipetrack.*.jsonl
+    fi
+    python3 "$root/benches/visp/row.py" "$pipetrack" "$seq" "$label" "$dir"/visp.*.jsonl
 done

@@ -52,15 +52,14 @@ def triangulate(seq, cam):
     """Each vertex from its projections in the truth: for u = cx + fx X/Z,
     fx (R1·X + t1) − (u − cx)(R3·X + t3) = 0, and likewise for v, in least squares."""
     frames = [json.loads(line) for line in open(os.path.join(seq, "truth.jsonl")) if line.strip()]
-    n = len(frames[0]["corners"])
+    # Each frame's rotation matrix, translation and projected vertices.
+    views = [(rotation(f["pose"]["rotation"]), f["pose"]["translation"], f["corners"]) for f in frames]
     vertices = []
-    for i in range(n):
+    for i in range(len(frames[0]["corners"])):
         ata = [[0.0] * 3 for _ in range(3)]
         atb = [0.0] * 3
-        for f in frames:
-            r = rotation(f["pose"]["rotation"])
-            t = f["pose"]["translation"]
-            u, v = f["corners"][i]
+        for r, t, corners in views:
+            u, v = corners[i]
             for f_, c, p, row in ((cam["fx"], cam["cx"], u, 0), (cam["fy"], cam["cy"], v, 1)):
                 coef = [f_ * r[row][j] - (p - c) * r[2][j] for j in range(3)]
                 rhs = (p - c) * t[2] - f_ * t[row]
@@ -72,10 +71,8 @@ def triangulate(seq, cam):
     # The truth's corners are exact projections of one rigid model: each
     # vertex found must project onto them again.
     worst = 0.0
-    for f in frames:
-        r = rotation(f["pose"]["rotation"])
-        t = f["pose"]["translation"]
-        for x, (u, v) in zip(vertices, f["corners"]):
+    for r, t, corners in views:
+        for x, (u, v) in zip(vertices, corners):
             c = [sum(r[i][j] * x[j] for j in range(3)) + t[i] for i in range(3)]
             if c[2] > 0:
                 du = cam["cx"] + cam["fx"] * c[0] / c[2] - u

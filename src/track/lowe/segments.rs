@@ -491,10 +491,7 @@ impl SegmentExtractor {
         }
         let passed = &self.passed[..count];
         // The grid spans the candidates' bounding box (at most the window).
-        let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
-        for f in passed {
-            (x0, y0, x1, y1) = (x0.min(f.x), y0.min(f.y), x1.max(f.x), y1.max(f.y));
-        }
+        let [x0, y0, x1, y1] = bounding_box(passed);
         if x0 > x1 {
             return;
         }
@@ -695,14 +692,10 @@ impl SegmentExtractor {
         }
     }
 
-    /// The sides of the bounding box of `pixels` (edgel numbers), px: no
-    /// two of them lie farther apart than its diagonal.
+    /// The sides of the bounding box of `pixels` (edgel numbers, at least
+    /// one), px: no two of them lie farther apart than its diagonal.
     fn extent(&self, pixels: &[u32]) -> [f64; 2] {
-        let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
-        for &e in pixels {
-            let f = &self.edgels[e as usize];
-            (x0, y0, x1, y1) = (x0.min(f.x), y0.min(f.y), x1.max(f.x), y1.max(f.y));
-        }
+        let [x0, y0, x1, y1] = bounding_box(pixels.iter().map(|&e| &self.edgels[e as usize]));
         [f64::from(x1 - x0), f64::from(y1 - y0)]
     }
 
@@ -773,6 +766,16 @@ fn largest_deviation(points: &[[f64; 2]]) -> (f64, usize, f64) {
         }
     }
     (best.0, best.1, chord)
+}
+
+/// `[x0, y0, x1, y1]`, the smallest and largest pixel coordinates of
+/// `features` (x0 > x1 when there are none).
+fn bounding_box<'a>(features: impl IntoIterator<Item = &'a Feature>) -> [u32; 4] {
+    let mut b = [u32::MAX, u32::MAX, 0, 0];
+    for f in features {
+        b = [b[0].min(f.x), b[1].min(f.y), b[2].max(f.x), b[3].max(f.y)];
+    }
+    b
 }
 
 /// Whether points at most `|apart|` apart (a vector, px) can give a segment
