@@ -253,9 +253,11 @@ fn track_named(
         Ok(())
     };
     if tracker.wants_colour() {
-        track_frames(tracker.as_mut(), backend.as_mut(), frames.colour(), (w, h), &mut sink)?;
+        read_ahead(frames.colour(), |frames| {
+            track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), &mut sink)
+        })?;
     } else {
-        track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), &mut sink)?;
+        read_ahead(frames, |frames| track_frames(tracker.as_mut(), backend.as_mut(), frames, (w, h), &mut sink))?;
     }
     bar.finish_and_clear();
     // The output first: a run whose lines could not all be written publishes no overlays.
@@ -426,6 +428,31 @@ where
     Ok(())
 }
 
+/// Frames decoded ahead of the one being tracked, at most.
+const READ_AHEAD_FRAMES: usize = 2;
+
+/// Run `body` on `frames` read on a thread of their own, up to
+/// [`READ_AHEAD_FRAMES`] ahead: decoding the next frame (a PNG takes about
+/// as long as tracking it) overlaps tracking this one. Frames arrive in
+/// order, an error in its place; once `body` drops the iterator the reader
+/// stops at its next frame.
+fn read_ahead<T: Send, R>(
+    frames: impl Iterator<Item = Result<T>> + Send,
+    body: impl FnOnce(std::sync::mpsc::IntoIter<Result<T>>) -> R,
+) -> R {
+    std::thread::scope(|scope| {
+        let (sender, receiver) = std::sync::mpsc::sync_channel(READ_AHEAD_FRAMES);
+        scope.spawn(move || {
+            for frame in frames {
+                if sender.send(frame).is_err() {
+                    break;
+                }
+            }
+        });
+        body(receiver.into_iter())
+    })
+}
+
 fn progress_bar(enabled: bool, len: Option<usize>) -> indicatif::ProgressBar {
     if !enabled {
         return indicatif::ProgressBar::hidden();
@@ -509,4 +536,28 @@ pub fn check_output(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Res
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    use super::*;
+
+    #[test]
+    fn read_ahead_keeps_order_and_errors_and_stops_when_dropped() {
+        let pulled = AtomicUsize::new(0);
+        let frame = |i: i32| if i == 7 { Err(Error::Parameter(format!("frame {i}"))) } else { Ok(i) };
+        let frames = (0..100).map(|i| {
+            pulled.fetch_add(1, Ordering::SeqCst);
+            frame(i)
+        });
+        let seen: Vec<std::result::Result<i32, String>> =
+            read_ahead(frames, |frames| frames.take(10).map(|f| f.map_err(|e| e.to_string())).collect());
+        let expected: Vec<_> = (0..10).map(|i| frame(i).map_err(|e| e.to_string())).collect();
+        assert_eq!(seen, expected);
+        // The reader stops at most one frame past what the channel holds.
+        let pulled = pulled.load(Ordering::SeqCst);
+        assert!(pulled <= 10 + READ_AHEAD_FRAMES + 1, "{pulled} frames read for 10 taken");
+    }
 }
