@@ -9,7 +9,7 @@
 //! outside cost nothing; corners that are NaN or infinite, and edges naming a
 //! corner that does not exist, are skipped.
 
-use image::{Rgb, RgbImage};
+use image::RgbImage;
 
 use crate::image::GrayImage;
 use crate::io::formats::Status;
@@ -48,10 +48,10 @@ pub fn draw_overlay(
     labelled: &[(u32, u32)],
 ) -> RgbImage {
     let (w, h) = (frame.width() as u32, frame.height() as u32);
-    let mut out = RgbImage::from_fn(w, h, |x, y| {
-        let v = frame.get(x as usize, y as usize);
-        Rgb([v, v, v])
-    });
+    let mut out = RgbImage::new(w, h);
+    for (rgb, &v) in out.chunks_exact_mut(3).zip(frame.data()) {
+        rgb.copy_from_slice(&[v, v, v]);
+    }
     for &(x, y) in labelled {
         blend(&mut out, i64::from(x), i64::from(y), LABELLED_COLOUR, LABELLED_OPACITY);
     }
@@ -246,6 +246,8 @@ fn draw_line_aa(img: &mut RgbImage, a: [f64; 2], b: [f64; 2], colour: [u8; 3]) {
 
 #[cfg(test)]
 mod tests {
+    use image::Rgb;
+
     use super::*;
 
     /// A horizontal band with σ = 2 px shades the pixels within 4 px of

@@ -209,6 +209,8 @@ fn track_named(
     })?;
     // Overlays of a tracker with a pose draw only the edges visible at that pose.
     let model_geometry = overlay.as_ref().and_then(|_| ModelGeometry::new(&seq.model).ok());
+    // Declared after the folder, so dropped (its thread joined) before it.
+    let mut overlay_writer = overlay.as_ref().map(|_| OverlayWriter::start());
     let frames = seq.frames();
     let bar = progress_bar(opts.progress, frames.len_hint());
     let start = Instant::now();
@@ -243,7 +245,9 @@ fn track_named(
                     crate::io::overlay::draw_overlay(frame, &outcome.corners, &edges, outcome.status, &labelled);
                 crate::io::overlay::draw_bands(&mut img, bands, crate::io::overlay::status_colour(outcome.status));
                 let path = dir.path().join(format!("{:06}.png", outcome.frame));
-                img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
+                if let Some(writer) = &mut overlay_writer {
+                    writer.write(img, path)?;
+                }
             }
         }
         tracked += usize::from(result.status == Status::Tracking);
@@ -262,6 +266,9 @@ fn track_named(
     bar.finish_and_clear();
     // The output first: a run whose lines could not all be written publishes no overlays.
     out.flush().map_err(|e| Error::io(out_name, e))?;
+    if let Some(writer) = overlay_writer {
+        writer.finish()?;
+    }
     if let Some(dir) = overlay {
         dir.finish()?;
     }
@@ -453,6 +460,61 @@ fn read_ahead<T: Send, R>(
     })
 }
 
+/// Overlay images waiting to be written, at most.
+const OVERLAYS_QUEUED: usize = 2;
+
+/// Overlay PNGs encoded and written on a thread of their own (encoding a
+/// 640×480 overlay takes longer than tracking its frame), in the order
+/// given. The first error stops the thread; the next [`write`](Self::write)
+/// or [`finish`](Self::finish) returns it. Dropped, it waits for the thread.
+struct OverlayWriter {
+    sender: Option<std::sync::mpsc::SyncSender<(image::RgbImage, PathBuf)>>,
+    thread: Option<std::thread::JoinHandle<Result<()>>>,
+}
+
+impl OverlayWriter {
+    fn start() -> Self {
+        let (sender, receiver) = std::sync::mpsc::sync_channel::<(image::RgbImage, PathBuf)>(OVERLAYS_QUEUED);
+        let thread = std::thread::spawn(move || {
+            for (img, path) in receiver {
+                img.save(&path).map_err(|e| Error::input(&path, format!("cannot write overlay: {e}")))?;
+            }
+            Ok(())
+        });
+        Self { sender: Some(sender), thread: Some(thread) }
+    }
+
+    /// Queue `img` to be written as `path`; waits while the queue is full.
+    fn write(&mut self, img: image::RgbImage, path: PathBuf) -> Result<()> {
+        let sent = self.sender.as_ref().is_some_and(|s| s.send((img, path)).is_ok());
+        if sent { Ok(()) } else { self.wait() }
+    }
+
+    /// Write what is queued; the first error of the thread, if any.
+    fn finish(mut self) -> Result<()> {
+        self.wait()
+    }
+
+    /// Close the queue and wait for the thread: its result.
+    fn wait(&mut self) -> Result<()> {
+        self.sender = None;
+        match self.thread.take().map(std::thread::JoinHandle::join) {
+            Some(Ok(result)) => result,
+            Some(Err(panic)) => std::panic::resume_unwind(panic),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for OverlayWriter {
+    fn drop(&mut self) {
+        self.sender = None;
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
 fn progress_bar(enabled: bool, len: Option<usize>) -> indicatif::ProgressBar {
     if !enabled {
         return indicatif::ProgressBar::hidden();
@@ -559,5 +621,40 @@ mod tests {
         // The reader stops at most one frame past what the channel holds.
         let pulled = pulled.load(Ordering::SeqCst);
         assert!(pulled <= 10 + READ_AHEAD_FRAMES + 1, "{pulled} frames read for 10 taken");
+    }
+
+    #[test]
+    fn overlay_writer_writes_in_order_and_reports_the_first_failure() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut writer = OverlayWriter::start();
+        for i in 0..4u8 {
+            writer
+                .write(image::RgbImage::from_pixel(3, 2, image::Rgb([i, 0, 0])), dir.path().join(format!("{i}.png")))
+                .unwrap();
+        }
+        writer.finish().unwrap();
+        for i in 0..4u8 {
+            let img = image::open(dir.path().join(format!("{i}.png"))).unwrap().to_rgb8();
+            assert_eq!((img.dimensions(), img.get_pixel(2, 1).0), ((3, 2), [i, 0, 0]));
+        }
+
+        let missing = dir.path().join("absent").join("0.png");
+        let mut writer = OverlayWriter::start();
+        let mut first_error = None;
+        for i in 0..2 * OVERLAYS_QUEUED + 2 {
+            let path = if i == 0 { missing.clone() } else { dir.path().join(format!("later{i}.png")) };
+            if let Err(e) = writer.write(image::RgbImage::new(3, 2), path) {
+                first_error = Some(e);
+                break;
+            }
+        }
+        let error = match first_error {
+            Some(e) => e,
+            None => writer.finish().expect_err("writing into a missing folder fails"),
+        };
+        assert!(error.to_string().contains(&missing.display().to_string()), "{error}");
+        assert!(error.to_string().contains("cannot write overlay"), "{error}");
+        let names = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap());
+        assert!(!names.into_iter().any(|n| n.starts_with("later")), "nothing is written after the failure");
     }
 }
