@@ -441,23 +441,48 @@ const READ_AHEAD_FRAMES: usize = 2;
 /// Run `body` on `frames` read on a thread of their own, up to
 /// [`READ_AHEAD_FRAMES`] ahead: decoding the next frame (a PNG takes about
 /// as long as tracking it) overlaps tracking this one. Frames arrive in
-/// order, an error in its place; once `body` drops the iterator the reader
-/// stops at its next frame.
-fn read_ahead<T: Send, R>(
-    frames: impl Iterator<Item = Result<T>> + Send,
-    body: impl FnOnce(std::sync::mpsc::IntoIter<Result<T>>) -> R,
+/// order, an error in its place. When `body` has read to the end, a panic
+/// of the reader is raised here; when it stops before, it does not wait
+/// for the reader (which may be blocked on a stream's next frame): the
+/// reader ends at the next frame it reads.
+fn read_ahead<T: Send + 'static, R>(
+    frames: impl Iterator<Item = Result<T>> + Send + 'static,
+    body: impl FnOnce(&mut ReadAhead<T>) -> R,
 ) -> R {
-    std::thread::scope(|scope| {
-        let (sender, receiver) = std::sync::mpsc::sync_channel(READ_AHEAD_FRAMES);
-        scope.spawn(move || {
-            for frame in frames {
-                if sender.send(frame).is_err() {
-                    break;
-                }
+    let (sender, receiver) = std::sync::mpsc::sync_channel(READ_AHEAD_FRAMES);
+    let reader = std::thread::spawn(move || {
+        for frame in frames {
+            if sender.send(frame).is_err() {
+                break;
             }
-        });
-        body(receiver.into_iter())
-    })
+        }
+    });
+    let mut ahead = ReadAhead { receiver, ended: false };
+    let result = body(&mut ahead);
+    if ahead.ended {
+        // The reader has left its loop (or unwound out of it).
+        if let Err(panic) = reader.join() {
+            std::panic::resume_unwind(panic);
+        }
+    }
+    result
+}
+
+/// The frames [`read_ahead`] hands its body.
+struct ReadAhead<T> {
+    receiver: std::sync::mpsc::Receiver<Result<T>>,
+    /// Whether the reader has closed the channel.
+    ended: bool,
+}
+
+impl<T> Iterator for ReadAhead<T> {
+    type Item = Result<T>;
+
+    fn next(&mut self) -> Option<Result<T>> {
+        let frame = self.receiver.recv().ok();
+        self.ended |= frame.is_none();
+        frame
+    }
 }
 
 /// Overlay images waiting to be written, at most.
@@ -602,25 +627,79 @@ pub fn check_output(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Res
 
 #[cfg(test)]
 mod tests {
-    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
     use super::*;
 
+    /// Counts the frames pulled from it and flags when it is dropped (the
+    /// reader thread has ended).
+    struct Counted {
+        next: i32,
+        pulled: Arc<AtomicUsize>,
+        dropped: Arc<AtomicBool>,
+    }
+
+    impl Iterator for Counted {
+        type Item = Result<i32>;
+        fn next(&mut self) -> Option<Result<i32>> {
+            self.pulled.fetch_add(1, Ordering::SeqCst);
+            self.next += 1;
+            (self.next <= 100).then(|| numbered(self.next - 1))
+        }
+    }
+
+    impl Drop for Counted {
+        fn drop(&mut self) {
+            self.dropped.store(true, Ordering::SeqCst);
+        }
+    }
+
+    fn numbered(i: i32) -> Result<i32> {
+        if i == 7 { Err(Error::Parameter(format!("frame {i}"))) } else { Ok(i) }
+    }
+
+    fn wait_for(flag: &AtomicBool) -> bool {
+        let started = std::time::Instant::now();
+        while !flag.load(Ordering::SeqCst) && started.elapsed().as_secs() < 10 {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        flag.load(Ordering::SeqCst)
+    }
+
     #[test]
     fn read_ahead_keeps_order_and_errors_and_stops_when_dropped() {
-        let pulled = AtomicUsize::new(0);
-        let frame = |i: i32| if i == 7 { Err(Error::Parameter(format!("frame {i}"))) } else { Ok(i) };
-        let frames = (0..100).map(|i| {
-            pulled.fetch_add(1, Ordering::SeqCst);
-            frame(i)
-        });
+        let (pulled, dropped) = (Arc::new(AtomicUsize::new(0)), Arc::new(AtomicBool::new(false)));
+        let frames = Counted { next: 0, pulled: pulled.clone(), dropped: dropped.clone() };
         let seen: Vec<std::result::Result<i32, String>> =
             read_ahead(frames, |frames| frames.take(10).map(|f| f.map_err(|e| e.to_string())).collect());
-        let expected: Vec<_> = (0..10).map(|i| frame(i).map_err(|e| e.to_string())).collect();
+        let expected: Vec<_> = (0..10).map(|i| numbered(i).map_err(|e| e.to_string())).collect();
         assert_eq!(seen, expected);
-        // The reader stops at most one frame past what the channel holds.
+        assert!(wait_for(&dropped), "the reader ends once the frames are dropped");
+        // It stops at most one frame past what the channel holds.
         let pulled = pulled.load(Ordering::SeqCst);
         assert!(pulled <= 10 + READ_AHEAD_FRAMES + 1, "{pulled} frames read for 10 taken");
+
+        let frames = Counted { next: 0, pulled: Arc::default(), dropped: Arc::default() };
+        assert_eq!(read_ahead(frames, |frames| frames.count()), 100);
+    }
+
+    #[test]
+    fn read_ahead_raises_the_readers_panic_and_does_not_wait_for_a_blocked_reader() {
+        let panicking = (0..10).map(|i| if i == 3 { panic!("decoder bug") } else { Ok(i) });
+        let caught = std::panic::catch_unwind(|| read_ahead(panicking, |frames| frames.count()));
+        assert!(caught.is_err(), "a panic of the reader is not a shorter sequence");
+
+        // A stream whose fourth frame never comes: the body stops after two.
+        let (hold, stalled) = std::sync::mpsc::channel::<()>();
+        let blocking = (0..10).map(move |i| {
+            if i == 3 {
+                let _ = stalled.recv();
+            }
+            Ok(i)
+        });
+        assert_eq!(read_ahead(blocking, |frames| frames.take(2).count()), 2);
+        drop(hold);
     }
 
     #[test]
