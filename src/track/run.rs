@@ -593,12 +593,12 @@ pub fn track_to_file_with(
 /// Track `seq` writing JSON Lines to standard output; errors writing name
 /// `stdout`. A closed pipe is an [`Error::Io`] of kind
 /// [`std::io::ErrorKind::BrokenPipe`], which the command line takes as the
-/// reader having had enough.
+/// reader having had enough. Each frame's line is written when the frame
+/// is tracked (standard output is line-buffered), so a reader of a live
+/// stream (`--frames -`) sees every frame's result as it comes.
 pub fn track_to_stdout(seq: &Sequence, opts: &TrackOptions) -> Result<RunSummary> {
     let name = Path::new("stdout");
-    let stdout = std::io::stdout();
-    // `track_named` flushes what it wrote.
-    track_named(seq, opts, &mut BufWriter::new(stdout.lock()), name, |_| {})
+    track_named(seq, opts, &mut std::io::stdout().lock(), name, |_| {})
 }
 
 /// Check `--out` before a run: it must not be a folder, one of the

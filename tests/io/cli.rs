@@ -114,6 +114,49 @@ fn y4m_frames_on_stdin() {
     assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 6);
 }
 
+/// With the stream still open after two frames, both frames' lines have
+/// already been written: a reader of a live stream sees each result as its
+/// frame is tracked.
+#[test]
+fn y4m_frames_on_stdin_give_each_line_as_its_frame_is_tracked() {
+    use std::io::{BufRead, Write};
+    let root = scratch("y4m-live");
+    let seq = good_sequence(&root);
+    let (w, h) = (256usize, 242usize);
+    let mut stream = format!("YUV4MPEG2 W{w} H{h} F60:1 Ip A1:1 Cmono\n").into_bytes();
+    for i in 0..2 {
+        let img = image::open(seq.join(format!("frames/{i:06}.png"))).unwrap().to_luma8();
+        stream.extend_from_slice(b"FRAME\n");
+        stream.extend_from_slice(img.as_raw());
+    }
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .args(["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--frames", "-"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(&stream).unwrap();
+    stdin.flush().unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let (lines, arrived) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stdout).lines().map_while(std::result::Result::ok) {
+            if lines.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    for frame in 0..2 {
+        let line = arrived.recv_timeout(std::time::Duration::from_secs(60));
+        let line = line.unwrap_or_else(|_| panic!("frame {frame}'s line is not written while the stream is open"));
+        assert!(line.contains(&format!("\"frame\":{frame}")), "{line}");
+    }
+    drop(stdin);
+    assert!(child.wait().unwrap().success());
+}
+
 #[test]
 fn missing_folder() {
     let root = scratch("missing");
