@@ -283,6 +283,7 @@ fn parse_sizes(s: &str) -> Result<Sizes, String> {
 const EXIT_BAD_INPUT: u8 = 2;
 
 fn main() -> ExitCode {
+    quiet_headless_vulkan();
     let cli = Cli::parse();
     remove_unfinished_outputs_on_signals();
     match run(cli) {
@@ -303,6 +304,26 @@ fn main() -> ExitCode {
             });
             ExitCode::from(if bad_input { EXIT_BAD_INPUT } else { 1 })
         }
+    }
+}
+
+/// Mesa's device-selection Vulkan layer (installed with its drivers) asks
+/// Wayland for the display's GPU when Vulkan lists the devices, and
+/// libwayland prints `error: XDG_RUNTIME_DIR is invalid or not set in the
+/// environment.` where the session has no runtime folder (the variable
+/// unset, or not an absolute path to a folder): a headless
+/// machine, a batch job, a container. pipetrack picks its adapter itself
+/// (`WGPU_ADAPTER_NAME`, `WGPU_POWER_PREF`), so there the layer is turned
+/// off (`NODEVICE_SELECT=1`), unless the user asked it for a device
+/// (`MESA_VK_DEVICE_SELECT`, `DRI_PRIME`) or set `NODEVICE_SELECT`.
+fn quiet_headless_vulkan() {
+    let unset = |name: &str| std::env::var_os(name).is_none();
+    let no_runtime_folder = std::env::var_os("XDG_RUNTIME_DIR")
+        .is_none_or(|d| !(std::path::Path::new(&d).is_absolute() && std::path::Path::new(&d).is_dir()));
+    if no_runtime_folder && ["NODEVICE_SELECT", "MESA_VK_DEVICE_SELECT", "DRI_PRIME"].into_iter().all(unset) {
+        // SAFETY: called first thing in `main`, before any thread exists
+        // that could read or write the environment.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
     }
 }
 

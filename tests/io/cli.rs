@@ -157,6 +157,29 @@ fn y4m_frames_on_stdin_give_each_line_as_its_frame_is_tracked() {
     assert!(child.wait().unwrap().success());
 }
 
+/// On a machine with no session runtime folder (headless, a batch job) the
+/// GPU backend says nothing on stderr but its summary line: Mesa's Vulkan
+/// device-selection layer would make libwayland print an error line there.
+#[test]
+fn the_gpu_backend_is_quiet_without_a_runtime_folder() {
+    let root = scratch("headless");
+    let seq = good_sequence(&root);
+    for runtime in [None, Some(""), Some("not/absolute")] {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_pipetrack"));
+        command.args(["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "gpu"]);
+        command.args(["--out", root.join("pred.jsonl").to_str().unwrap()]);
+        match runtime {
+            Some(value) => command.env("XDG_RUNTIME_DIR", value),
+            None => command.env_remove("XDG_RUNTIME_DIR"),
+        };
+        let out = command.output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        let others: Vec<_> = stderr.lines().filter(|l| !l.starts_with("pipetrack: ")).collect();
+        assert!(others.is_empty(), "XDG_RUNTIME_DIR {runtime:?}: {others:?}");
+    }
+}
+
 #[test]
 fn missing_folder() {
     let root = scratch("missing");
