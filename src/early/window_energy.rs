@@ -286,8 +286,10 @@ pub(crate) fn check_windows(
 
 // ---------------------------------------------------------------- CPU twin
 
-/// Bilinear sample of `frame` at `(x, y)`, clamped to the frame: the shader's `sample_rgb`.
-#[inline(always)]
+/// Bilinear sample of `frame` at `(x, y)`, clamped to the frame: the
+/// shader's `sample_rgb`, one pixel at a time (the unit tests' reference
+/// for [`SampleRun`]).
+#[cfg(test)]
 fn sample_rgb(frame: &RgbImage, x: f32, y: f32) -> [f32; 3] {
     let (w, h) = frame.size();
     let x = x.clamp(0.0, (w - 1) as f32);
@@ -308,7 +310,7 @@ fn sample_rgb(frame: &RgbImage, x: f32, y: f32) -> [f32; 3] {
 }
 
 /// Window pixel `(px, py)` as (I, R, G, B): the shader's `window_pixel`.
-#[inline(always)]
+#[cfg(test)]
 fn window_pixel(frame: &RgbImage, map: &WindowMap, side_log2: u32, px: usize, py: usize) -> [f32; 4] {
     let side = (1u32 << side_log2) as f32;
     let s = (px as f32 + 0.5) / side;
@@ -316,6 +318,64 @@ fn window_pixel(frame: &RgbImage, map: &WindowMap, side_log2: u32, px: usize, py
     let [x, y] = map.position(s, t);
     let [r, g, b] = sample_rgb(frame, x, y);
     [(r + g + b) / 3.0, r, g, b]
+}
+
+/// Window pixels sampled together by [`SampleRun::sample`].
+const SAMPLE_RUN: usize = 16;
+
+/// A run of [`SAMPLE_RUN`] window pixels of one row, sampled in steps over
+/// the whole run (positions, then the texels, then the interpolation), so
+/// that the arithmetic steps run on vectors; each pixel's value is the
+/// shader's `window_pixel`, by the same operations in the same order.
+#[derive(Default)]
+struct SampleRun {
+    /// Texel indices of the four corners: (x0, y0), (x1, y0), (x0, y1), (x1, y1).
+    corners: [[usize; 4]; SAMPLE_RUN],
+    /// Fractional position between the corners, x and y.
+    fraction: [[f32; 2]; SAMPLE_RUN],
+    /// The corners' (R, G, B) as f32.
+    texels: [[[f32; 3]; 4]; SAMPLE_RUN],
+    /// (I, R, G, B) of each pixel.
+    pixels: [[f32; 4]; SAMPLE_RUN],
+}
+
+impl SampleRun {
+    /// Window pixels `(px0 .. px0 + len, py)` into `pixels[..len]` (`len` ≤ [`SAMPLE_RUN`]).
+    #[inline(always)]
+    fn sample(&mut self, frame: &RgbImage, map: &WindowMap, side_log2: u32, px0: usize, py: usize, len: usize) {
+        let (w, h) = frame.size();
+        let side = (1u32 << side_log2) as f32;
+        let t = (py as f32 + 0.5) / side;
+        for i in 0..len {
+            let s = ((px0 + i) as f32 + 0.5) / side;
+            let [x, y] = map.position(s, t);
+            // `sample_rgb`'s clamp, floor and corners.
+            let x = x.clamp(0.0, (w - 1) as f32);
+            let y = y.clamp(0.0, (h - 1) as f32);
+            let (fx0, fy0) = (x.floor(), y.floor());
+            self.fraction[i] = [x - fx0, y - fy0];
+            let (x0, y0) = (fx0 as usize, fy0 as usize);
+            let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+            self.corners[i] = [y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1];
+        }
+        let data = frame.data();
+        for (texels, corners) in self.texels[..len].iter_mut().zip(&self.corners[..len]) {
+            for (texel, &k) in texels.iter_mut().zip(corners) {
+                *texel = data[k].map(f32::from);
+            }
+        }
+        for i in 0..len {
+            let ([p00, p10, p01, p11], [fx, fy]) = (self.texels[i], self.fraction[i]);
+            let mut rgb = [0.0; 3];
+            for c in 0..3 {
+                let top = (1.0 - fx) * p00[c] + fx * p10[c];
+                let bottom = (1.0 - fx) * p01[c] + fx * p11[c];
+                rgb[c] = (1.0 - fy) * top + fy * bottom;
+            }
+            let [r, g, b] = rgb;
+            self.pixels[i] = [(r + g + b) / 3.0, r, g, b];
+        }
+    }
 }
 
 /// The chroma vector `(S cos 2πH, S sin 2πH)` of (R, G, B) by eq. 7–8 as
@@ -417,11 +477,15 @@ fn window_levels(frame: &RgbImage, map: &WindowMap, params: &WindowEnergyParams,
     levels.clear();
     // Plain loops, not closures: a closure is not compiled with the
     // caller's target features.
+    let mut run = SampleRun::default();
+    let len = n.min(SAMPLE_RUN);
     for py in 0..n {
-        for px in 0..n {
-            let v = window_pixel(frame, map, params.side_log2, px, py);
-            // As `cpf_block` folds them from f32::MAX and f32::MIN.
-            levels.push([min4([f32::MAX; 4], v), v, v, max4([f32::MIN; 4], v)]);
+        for px0 in (0..n).step_by(len) {
+            run.sample(frame, map, params.side_log2, px0, py, len);
+            for &v in &run.pixels[..len] {
+                // As `cpf_block` folds them from f32::MAX and f32::MIN.
+                levels.push([min4([f32::MAX; 4], v), v, v, max4([f32::MIN; 4], v)]);
+            }
         }
     }
     for _ in params.cpf_log2..params.side_log2 {
