@@ -324,17 +324,22 @@ fn window_pixel(frame: &RgbImage, map: &WindowMap, side_log2: u32, px: usize, py
 const SAMPLE_RUN: usize = 16;
 
 /// A run of [`SAMPLE_RUN`] window pixels of one row, sampled in steps over
-/// the whole run (positions, then the texels, then the interpolation), so
-/// that the arithmetic steps run on vectors; each pixel's value is the
-/// shader's `window_pixel`, by the same operations in the same order.
+/// the whole run (positions, then the texels, then the interpolation), each
+/// step a loop over the run's pixels with one array per quantity, so that
+/// the arithmetic steps run on vectors; each pixel's value is the shader's
+/// `window_pixel`, by the same operations in the same order.
 #[derive(Default)]
 struct SampleRun {
-    /// Texel indices of the four corners: (x0, y0), (x1, y0), (x0, y1), (x1, y1).
-    corners: [[usize; 4]; SAMPLE_RUN],
-    /// Fractional position between the corners, x and y.
-    fraction: [[f32; 2]; SAMPLE_RUN],
-    /// The corners' (R, G, B) as f32.
-    texels: [[[f32; 3]; 4]; SAMPLE_RUN],
+    /// Frame positions of the pixels, x and y.
+    x: [f32; SAMPLE_RUN],
+    y: [f32; SAMPLE_RUN],
+    /// Fractional position between the corner texels, x and y.
+    fx: [f32; SAMPLE_RUN],
+    fy: [f32; SAMPLE_RUN],
+    /// Texel indices of the corners (x0, y0), (x1, y0), (x0, y1), (x1, y1).
+    corners: [[usize; SAMPLE_RUN]; 4],
+    /// The corners' R, G and B as f32: `texels[channel][corner][pixel]`.
+    texels: [[[f32; SAMPLE_RUN]; 4]; 3],
     /// (I, R, G, B) of each pixel.
     pixels: [[f32; 4]; SAMPLE_RUN],
 }
@@ -346,33 +351,58 @@ impl SampleRun {
         let (w, h) = frame.size();
         let side = (1u32 << side_log2) as f32;
         let t = (py as f32 + 0.5) / side;
+        let s = |i: usize| ((px0 + i) as f32 + 0.5) / side;
+        // `WindowMap::position`, its kind decided once for the run.
+        let [a, b, c, d, e, f, g, hh, kind, ..] = map.0;
+        if kind == MAP_BILINEAR {
+            for i in 0..len {
+                let s = s(i);
+                let (w0, w1, w2, w3) = ((1.0 - s) * (1.0 - t), s * (1.0 - t), s * t, (1.0 - s) * t);
+                self.x[i] = w0 * a + w1 * c + w2 * e + w3 * g;
+                self.y[i] = w0 * b + w1 * d + w2 * f + w3 * hh;
+            }
+        } else {
+            for i in 0..len {
+                let s = s(i);
+                let q = g * s + hh * t + 1.0;
+                self.x[i] = (a * s + b * t + c) / q;
+                self.y[i] = (d * s + e * t + f) / q;
+            }
+        }
+        // `sample_rgb`'s clamp, floor and corners.
+        let (x_max, y_max) = ((w - 1) as f32, (h - 1) as f32);
         for i in 0..len {
-            let s = ((px0 + i) as f32 + 0.5) / side;
-            let [x, y] = map.position(s, t);
-            // `sample_rgb`'s clamp, floor and corners.
-            let x = x.clamp(0.0, (w - 1) as f32);
-            let y = y.clamp(0.0, (h - 1) as f32);
+            let x = self.x[i].clamp(0.0, x_max);
+            let y = self.y[i].clamp(0.0, y_max);
             let (fx0, fy0) = (x.floor(), y.floor());
-            self.fraction[i] = [x - fx0, y - fy0];
+            (self.fx[i], self.fy[i]) = (x - fx0, y - fy0);
             let (x0, y0) = (fx0 as usize, fy0 as usize);
             let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-            self.corners[i] = [y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1];
+            self.corners[0][i] = y0 * w + x0;
+            self.corners[1][i] = y0 * w + x1;
+            self.corners[2][i] = y1 * w + x0;
+            self.corners[3][i] = y1 * w + x1;
         }
         let data = frame.data();
-        for (texels, corners) in self.texels[..len].iter_mut().zip(&self.corners[..len]) {
-            for (texel, &k) in texels.iter_mut().zip(corners) {
-                *texel = data[k].map(f32::from);
+        for (corner, indices) in self.corners.iter().enumerate() {
+            for (i, &k) in indices[..len].iter().enumerate() {
+                let [r, g, b] = data[k];
+                self.texels[0][corner][i] = f32::from(r);
+                self.texels[1][corner][i] = f32::from(g);
+                self.texels[2][corner][i] = f32::from(b);
+            }
+        }
+        let mut rgb = [[0.0f32; SAMPLE_RUN]; 3];
+        for (out, [p00, p10, p01, p11]) in rgb.iter_mut().zip(&self.texels) {
+            for i in 0..len {
+                let (fx, fy) = (self.fx[i], self.fy[i]);
+                let top = (1.0 - fx) * p00[i] + fx * p10[i];
+                let bottom = (1.0 - fx) * p01[i] + fx * p11[i];
+                out[i] = (1.0 - fy) * top + fy * bottom;
             }
         }
         for i in 0..len {
-            let ([p00, p10, p01, p11], [fx, fy]) = (self.texels[i], self.fraction[i]);
-            let mut rgb = [0.0; 3];
-            for c in 0..3 {
-                let top = (1.0 - fx) * p00[c] + fx * p10[c];
-                let bottom = (1.0 - fx) * p01[c] + fx * p11[c];
-                rgb[c] = (1.0 - fy) * top + fy * bottom;
-            }
-            let [r, g, b] = rgb;
+            let (r, g, b) = (rgb[0][i], rgb[1][i], rgb[2][i]);
             self.pixels[i] = [(r + g + b) / 3.0, r, g, b];
         }
     }
