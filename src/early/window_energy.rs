@@ -348,40 +348,40 @@ impl SampleRun {
     /// Window pixels `(px0 .. px0 + len, py)` into `pixels[..len]` (`len` ≤ [`SAMPLE_RUN`]).
     #[inline(always)]
     fn sample(&mut self, frame: &RgbImage, map: &WindowMap, side_log2: u32, px0: usize, py: usize, len: usize) {
-        let (w, h) = frame.size();
+        let (fw, fh) = frame.size();
         let side = (1u32 << side_log2) as f32;
         let t = (py as f32 + 0.5) / side;
-        let s = |i: usize| ((px0 + i) as f32 + 0.5) / side;
-        // `WindowMap::position`, its kind decided once for the run.
-        let [a, b, c, d, e, f, g, hh, kind, ..] = map.0;
+        // `WindowMap::position`, its kind decided once for the run (plain
+        // loops, no closure: see `window_levels`).
+        let [a, b, c, d, e, f, g, h, kind, ..] = map.0;
         if kind == MAP_BILINEAR {
             for i in 0..len {
-                let s = s(i);
+                let s = ((px0 + i) as f32 + 0.5) / side;
                 let (w0, w1, w2, w3) = ((1.0 - s) * (1.0 - t), s * (1.0 - t), s * t, (1.0 - s) * t);
                 self.x[i] = w0 * a + w1 * c + w2 * e + w3 * g;
-                self.y[i] = w0 * b + w1 * d + w2 * f + w3 * hh;
+                self.y[i] = w0 * b + w1 * d + w2 * f + w3 * h;
             }
         } else {
             for i in 0..len {
-                let s = s(i);
-                let q = g * s + hh * t + 1.0;
-                self.x[i] = (a * s + b * t + c) / q;
-                self.y[i] = (d * s + e * t + f) / q;
+                let s = ((px0 + i) as f32 + 0.5) / side;
+                let w = g * s + h * t + 1.0;
+                self.x[i] = (a * s + b * t + c) / w;
+                self.y[i] = (d * s + e * t + f) / w;
             }
         }
         // `sample_rgb`'s clamp, floor and corners.
-        let (x_max, y_max) = ((w - 1) as f32, (h - 1) as f32);
+        let (x_max, y_max) = ((fw - 1) as f32, (fh - 1) as f32);
         for i in 0..len {
             let x = self.x[i].clamp(0.0, x_max);
             let y = self.y[i].clamp(0.0, y_max);
             let (fx0, fy0) = (x.floor(), y.floor());
             (self.fx[i], self.fy[i]) = (x - fx0, y - fy0);
             let (x0, y0) = (fx0 as usize, fy0 as usize);
-            let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-            self.corners[0][i] = y0 * w + x0;
-            self.corners[1][i] = y0 * w + x1;
-            self.corners[2][i] = y1 * w + x0;
-            self.corners[3][i] = y1 * w + x1;
+            let (x1, y1) = ((x0 + 1).min(fw - 1), (y0 + 1).min(fh - 1));
+            self.corners[0][i] = y0 * fw + x0;
+            self.corners[1][i] = y0 * fw + x1;
+            self.corners[2][i] = y1 * fw + x0;
+            self.corners[3][i] = y1 * fw + x1;
         }
         let data = frame.data();
         for (corner, indices) in self.corners.iter().enumerate() {
