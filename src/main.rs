@@ -318,8 +318,10 @@ fn main() -> ExitCode {
 /// (`MESA_VK_DEVICE_SELECT`, `DRI_PRIME`) or set `NODEVICE_SELECT`.
 fn quiet_headless_vulkan() {
     let unset = |name: &str| std::env::var_os(name).is_none();
-    let no_runtime_folder = std::env::var_os("XDG_RUNTIME_DIR")
-        .is_none_or(|d| !(std::path::Path::new(&d).is_absolute() && std::path::Path::new(&d).is_dir()));
+    let no_runtime_folder = std::env::var_os("XDG_RUNTIME_DIR").is_none_or(|d| {
+        let d = std::path::Path::new(&d);
+        !(d.is_absolute() && d.is_dir())
+    });
     if no_runtime_folder && ["NODEVICE_SELECT", "MESA_VK_DEVICE_SELECT", "DRI_PRIME"].into_iter().all(unset) {
         // SAFETY: called first thing in `main`, before any thread exists
         // that could read or write the environment.

@@ -16,7 +16,7 @@ use crate::Result;
 use crate::early::compaction::CompactionParams;
 use crate::early::compaction::compaction_cpu;
 use crate::early::gaussian::{gaussian_cpu, gaussian_region_cpu};
-use crate::early::ingest::ingest_cpu;
+use crate::early::ingest::{ingest_cpu, ingest_part_cpu};
 use crate::early::log::log_cpu;
 use crate::early::log::log_kernels;
 use crate::early::sobel::{
@@ -236,9 +236,6 @@ impl CpuBackend {
         let plan = FramePlan::new(request, w, h, self.previous.as_ref());
         let mut out = FrameFeatures::default();
         let img = &mut self.images;
-        // The frame as f32 is made when a step reads it: a plan of the LoG
-        // of a part alone converts that part only.
-        let mut ingested = false;
         // The LoG and its edgels, when computed on a part of the frame, are
         // that part's size, and the lists reading them are offset by its corner.
         let log_part = log_region(&plan, w, h);
@@ -252,11 +249,16 @@ impl CpuBackend {
         // The frame itself is kept for the next frame's motion step when
         // this one smooths a part of it only.
         let keeps_luma = smoothing_part.is_some() && plan.next_previous().is_some();
+        // The frame as f32 is made before the first step that reads it (the
+        // LoG of a part converts its part itself): a plan of such a LoG
+        // alone converts that part only.
+        let ingest_before = plan.steps().iter().position(|step| {
+            step.reads().contains(&Source::Plane(Plane::Luma)) && !(matches!(step, Step::Log(_)) && log_part.is_some())
+        });
         for (i, step) in plan.steps().iter().enumerate() {
             let last_step = i + 1 == plan.steps().len();
-            if !ingested && reads_frame(step, log_part) {
+            if ingest_before == Some(i) {
                 ingest_cpu(frame, &mut img.luma);
-                ingested = true;
             }
             match *step {
                 Step::Smooth(p) => match smoothing_part {
@@ -290,7 +292,7 @@ impl CpuBackend {
                 }
                 Step::Log(p) => match log_part {
                     Some(part) => {
-                        ingest_part(frame, part, &mut self.log_source);
+                        ingest_part_cpu(frame, part, &mut self.log_source);
                         log_cpu(&self.log_source, &p, &mut self.tmp, &mut self.tmp2, &mut img.log)?;
                     }
                     None => log_cpu(&img.luma, &p, &mut self.tmp, &mut self.tmp2, &mut img.log)?,
@@ -453,36 +455,6 @@ fn log_region(plan: &FramePlan, width: usize, height: usize) -> Option<Window> {
     }
     let part = union.grown(radius + 1).clipped(width, height);
     (part.area() < width * height).then_some(part)
-}
-
-/// `part` of `frame` as f32 into `out` (resized to it): the values the
-/// whole frame's conversion holds there.
-fn ingest_part(frame: &GrayImage, part: Window, out: &mut FloatImage) {
-    let (x0, x1) = (part.x0 as usize, part.x1 as usize);
-    out.resize(x1 - x0, part.height() as usize);
-    let w = out.width();
-    if w == 0 {
-        return;
-    }
-    for (y, row) in (part.y0 as usize..part.y1 as usize).zip(out.data_mut().chunks_mut(w)) {
-        for (d, &s) in row.iter_mut().zip(&frame.row(y)[x0..x1]) {
-            *d = f32::from(s);
-        }
-    }
-}
-
-/// Whether `step` reads the frame as f32 (`luma`): every step but the LoG
-/// of a part (which converts its part itself), the zero crossings, empty
-/// lists and lists of the LoG's edgels alone.
-fn reads_frame(step: &Step, log_part: Option<Window>) -> bool {
-    match *step {
-        Step::Log(_) => log_part.is_none(),
-        Step::ZeroCrossings(_) | Step::EmptyList(_) => false,
-        Step::Compact { select, theta, magnitude, .. } => {
-            !(log_part.is_some() && select.reads_log() && theta.reads_log() && magnitude.reads_log())
-        }
-        _ => true,
-    }
 }
 
 /// How much of a Sobel set the CPU computes as whole planes.

@@ -20,6 +20,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use super::Window;
 use crate::gpu::{
     Binding::{ReadOnly, Storage, Texture, Uniform},
     EntryPoint, GpuContext, GpuImage, Recorder, ShaderDef, run_once, workgroups_2d,
@@ -107,7 +108,25 @@ pub fn ingest(frame: &GrayImage) -> FloatImage {
 /// CPU twin of `from_bytes` into a caller-allocated image.
 pub fn ingest_cpu(frame: &GrayImage, dst: &mut FloatImage) {
     dst.resize(frame.width(), frame.height());
-    for (d, &s) in dst.data_mut().iter_mut().zip(frame.data()) {
+    grey_to_f32(frame.data(), dst.data_mut());
+}
+
+/// [`ingest_cpu`] of `part` of `frame` alone, into `dst` resized to the
+/// part: the values the whole frame's ingest holds there.
+pub fn ingest_part_cpu(frame: &GrayImage, part: Window, dst: &mut FloatImage) {
+    let part = part.clipped(frame.width(), frame.height());
+    let (x0, x1) = (part.x0 as usize, part.x1 as usize);
+    dst.resize(x1 - x0, part.height() as usize);
+    if x1 == x0 {
+        return;
+    }
+    for (y, row) in (part.y0 as usize..part.y1 as usize).zip(dst.data_mut().chunks_mut(x1 - x0)) {
+        grey_to_f32(&frame.row(y)[x0..x1], row);
+    }
+}
+
+fn grey_to_f32(src: &[u8], dst: &mut [f32]) {
+    for (d, &s) in dst.iter_mut().zip(src) {
         *d = f32::from(s);
     }
 }

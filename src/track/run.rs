@@ -520,23 +520,25 @@ impl OverlayWriter {
         self.wait()
     }
 
-    /// Close the queue and wait for the thread: its result.
+    /// Close the queue and wait for the thread: its result, its panic raised here.
     fn wait(&mut self) -> Result<()> {
-        self.sender = None;
-        match self.thread.take().map(std::thread::JoinHandle::join) {
+        match self.close() {
             Some(Ok(result)) => result,
             Some(Err(panic)) => std::panic::resume_unwind(panic),
             None => Ok(()),
         }
     }
+
+    /// Close the queue and join the thread, if not done before.
+    fn close(&mut self) -> Option<std::thread::Result<Result<()>>> {
+        self.sender = None;
+        self.thread.take().map(std::thread::JoinHandle::join)
+    }
 }
 
 impl Drop for OverlayWriter {
     fn drop(&mut self) {
-        self.sender = None;
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
-        }
+        let _ = self.close();
     }
 }
 

@@ -89,26 +89,36 @@ fn stdout_output_and_overlays() {
     assert!(img.pixels().any(|p| p.0 == [255, 255, 0]), "model drawn in yellow while tracking");
 }
 
+/// The first `frames` frames of the sequence at `seq` (256×242) as a mono Y4M stream.
+fn y4m_stream(seq: &Path, frames: usize) -> Vec<u8> {
+    let (w, h) = (256usize, 242usize);
+    let mut stream = format!("YUV4MPEG2 W{w} H{h} F60:1 Ip A1:1 Cmono\n").into_bytes();
+    for i in 0..frames {
+        let img = image::open(seq.join(format!("frames/{i:06}.png"))).unwrap().to_luma8();
+        stream.extend_from_slice(b"FRAME\n");
+        stream.extend_from_slice(img.as_raw());
+    }
+    stream
+}
+
+/// `track SEQ --frames -` with motion-edge on the CPU, stdin and stdout piped.
+fn track_y4m_on_stdin(seq: &Path, stderr: Stdio) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .args(["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--frames", "-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(stderr)
+        .spawn()
+        .unwrap()
+}
+
 #[test]
 fn y4m_frames_on_stdin() {
     use std::io::Write;
     let root = scratch("y4m");
     let seq = good_sequence(&root);
-    let (w, h) = (256usize, 242usize);
-    let mut stream = format!("YUV4MPEG2 W{w} H{h} F60:1 Ip A1:1 Cmono\n").into_bytes();
-    for i in 0..6 {
-        let img = image::open(seq.join(format!("frames/{i:06}.png"))).unwrap().to_luma8();
-        stream.extend_from_slice(b"FRAME\n");
-        stream.extend_from_slice(img.as_raw());
-    }
-    let mut child = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
-        .args(["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--frames", "-"])
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    child.stdin.take().unwrap().write_all(&stream).unwrap();
+    let mut child = track_y4m_on_stdin(&seq, Stdio::piped());
+    child.stdin.take().unwrap().write_all(&y4m_stream(&seq, 6)).unwrap();
     let out = child.wait_with_output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 6);
@@ -122,22 +132,9 @@ fn y4m_frames_on_stdin_give_each_line_as_its_frame_is_tracked() {
     use std::io::{BufRead, Write};
     let root = scratch("y4m-live");
     let seq = good_sequence(&root);
-    let (w, h) = (256usize, 242usize);
-    let mut stream = format!("YUV4MPEG2 W{w} H{h} F60:1 Ip A1:1 Cmono\n").into_bytes();
-    for i in 0..2 {
-        let img = image::open(seq.join(format!("frames/{i:06}.png"))).unwrap().to_luma8();
-        stream.extend_from_slice(b"FRAME\n");
-        stream.extend_from_slice(img.as_raw());
-    }
-    let mut child = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
-        .args(["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--frames", "-"])
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
+    let mut child = track_y4m_on_stdin(&seq, Stdio::null());
     let mut stdin = child.stdin.take().unwrap();
-    stdin.write_all(&stream).unwrap();
+    stdin.write_all(&y4m_stream(&seq, 2)).unwrap();
     stdin.flush().unwrap();
     let stdout = child.stdout.take().unwrap();
     let (lines, arrived) = std::sync::mpsc::channel();
