@@ -37,6 +37,8 @@
 //! comes from its own ChaCha stream), so they render in parallel and the same
 //! seed always gives the same bytes.
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use crate::early::Window;
@@ -72,11 +74,15 @@ pub struct Canvas {
     scratch: FillScratch,
 }
 
-/// Buffers [`Canvas::fill_faces`] reuses from call to call.
+/// Buffers [`Canvas::fill_faces`] reuses from call to call. All four are
+/// zero between calls: each cell is cleared where it is read, so no call
+/// clears a whole buffer.
 #[derive(Clone, Debug, Default)]
 struct FillScratch {
     /// Signed-area accumulator of one face.
     accumulator: Vec<f64>,
+    /// One bit per accumulator cell an edge added to, row by row.
+    touched: Vec<u64>,
     /// Summed coverage of the layer's faces per cell.
     alpha: Vec<f32>,
     /// Summed coverage × grey per cell.
@@ -202,27 +208,35 @@ impl Canvas {
         let Some(layer) = boxes.iter().flatten().copied().reduce(CellBox::union) else {
             return;
         };
+        // One face is blended straight into the samples, run by run; several
+        // add their coverages in the layer's buffers first.
+        let alone = boxes.iter().flatten().count() == 1;
         let (lw, lh) = (layer.x1 - layer.x0, layer.y1 - layer.y0);
         let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.alpha.clear();
-        scratch.alpha.resize(lw * lh, 0.0);
-        scratch.premultiplied.clear();
-        scratch.premultiplied.resize(lw * lh, 0.0);
+        if !alone {
+            grow_zeroed(&mut scratch.alpha, lw * lh);
+            grow_zeroed(&mut scratch.premultiplied, lw * lh);
+        }
         for (face, cells) in faces.iter().zip(&boxes) {
             let Some(cells) = cells else { continue };
             let (fw, fh) = (cells.x1 - cells.x0, cells.y1 - cells.y0);
             // Two spare columns: an edge on the right border writes one past it.
             let stride = fw + 2;
-            scratch.accumulator.clear();
-            scratch.accumulator.resize(stride * fh, 0.0);
+            let words = stride.div_ceil(64);
+            grow_zeroed(&mut scratch.accumulator, stride * fh);
+            grow_zeroed(&mut scratch.touched, words * fh);
+            let mut acc = Accumulator {
+                cells: &mut scratch.accumulator[..stride * fh],
+                touched: &mut scratch.touched[..words * fh],
+                stride,
+                words,
+            };
             let origin = [cells.x0 as f64, cells.y0 as f64];
             let n = face.points.len();
             for k in 0..n {
                 let a = to_cell(&face.points[k]);
                 let b = to_cell(&face.points[(k + 1) % n]);
-                accumulate_edge(
-                    &mut scratch.accumulator,
-                    stride,
+                acc.add_edge(
                     [fw as f64, fh as f64],
                     [a[0] - origin[0], a[1] - origin[1]],
                     [b[0] - origin[0], b[1] - origin[1]],
@@ -230,47 +244,36 @@ impl Canvas {
             }
             // Running sums along each row turn edge contributions into the
             // covered area of every cell (its mean winding number).
-            for (r, acc_row) in scratch.accumulator.chunks_exact(stride).enumerate() {
-                let at = (cells.y0 - layer.y0 + r) * lw + (cells.x0 - layer.x0);
-                let alpha = &mut scratch.alpha[at..at + fw];
-                let premultiplied = &mut scratch.premultiplied[at..at + fw];
-                let mut winding = 0.0f64;
-                let mut x = 0;
-                while x < fw {
-                    winding += acc_row[x];
-                    // Up to the next cell an edge touches the winding number
-                    // stays (adding 0 changes nothing): one coverage for the
-                    // run, and nothing to add where it is 0.
-                    let run = next_nonzero(acc_row, x + 1, fw);
-                    let coverage = rule.coverage(winding) as f32;
-                    if coverage != 0.0 {
-                        for (a, p) in alpha[x..run].iter_mut().zip(&mut premultiplied[x..run]) {
+            for r in 0..fh {
+                let (acc_row, touched_row) = acc.row(r);
+                if alone {
+                    let at = (cells.y0 + r) * sw + cells.x0;
+                    let row = &mut self.samples[at..at + fw];
+                    sweep_row(acc_row, touched_row, fw, rule, |run, coverage| {
+                        blend_run(&mut row[run], coverage, face.grey);
+                    });
+                } else {
+                    let at = (cells.y0 - layer.y0 + r) * lw + (cells.x0 - layer.x0);
+                    let alpha = &mut scratch.alpha[at..at + fw];
+                    let premultiplied = &mut scratch.premultiplied[at..at + fw];
+                    sweep_row(acc_row, touched_row, fw, rule, |run, coverage| {
+                        for (a, p) in alpha[run.clone()].iter_mut().zip(&mut premultiplied[run]) {
                             *a += coverage;
                             *p += coverage * face.grey;
                         }
-                    }
-                    x = run;
+                    });
                 }
             }
         }
-        let stride = self.width * self.supersample;
-        for r in 0..lh {
-            let row = &mut self.samples[(layer.y0 + r) * stride + layer.x0..][..lw];
-            let alpha = &scratch.alpha[r * lw..(r + 1) * lw];
-            let premultiplied = &scratch.premultiplied[r * lw..(r + 1) * lw];
-            for ((v, &a), &p) in row.iter_mut().zip(alpha).zip(premultiplied) {
-                // Both candidates computed and one selected, so the loop has
-                // no branch to take per sample.
-                let mean = p / a;
-                let blended = *v * (1.0 - a) + p;
-                // Fully covered (or faces overlapping after all): their mean grey.
-                *v = if a >= 1.0 {
-                    mean
-                } else if a > 0.0 {
-                    blended
-                } else {
-                    *v
-                };
+        if !alone {
+            for r in 0..lh {
+                let at = (layer.y0 + r) * sw + layer.x0;
+                let cells = r * lw..(r + 1) * lw;
+                blend_layer_row(
+                    &mut self.samples[at..at + lw],
+                    &mut scratch.alpha[cells.clone()],
+                    &mut scratch.premultiplied[cells],
+                );
             }
         }
         self.scratch = scratch;
@@ -339,10 +342,7 @@ impl Canvas {
                 let out_row = &mut out_row[x0..x1];
                 out_row.fill(0.0);
                 for sample_row in block.chunks_exact(w * s) {
-                    let cells = sample_row[x0 * s..x1 * s].chunks_exact(s);
-                    for (o, cell) in out_row.iter_mut().zip(cells) {
-                        *o += cell.iter().sum::<f32>();
-                    }
+                    add_cell_sums(out_row, &sample_row[x0 * s..x1 * s], s);
                 }
                 for o in out_row.iter_mut() {
                     *o *= norm;
@@ -429,21 +429,6 @@ impl FillRule {
     }
 }
 
-/// The first index in `from..to` where `values` is not ±0 (`to` if none),
-/// testing eight at a time.
-fn next_nonzero(values: &[f64], from: usize, to: usize) -> usize {
-    const CHUNK: usize = 8;
-    let mut i = from;
-    while i + CHUNK <= to {
-        // The bits of ±0 shifted past the sign are 0.
-        if values[i..i + CHUNK].iter().fold(0u64, |any, v| any | (v.to_bits() << 1)) != 0 {
-            break;
-        }
-        i += CHUNK;
-    }
-    values[i..to].iter().position(|&v| v != 0.0).map_or(to, |k| i + k)
-}
-
 /// A half-open range of canvas cells `x0..x1`, `y0..y1`, non-empty.
 #[derive(Clone, Copy, Debug)]
 struct CellBox {
@@ -479,92 +464,358 @@ impl CellBox {
     }
 }
 
-/// Add the signed-area contribution of the edge `a`→`b` to the accumulator
-/// (cell units, origin at the box's top-left, `size` = box width and height,
-/// `stride` ≥ width + 2). After a running sum along each row, every cell holds
-/// the area-weighted mean winding number of the polygon over that cell
-/// (the accumulation-buffer method of font rasterisers). Rows outside the box
-/// are dropped; x outside `0..=width` is folded onto the border, which leaves
-/// the winding of every cell inside the box unchanged.
-fn accumulate_edge(acc: &mut [f64], stride: usize, size: [f64; 2], a: [f64; 2], b: [f64; 2]) {
-    if a[1] == b[1] {
+crate::early::simd_dispatch!(fn add_cell_sums(out: &mut [f32], samples: &[f32], s: usize) => add_cell_sums_body);
+
+/// `out[i] += samples[s·i] + … + samples[s·i + s − 1]`, each cell summed
+/// left to right (as `Iterator::sum`); the factor of the scenes, 4, in a
+/// loop of known length that vectorises across cells.
+#[inline(always)]
+fn add_cell_sums_body(out: &mut [f32], samples: &[f32], s: usize) {
+    if s == 4 {
+        for (o, cell) in out.iter_mut().zip(samples.chunks_exact(4)) {
+            *o += ((cell[0] + cell[1]) + cell[2]) + cell[3];
+        }
         return;
     }
-    // Split where the edge crosses x = 0 or x = width, then fold x into range.
-    let mut cuts = [0.0, 1.0, 1.0, 1.0];
-    let mut n = 1;
-    for border in [0.0, size[0]] {
-        let t = (border - a[0]) / (b[0] - a[0]);
-        if t > 0.0 && t < 1.0 {
-            cuts[n] = t;
-            n += 1;
-        }
-    }
-    cuts[n] = 1.0;
-    cuts[..=n].sort_by(f64::total_cmp);
-    let at = |t: f64| {
-        if t == 1.0 { b } else { [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])] }
-    };
-    for k in 0..n {
-        let (p, q) = (at(cuts[k]), at(cuts[k + 1]));
-        let fold = |v: [f64; 2]| [v[0].clamp(0.0, size[0]), v[1]];
-        accumulate_piece(acc, stride, size, fold(p), fold(q));
+    for (o, cell) in out.iter_mut().zip(samples.chunks_exact(s)) {
+        *o += cell.iter().sum::<f32>();
     }
 }
 
-/// [`accumulate_edge`] for an edge with `0 <= x <= width` at both ends.
-fn accumulate_piece(acc: &mut [f64], stride: usize, size: [f64; 2], a: [f64; 2], b: [f64; 2]) {
-    if a[1] == b[1] {
-        return;
+/// `v` at least `n` long, every new element zero.
+fn grow_zeroed<T: Copy + Default>(v: &mut Vec<T>, n: usize) {
+    if v.len() < n {
+        v.resize(n, T::default());
     }
-    let (dir, top, bottom) = if a[1] < b[1] { (1.0, a, b) } else { (-1.0, b, a) };
-    let dxdy = (bottom[0] - top[0]) / (bottom[1] - top[1]);
-    let (mut x, mut y0) = (top[0], top[1]);
-    if y0 < 0.0 {
-        x -= y0 * dxdy;
-        y0 = 0.0;
+}
+
+/// The signed-area accumulator of one face's box of cells, with a bit per
+/// cell that an edge added to (so the running sums visit those alone).
+struct Accumulator<'a> {
+    cells: &'a mut [f64],
+    touched: &'a mut [u64],
+    /// Cells per row (the box's width + 2).
+    stride: usize,
+    /// Words of `touched` per row.
+    words: usize,
+}
+
+impl Accumulator<'_> {
+    /// Row `r`'s cells and bits.
+    fn row(&mut self, r: usize) -> (&mut [f64], &mut [u64]) {
+        (
+            &mut self.cells[r * self.stride..(r + 1) * self.stride],
+            &mut self.touched[r * self.words..(r + 1) * self.words],
+        )
     }
-    let y1 = bottom[1].min(size[1]);
-    if y0 >= y1 {
-        return;
-    }
-    let width = size[0];
-    for row in (y0.floor() as usize)..(y1.ceil() as usize) {
-        let line = &mut acc[row * stride..(row + 1) * stride];
-        let dy = ((row + 1) as f64).min(y1) - (row as f64).max(y0);
-        let x_next = (x + dxdy * dy).clamp(0.0, width);
-        let x_here = x.clamp(0.0, width);
-        let d = dy * dir;
-        let (xa, xb) = if x_here < x_next { (x_here, x_next) } else { (x_next, x_here) };
-        let xa_floor = xa.floor();
-        let ia = xa_floor as usize;
-        let ib = xb.ceil() as usize;
-        if ib <= ia + 1 {
-            // Within one cell column: the part right of the edge's mean x.
-            let mid = 0.5 * (x_here + x_next) - xa_floor;
-            line[ia] += d - d * mid;
-            line[ia + 1] += d * mid;
-        } else {
-            // Across several columns: trapezoids and a triangle at each end.
-            let inv = 1.0 / (xb - xa);
-            let fa = xa - xa_floor;
-            let first = 0.5 * inv * (1.0 - fa) * (1.0 - fa);
-            let fb = xb - ib as f64 + 1.0;
-            let last = 0.5 * inv * fb * fb;
-            line[ia] += d * first;
-            if ib == ia + 2 {
-                line[ia + 1] += d * (1.0 - first - last);
-            } else {
-                let second = inv * (1.5 - fa);
-                line[ia + 1] += d * (second - first);
-                for v in &mut line[ia + 2..ib - 1] {
-                    *v += d * inv;
-                }
-                let before_last = second + (ib - ia - 3) as f64 * inv;
-                line[ib - 1] += d * (1.0 - before_last - last);
-            }
-            line[ib] += d * last;
+
+    /// Add the signed-area contribution of the edge `a`→`b` (cell units,
+    /// origin at the box's top-left, `size` = box width and height). After a
+    /// running sum along each row, every cell holds the area-weighted mean
+    /// winding number of the polygon over that cell (the accumulation-buffer
+    /// method of font rasterisers). Rows outside the box are dropped; x
+    /// outside `0..=width` is folded onto the border, which leaves the
+    /// winding of every cell inside the box unchanged.
+    fn add_edge(&mut self, size: [f64; 2], a: [f64; 2], b: [f64; 2]) {
+        if a[1] == b[1] {
+            return;
         }
-        x = x_next;
+        // Split where the edge crosses x = 0 or x = width, then fold x into range.
+        let mut cuts = [0.0, 1.0, 1.0, 1.0];
+        let mut n = 1;
+        for border in [0.0, size[0]] {
+            let t = (border - a[0]) / (b[0] - a[0]);
+            if t > 0.0 && t < 1.0 {
+                cuts[n] = t;
+                n += 1;
+            }
+        }
+        cuts[n] = 1.0;
+        cuts[..=n].sort_by(f64::total_cmp);
+        let at = |t: f64| {
+            if t == 1.0 { b } else { [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])] }
+        };
+        for k in 0..n {
+            let (p, q) = (at(cuts[k]), at(cuts[k + 1]));
+            let fold = |v: [f64; 2]| [v[0].clamp(0.0, size[0]), v[1]];
+            self.add_piece(size, fold(p), fold(q));
+        }
+    }
+
+    /// [`Accumulator::add_edge`] for an edge with `0 <= x <= width` at both ends.
+    fn add_piece(&mut self, size: [f64; 2], a: [f64; 2], b: [f64; 2]) {
+        if a[1] == b[1] {
+            return;
+        }
+        let (dir, top, bottom) = if a[1] < b[1] { (1.0, a, b) } else { (-1.0, b, a) };
+        let dxdy = (bottom[0] - top[0]) / (bottom[1] - top[1]);
+        let (mut x, mut y0) = (top[0], top[1]);
+        if y0 < 0.0 {
+            x -= y0 * dxdy;
+            y0 = 0.0;
+        }
+        let y1 = bottom[1].min(size[1]);
+        if y0 >= y1 {
+            return;
+        }
+        let width = size[0];
+        for row in (y0.floor() as usize)..(y1.ceil() as usize) {
+            let dy = ((row + 1) as f64).min(y1) - (row as f64).max(y0);
+            let x_next = (x + dxdy * dy).clamp(0.0, width);
+            let x_here = x.clamp(0.0, width);
+            let d = dy * dir;
+            let (xa, xb) = if x_here < x_next { (x_here, x_next) } else { (x_next, x_here) };
+            let xa_floor = xa.floor();
+            let ia = xa_floor as usize;
+            let ib = xb.ceil() as usize;
+            let (line, touched) = self.row(row);
+            if ib <= ia + 1 {
+                // Within one cell column: the part right of the edge's mean x.
+                let mid = 0.5 * (x_here + x_next) - xa_floor;
+                line[ia] += d - d * mid;
+                line[ia + 1] += d * mid;
+                set_bits(touched, ia..ia + 2);
+            } else {
+                // Across several columns: trapezoids and a triangle at each end.
+                let inv = 1.0 / (xb - xa);
+                let fa = xa - xa_floor;
+                let first = 0.5 * inv * (1.0 - fa) * (1.0 - fa);
+                let fb = xb - ib as f64 + 1.0;
+                let last = 0.5 * inv * fb * fb;
+                line[ia] += d * first;
+                if ib == ia + 2 {
+                    line[ia + 1] += d * (1.0 - first - last);
+                } else {
+                    let second = inv * (1.5 - fa);
+                    line[ia + 1] += d * (second - first);
+                    for v in &mut line[ia + 2..ib - 1] {
+                        *v += d * inv;
+                    }
+                    let before_last = second + (ib - ia - 3) as f64 * inv;
+                    line[ib - 1] += d * (1.0 - before_last - last);
+                }
+                line[ib] += d * last;
+                set_bits(touched, ia..ib + 1);
+            }
+            x = x_next;
+        }
+    }
+}
+
+/// Set the bits `cells` of a bit row.
+fn set_bits(bits: &mut [u64], cells: Range<usize>) {
+    let (first, last) = (cells.start / 64, (cells.end - 1) / 64);
+    for (k, word) in bits[first..=last].iter_mut().enumerate() {
+        let lo = if k == 0 { cells.start % 64 } else { 0 };
+        let hi = if first + k == last { (cells.end - 1) % 64 } else { 63 };
+        *word |= (u64::MAX >> (63 - hi)) & (u64::MAX << lo);
+    }
+}
+
+/// The running sum along one accumulator row of a box `width` cells wide:
+/// `paint(run, coverage)` for every run of cells of one nonzero coverage
+/// (the winding number changes only at the cells an edge added to). Leaves
+/// the row's cells and bits zero.
+fn sweep_row(
+    cells: &mut [f64],
+    touched: &mut [u64],
+    width: usize,
+    rule: FillRule,
+    mut paint: impl FnMut(Range<usize>, f32),
+) {
+    let mut winding = 0.0f64;
+    let mut run: Option<(usize, f32)> = None;
+    for (k, word) in touched.iter_mut().enumerate() {
+        let mut bits = std::mem::take(word);
+        while bits != 0 {
+            let x = k * 64 + bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let contribution = std::mem::take(&mut cells[x]);
+            // The spare columns past the box are cleared, not summed.
+            if x >= width {
+                continue;
+            }
+            if let Some((start, coverage)) = run.filter(|r| r.1 != 0.0) {
+                paint(start..x, coverage);
+            }
+            winding += contribution;
+            run = Some((x, rule.coverage(winding) as f32));
+        }
+    }
+    if let Some((start, coverage)) = run.filter(|r| r.1 != 0.0) {
+        paint(start..width, coverage);
+    }
+}
+
+/// Blend a run of samples covered by one face to `coverage` with its
+/// `grey`, as [`blend_layer_row`] blends a cell whose summed coverage and
+/// premultiplied grey are those of this face alone.
+fn blend_run(row: &mut [f32], coverage: f32, grey: f32) {
+    let (a, p) = (0.0 + coverage, 0.0 + coverage * grey);
+    if a >= 1.0 {
+        row.fill(p / a);
+    } else if a > 0.0 {
+        for v in row {
+            *v = *v * (1.0 - a) + p;
+        }
+    }
+}
+
+crate::early::simd_dispatch!(fn blend_layer_row(row: &mut [f32], alpha: &mut [f32], premultiplied: &mut [f32]) => blend_layer_row_body);
+
+/// Blend one row of samples with a layer's summed coverage `alpha` and
+/// premultiplied grey, and clear both.
+#[inline(always)]
+fn blend_layer_row_body(row: &mut [f32], alpha: &mut [f32], premultiplied: &mut [f32]) {
+    for ((v, a), p) in row.iter_mut().zip(alpha.iter_mut()).zip(premultiplied.iter_mut()) {
+        let (a, p) = (std::mem::take(a), std::mem::take(p));
+        // Both candidates computed and one selected, so the loop has no
+        // branch to take per sample.
+        let mean = p / a;
+        let blended = *v * (1.0 - a) + p;
+        // Fully covered (or faces overlapping after all): their mean grey.
+        *v = if a >= 1.0 {
+            mean
+        } else if a > 0.0 {
+            blended
+        } else {
+            *v
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::*;
+
+    /// [`Canvas::fill_faces`] the plain way: every face's accumulator summed
+    /// cell by cell over its whole box, every coverage added to the layer's
+    /// buffers, every cell of the layer blended.
+    fn fill_faces_densely(canvas: &mut Canvas, faces: &[Face<'_>], rule: FillRule) {
+        let s = canvas.supersample as f64;
+        let (sw, sh) = (canvas.width * canvas.supersample, canvas.height * canvas.supersample);
+        let to_cell = |p: &[f64; 2]| [(p[0] + 0.5) * s, (p[1] + 0.5) * s];
+        let boxes: Vec<Option<CellBox>> = faces
+            .iter()
+            .map(|f| {
+                let drawable = f.points.len() >= 3 && f.points.iter().flatten().all(|c| c.is_finite());
+                drawable.then(|| CellBox::of(f.points.iter().map(to_cell), sw, sh)).flatten()
+            })
+            .collect();
+        let Some(layer) = boxes.iter().flatten().copied().reduce(CellBox::union) else { return };
+        let (lw, lh) = (layer.x1 - layer.x0, layer.y1 - layer.y0);
+        let (mut alpha, mut premultiplied) = (vec![0.0f32; lw * lh], vec![0.0f32; lw * lh]);
+        for (face, cells) in faces.iter().zip(&boxes) {
+            let Some(cells) = cells else { continue };
+            let (fw, fh) = (cells.x1 - cells.x0, cells.y1 - cells.y0);
+            let (stride, words) = (fw + 2, (fw + 2).div_ceil(64));
+            let (mut sums, mut touched) = (vec![0.0f64; stride * fh], vec![0u64; words * fh]);
+            let mut acc = Accumulator { cells: &mut sums, touched: &mut touched, stride, words };
+            let n = face.points.len();
+            for k in 0..n {
+                let (a, b) = (to_cell(&face.points[k]), to_cell(&face.points[(k + 1) % n]));
+                let origin = [cells.x0 as f64, cells.y0 as f64];
+                acc.add_edge(
+                    [fw as f64, fh as f64],
+                    [a[0] - origin[0], a[1] - origin[1]],
+                    [b[0] - origin[0], b[1] - origin[1]],
+                );
+            }
+            for r in 0..fh {
+                let mut winding = 0.0f64;
+                for x in 0..fw {
+                    winding += sums[r * stride + x];
+                    let coverage = rule.coverage(winding) as f32;
+                    let at = (cells.y0 - layer.y0 + r) * lw + (cells.x0 - layer.x0) + x;
+                    alpha[at] += coverage;
+                    premultiplied[at] += coverage * face.grey;
+                }
+            }
+        }
+        for r in 0..lh {
+            for x in 0..lw {
+                let v = &mut canvas.samples[(layer.y0 + r) * sw + layer.x0 + x];
+                let (a, p) = (alpha[r * lw + x], premultiplied[r * lw + x]);
+                if a >= 1.0 {
+                    *v = p / a;
+                } else if a > 0.0 {
+                    *v = *v * (1.0 - a) + p;
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn fill_faces_equals_the_dense_fill_bitwise() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for case in 0..300 {
+            let (w, h) = (rng.random_range(1..40), rng.random_range(1..30));
+            let s = [1, 2, 3, 4, 5][case % 5];
+            let mut canvas = Canvas::new(w, h, s, 0.0).unwrap();
+            canvas.shade_with(|x, y| (x * 7.0 + y * 3.0).rem_euclid(255.0) as f32);
+            let mut reference = canvas.clone();
+            let rule = if case % 2 == 0 { FillRule::EvenOdd } else { FillRule::NonZero };
+            // Outlines reaching past every border, some self-crossing, some
+            // nearly horizontal, in layers of one to four faces.
+            for _ in 0..3 {
+                let outlines: Vec<Vec<[f64; 2]>> = (0..rng.random_range(1..5))
+                    .map(|_| {
+                        let n = rng.random_range(2..12);
+                        let flat = rng.random_bool(0.2);
+                        (0..n)
+                            .map(|_| {
+                                let x = rng.random_range(-8.0..w as f64 + 8.0);
+                                let y = if flat { 0.3 * x + 2.0 } else { rng.random_range(-8.0..h as f64 + 8.0) };
+                                [x, y]
+                            })
+                            .collect()
+                    })
+                    .collect();
+                let greys: Vec<f32> = outlines.iter().map(|_| rng.random_range(0.0..255.0)).collect();
+                let faces: Vec<Face<'_>> =
+                    outlines.iter().zip(&greys).map(|(points, &grey)| Face { points, grey }).collect();
+                canvas.fill_faces(&faces, rule);
+                fill_faces_densely(&mut reference, &faces, rule);
+                for (k, (a, b)) in canvas.samples().iter().zip(reference.samples()).enumerate() {
+                    assert_eq!(a.to_bits(), b.to_bits(), "case {case}, {w}x{h}@{s}, sample {k}: {a} vs {b}");
+                }
+            }
+            assert!(canvas.scratch.accumulator.iter().all(|&v| v == 0.0), "case {case}: accumulator left set");
+            assert!(canvas.scratch.touched.iter().all(|&v| v == 0), "case {case}: bits left set");
+            assert!(canvas.scratch.alpha.iter().chain(&canvas.scratch.premultiplied).all(|&v| v == 0.0));
+        }
+    }
+
+    #[test]
+    fn cell_sums_equal_iterator_sums_bitwise() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for s in 1..=6 {
+            for n in [0, 1, 5, 16, 17, 63] {
+                let samples: Vec<f32> = (0..n * s).map(|_| rng.random_range(0.0..255.0)).collect();
+                let start: Vec<f32> = (0..n).map(|_| rng.random_range(0.0..1000.0)).collect();
+                let mut out = start.clone();
+                add_cell_sums(&mut out, &samples, s);
+                for (i, (o, cell)) in out.iter().zip(samples.chunks_exact(s)).enumerate() {
+                    let expected = start[i] + cell.iter().sum::<f32>();
+                    assert_eq!(o.to_bits(), expected.to_bits(), "s {s}, n {n}, cell {i}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn set_bits_sets_exactly_the_range() {
+        for start in 0..140 {
+            for end in start + 1..=192 {
+                let mut bits = [0u64; 3];
+                set_bits(&mut bits, start..end);
+                for i in 0..192 {
+                    assert_eq!(bits[i / 64] >> (i % 64) & 1 == 1, (start..end).contains(&i), "{start}..{end} bit {i}");
+                }
+            }
+        }
     }
 }
