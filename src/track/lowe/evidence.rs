@@ -98,6 +98,8 @@ impl CrossingMap {
     pub fn support(&self, lines: impl Iterator<Item = ([f64; 2], [f64; 2], f64)>, angle: f64) -> (usize, usize) {
         let tolerance = angle / std::f64::consts::PI * LEVELS;
         let (mut supported, mut samples) = (0, 0);
+        let (x0w, y0w) = (i64::from(self.window.x0), i64::from(self.window.y0));
+        let (w, h) = (self.width as i64, self.height as i64);
         for (p, q, side) in lines {
             let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
             let length = dx.hypot(dy);
@@ -106,12 +108,18 @@ impl CrossingMap {
             }
             let (ux, uy) = (dx / length, dy / length);
             let orientation = dy.atan2(dx).rem_euclid(std::f64::consts::PI) / std::f64::consts::PI * LEVELS;
-            let matches_level = |level: u8| {
-                if level == 0 {
-                    return false;
+            // Whether each level lies within the tolerance of the line's
+            // orientation, worked out the first time a sample meets it
+            // (0: not yet, 1: no, 2: yes).
+            let mut accepts = [0u8; 256];
+            accepts[0] = 1;
+            let mut matches_level = |level: u8| {
+                let known = &mut accepts[usize::from(level)];
+                if *known == 0 {
+                    let d = (f64::from(level - 1) + 0.5 - orientation).abs();
+                    *known = if d.min(LEVELS - d) <= tolerance { 2 } else { 1 };
                 }
-                let d = (f64::from(level - 1) + 0.5 - orientation).abs();
-                d.min(LEVELS - d) <= tolerance
+                *known == 2
             };
             // The gradient points from the bright side to the dark side.
             let dark_on_side = |x: i64, y: i64| {
@@ -121,17 +129,27 @@ impl CrossingMap {
             while s <= length - END_MARGIN_PX {
                 samples += 1;
                 let c = [p[0] + s * ux, p[1] + s * uy];
-                let (x0, y0) = (c[0].round() as i64, c[1].round() as i64);
-                // Most pixels hold no crossing: look first, measure after.
-                let hit = (-1..=1).any(|j| {
-                    (-1..=1).any(|i| {
-                        matches_level(self.level(x0 + i, y0 + j)) && {
-                            let (rx, ry) = ((x0 + i) as f64 - c[0], (y0 + j) as f64 - c[1]);
-                            (rx * uy - ry * ux).abs() <= 1.0
-                                && (rx * ux + ry * uy).abs() <= 1.0
-                                && dark_on_side(x0 + i, y0 + j)
-                        }
-                    })
+                let (xc, yc) = (c[0].round() as i64, c[1].round() as i64);
+                // The crossings of the 3×3 pixels around the sample: most
+                // hold none, so look first and measure after.
+                let (cx, cy) = (xc - x0w, yc - y0w);
+                let mut levels = [0u8; 9];
+                if cx >= 1 && cy >= 1 && cx + 1 < w && cy + 1 < h {
+                    let at = (cy - 1) as usize * self.width + (cx - 1) as usize;
+                    for (j, row) in levels.chunks_exact_mut(3).enumerate() {
+                        row.copy_from_slice(&self.cells[at + j * self.width..at + j * self.width + 3]);
+                    }
+                } else {
+                    for (k, level) in levels.iter_mut().enumerate() {
+                        *level = self.level(xc + k as i64 % 3 - 1, yc + k as i64 / 3 - 1);
+                    }
+                }
+                let hit = levels.iter().enumerate().any(|(k, &level)| {
+                    level != 0 && matches_level(level) && {
+                        let (x, y) = (xc + k as i64 % 3 - 1, yc + k as i64 / 3 - 1);
+                        let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
+                        (rx * uy - ry * ux).abs() <= 1.0 && (rx * ux + ry * uy).abs() <= 1.0 && dark_on_side(x, y)
+                    }
                 });
                 if hit {
                     supported += 1;
@@ -146,6 +164,60 @@ impl CrossingMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    impl CrossingMap {
+        /// [`CrossingMap::support`] pixel by pixel through [`CrossingMap::level`].
+        fn support_pixel_by_pixel(
+            &self,
+            lines: impl Iterator<Item = ([f64; 2], [f64; 2], f64)>,
+            angle: f64,
+        ) -> (usize, usize) {
+            let tolerance = angle / std::f64::consts::PI * LEVELS;
+            let (mut supported, mut samples) = (0, 0);
+            for (p, q, side) in lines {
+                let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+                let length = dx.hypot(dy);
+                if !(length.is_finite() && length > 2.0 * END_MARGIN_PX) {
+                    continue;
+                }
+                let (ux, uy) = (dx / length, dy / length);
+                let orientation = dy.atan2(dx).rem_euclid(std::f64::consts::PI) / std::f64::consts::PI * LEVELS;
+                let matches_level = |level: u8| {
+                    if level == 0 {
+                        return false;
+                    }
+                    let d = (f64::from(level - 1) + 0.5 - orientation).abs();
+                    d.min(LEVELS - d) <= tolerance
+                };
+                // The gradient points from the bright side to the dark side.
+                let dark_on_side = |x: i64, y: i64| {
+                    side == 0.0 || self.direction(x, y).is_some_and(|a| (a.sin() * ux - a.cos() * uy) * side > 0.0)
+                };
+                let mut s = END_MARGIN_PX;
+                while s <= length - END_MARGIN_PX {
+                    samples += 1;
+                    let c = [p[0] + s * ux, p[1] + s * uy];
+                    let (x0, y0) = (c[0].round() as i64, c[1].round() as i64);
+                    // Most pixels hold no crossing: look first, measure after.
+                    let hit = (-1..=1).any(|j| {
+                        (-1..=1).any(|i| {
+                            matches_level(self.level(x0 + i, y0 + j)) && {
+                                let (rx, ry) = ((x0 + i) as f64 - c[0], (y0 + j) as f64 - c[1]);
+                                (rx * uy - ry * ux).abs() <= 1.0
+                                    && (rx * ux + ry * uy).abs() <= 1.0
+                                    && dark_on_side(x0 + i, y0 + j)
+                            }
+                        })
+                    });
+                    if hit {
+                        supported += 1;
+                    }
+                    s += 1.0;
+                }
+            }
+            (supported, samples)
+        }
+    }
 
     fn horizontal(y: u32, xs: std::ops::Range<u32>, magnitude: f32) -> Vec<Feature> {
         // A horizontal edge: the gradient points along y.
@@ -207,5 +279,47 @@ mod tests {
         map.rebuild(&horizontal(30, 10..110, 5.0), window, 1.5, false);
         assert_eq!(count(&map, rightwards, 0.0), all);
         assert_eq!(count(&map, rightwards, 1.0).0, 0);
+    }
+
+    /// The support of random lines (inside, across the border and outside
+    /// the window, with and without a dark side) over random crossings
+    /// (dense and sparse, on the window's border rows and columns) is what
+    /// the pixel-by-pixel count gives.
+    #[test]
+    fn support_equals_the_pixel_by_pixel_count() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut supported = 0;
+        for case in 0..200 {
+            let (x0, y0) = (rng.random_range(0..20), rng.random_range(0..20));
+            let window = Window { x0, y0, x1: x0 + rng.random_range(1..60), y1: y0 + rng.random_range(1..50) };
+            let density = [0.02, 0.2, 0.8][case % 3];
+            let mut crossings = Vec::new();
+            for y in y0.saturating_sub(2)..window.y1 + 2 {
+                for x in x0.saturating_sub(2)..window.x1 + 2 {
+                    if rng.random_bool(density) {
+                        let theta = rng.random_range(-4.0f32..4.0);
+                        crossings.push(Feature { x, y, theta, magnitude: rng.random_range(0.0..4.0) });
+                    }
+                }
+            }
+            let with_directions = case % 2 == 0;
+            let mut map = CrossingMap::default();
+            map.rebuild(&crossings, window, 1.5, with_directions);
+            let point = |rng: &mut rand_chacha::ChaCha8Rng| {
+                [
+                    rng.random_range(f64::from(x0) - 5.0..f64::from(window.x1) + 5.0),
+                    rng.random_range(f64::from(y0) - 5.0..f64::from(window.y1) + 5.0),
+                ]
+            };
+            let lines: Vec<([f64; 2], [f64; 2], f64)> =
+                (0..12).map(|_| (point(&mut rng), point(&mut rng), [0.0, 1.0, -1.0][rng.random_range(0..3)])).collect();
+            let angle = rng.random_range(0.05..0.6);
+            let fast = map.support(lines.iter().copied(), angle);
+            assert_eq!(fast, map.support_pixel_by_pixel(lines.iter().copied(), angle), "case {case}");
+            assert!(fast.1 > 0, "case {case}: no samples");
+            supported += fast.0;
+        }
+        assert!(supported > 1000, "{supported} samples supported in all");
     }
 }
