@@ -121,42 +121,82 @@ pub fn match_probability(
     image: &Endpoints,
     ctx: &MatchContext,
 ) -> Option<f64> {
-    let length = seg.length();
-    let [ux, uy] = seg.direction();
-    let [nx, ny] = seg.normal();
-    let along_of = |p: [f64; 2]| ux * (p[0] - seg.a[0]) + uy * (p[1] - seg.a[1]);
-    let (along0, along1) = (along_of(image[0]), along_of(image[1]));
-    let ext = spread.extension(ctx.measurement_sigma);
-    let inside = |t: f64| t >= -ext[0] && t <= length + ext[1];
-    if !(inside(along0) && inside(along1)) {
-        return None;
+    ModelLine::of(seg, spread, ctx).match_probability(seg, spread, p, n, image, ctx)
+}
+
+/// What [`match_probability`] needs of a model segment and its spread
+/// whatever the image segment: worked out once for all its candidates.
+#[derive(Clone, Copy, Debug)]
+pub struct ModelLine {
+    length: f64,
+    direction: [f64; 2],
+    normal: [f64; 2],
+    orientation: f64,
+    /// [`SegmentSpread::extension`].
+    extension: [f64; 2],
+}
+
+impl ModelLine {
+    /// The line of `seg` with the extension of `spread` under `ctx`.
+    #[must_use]
+    pub fn of(seg: &ModelSegment, spread: &SegmentSpread, ctx: &MatchContext) -> Self {
+        Self {
+            length: seg.length(),
+            direction: seg.direction(),
+            normal: seg.normal(),
+            orientation: seg.orientation(),
+            extension: spread.extension(ctx.measurement_sigma),
+        }
     }
-    let mid = [(image[0][0] + image[1][0]) * 0.5, (image[0][1] + image[1][1]) * 0.5];
-    let (rx, ry) = (mid[0] - seg.a[0], mid[1] - seg.a[1]);
-    let along = 0.5 * (along0 + along1);
-    let x = nx * rx + ny * ry;
-    let s_len = (image[1][0] - image[0][0]).hypot(image[1][1] - image[0][1]);
-    if s_len <= 0.0 {
-        return None;
+
+    /// [`match_probability`] of `image` for `seg`, whose line this is.
+    #[must_use]
+    pub fn match_probability(
+        &self,
+        seg: &ModelSegment,
+        spread: &SegmentSpread,
+        p: &Matrix,
+        n: usize,
+        image: &Endpoints,
+        ctx: &MatchContext,
+    ) -> Option<f64> {
+        let length = self.length;
+        let [ux, uy] = self.direction;
+        let [nx, ny] = self.normal;
+        let along_of = |p: [f64; 2]| ux * (p[0] - seg.a[0]) + uy * (p[1] - seg.a[1]);
+        let (along0, along1) = (along_of(image[0]), along_of(image[1]));
+        let ext = self.extension;
+        let inside = |t: f64| t >= -ext[0] && t <= length + ext[1];
+        if !(inside(along0) && inside(along1)) {
+            return None;
+        }
+        let mid = [(image[0][0] + image[1][0]) * 0.5, (image[0][1] + image[1][1]) * 0.5];
+        let (rx, ry) = (mid[0] - seg.a[0], mid[1] - seg.a[1]);
+        let along = 0.5 * (along0 + along1);
+        let x = nx * rx + ny * ry;
+        let s_len = (image[1][0] - image[0][0]).hypot(image[1][1] - image[0][1]);
+        if s_len <= 0.0 {
+            return None;
+        }
+        let angle = (image[1][1] - image[0][1]).atan2(image[1][0] - image[0][0]);
+        let mut y = (angle - self.orientation).rem_euclid(PI);
+        if y > PI / 2.0 {
+            y -= PI;
+        }
+        let sm2 = ctx.measurement_sigma * ctx.measurement_sigma;
+        let s = (along / length).clamp(0.0, 1.0);
+        let sigma_x = (quadratic_form(p, &seg.perpendicular_row(s, n), n).max(0.0) + sm2).sqrt();
+        let angle_noise = 2.0 * ctx.measurement_sigma / s_len;
+        let sigma_y = spread.orientation.hypot(angle_noise);
+        if x.abs() > ctx.search_sigmas * sigma_x || y.abs() > ctx.search_sigmas * sigma_y {
+            return None;
+        }
+        let density = (-0.5 * ((x / sigma_x).powi(2) + (y / sigma_y).powi(2))).exp() / (2.0 * PI * sigma_x * sigma_y);
+        let extended = length + ext[0] + ext[1];
+        let background = ctx.segments as f64 * (extended - s_len).max(ctx.measurement_sigma) / (PI * ctx.area);
+        let probability = density / (density + background);
+        (probability >= ctx.min_probability).then_some(probability)
     }
-    let angle = (image[1][1] - image[0][1]).atan2(image[1][0] - image[0][0]);
-    let mut y = (angle - seg.orientation()).rem_euclid(PI);
-    if y > PI / 2.0 {
-        y -= PI;
-    }
-    let sm2 = ctx.measurement_sigma * ctx.measurement_sigma;
-    let s = (along / length).clamp(0.0, 1.0);
-    let sigma_x = (quadratic_form(p, &seg.perpendicular_row(s, n), n).max(0.0) + sm2).sqrt();
-    let angle_noise = 2.0 * ctx.measurement_sigma / s_len;
-    let sigma_y = spread.orientation.hypot(angle_noise);
-    if x.abs() > ctx.search_sigmas * sigma_x || y.abs() > ctx.search_sigmas * sigma_y {
-        return None;
-    }
-    let density = (-0.5 * ((x / sigma_x).powi(2) + (y / sigma_y).powi(2))).exp() / (2.0 * PI * sigma_x * sigma_y);
-    let extended = length + ext[0] + ext[1];
-    let background = ctx.segments as f64 * (extended - s_len).max(ctx.measurement_sigma) / (PI * ctx.area);
-    let probability = density / (density + background);
-    (probability >= ctx.min_probability).then_some(probability)
 }
 
 /// Every candidate of every model segment, by brute force over the image

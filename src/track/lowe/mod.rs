@@ -226,7 +226,7 @@ pub use params::LoweParams;
 
 use self::estimation::{Matrix, Problem};
 use self::evidence::CrossingMap;
-use self::matching::{Candidate, Endpoints, MatchContext, SegmentSpread, match_probability, search_bounds};
+use self::matching::{Candidate, Endpoints, MatchContext, ModelLine, SegmentSpread, search_bounds};
 use self::params::MAX_PARAMS;
 use self::projection::{Linearised, ModelSegment, Row, State};
 use self::search::{SearchFrame, SearchSettings, Support, segments_needed};
@@ -1335,8 +1335,9 @@ impl SearchFrame for FrameView<'_> {
             let tolerance =
                 self.ctx.search_sigmas * spread.orientation.hypot(2.0 * self.ctx.measurement_sigma / min_length);
             t.index.query(x0..=x1, y0..=y1, seg.orientation(), tolerance.min(std::f64::consts::FRAC_PI_2), &mut hits);
+            let line = ModelLine::of(seg, &spread, &self.ctx);
             for &i in &hits {
-                if let Some(probability) = match_probability(seg, &spread, p, n, &self.endpoints(i), &self.ctx) {
+                if let Some(probability) = line.match_probability(seg, &spread, p, n, &self.endpoints(i), &self.ctx) {
                     out.push(Candidate { model: m, image: i, probability });
                 }
             }
