@@ -195,16 +195,10 @@ impl Canvas {
     /// with separate calls instead. Faces with fewer than three points or a
     /// non-finite coordinate are skipped.
     pub fn fill_faces(&mut self, faces: &[Face<'_>], rule: FillRule) {
-        let s = self.supersample as f64;
-        let (sw, sh) = (self.width * self.supersample, self.height * self.supersample);
-        // Cell coordinates: cell (i, j) spans [i, i+1] x [j, j+1], i.e. pixel
-        // coordinates u = (x + 1/2)·S.
-        let to_cell = |p: &[f64; 2]| [(p[0] + 0.5) * s, (p[1] + 0.5) * s];
-        let drawable = |f: &&Face<'_>| f.points.len() >= 3 && f.points.iter().flatten().all(|c| c.is_finite());
-        let boxes: Vec<Option<CellBox>> = faces
-            .iter()
-            .map(|f| drawable(&f).then(|| CellBox::of(f.points.iter().map(to_cell), sw, sh)).flatten())
-            .collect();
+        let sw = self.width * self.supersample;
+        let supersample = self.supersample;
+        let to_cell = |p: &[f64; 2]| to_cell(p, supersample);
+        let boxes = self.cell_boxes(faces);
         let Some(layer) = boxes.iter().flatten().copied().reduce(CellBox::union) else {
             return;
         };
@@ -277,6 +271,22 @@ impl Canvas {
             }
         }
         self.scratch = scratch;
+    }
+
+    /// The cells each of `faces` can touch, clipped to the canvas; `None`
+    /// for a face with fewer than three points, a non-finite coordinate or
+    /// nothing on the canvas.
+    fn cell_boxes(&self, faces: &[Face<'_>]) -> Vec<Option<CellBox>> {
+        let (sw, sh) = (self.width * self.supersample, self.height * self.supersample);
+        let drawable = |f: &Face<'_>| f.points.len() >= 3 && f.points.iter().flatten().all(|c| c.is_finite());
+        faces
+            .iter()
+            .map(|f| {
+                drawable(f)
+                    .then(|| CellBox::of(f.points.iter().map(|p| to_cell(p, self.supersample)), sw, sh))
+                    .flatten()
+            })
+            .collect()
     }
 
     /// Fill an ellipse with centre `centre`, semi-axes `radii` and the first
@@ -427,6 +437,13 @@ impl FillRule {
             }
         }
     }
+}
+
+/// Cell coordinates of output-pixel point `p` at factor `supersample`:
+/// cell (i, j) spans [i, i+1] × [j, j+1], i.e. u = (x + 1/2)·S.
+fn to_cell(p: &[f64; 2], supersample: usize) -> [f64; 2] {
+    let s = supersample as f64;
+    [(p[0] + 0.5) * s, (p[1] + 0.5) * s]
 }
 
 /// A half-open range of canvas cells `x0..x1`, `y0..y1`, non-empty.
@@ -648,16 +665,31 @@ fn sweep_row(
 }
 
 /// Blend a run of samples covered by one face to `coverage` with its
-/// `grey`, as [`blend_layer_row`] blends a cell whose summed coverage and
+/// `grey`: each sample as [`blend`] takes a cell whose summed coverage and
 /// premultiplied grey are those of this face alone.
 fn blend_run(row: &mut [f32], coverage: f32, grey: f32) {
     let (a, p) = (0.0 + coverage, 0.0 + coverage * grey);
-    if a >= 1.0 {
-        row.fill(p / a);
-    } else if a > 0.0 {
+    if a > 0.0 {
         for v in row {
-            *v = *v * (1.0 - a) + p;
+            *v = blend(*v, a, p);
         }
+    }
+}
+
+/// A sample `v` blended with summed coverage `a` and premultiplied grey
+/// `p`: their mean grey where fully covered (or where faces overlap after
+/// all), `v` where not covered. Both candidates are computed and one
+/// selected, so a loop of these has no branch to take per sample.
+#[inline(always)]
+fn blend(v: f32, a: f32, p: f32) -> f32 {
+    let mean = p / a;
+    let blended = v * (1.0 - a) + p;
+    if a >= 1.0 {
+        mean
+    } else if a > 0.0 {
+        blended
+    } else {
+        v
     }
 }
 
@@ -668,19 +700,7 @@ crate::early::simd_dispatch!(fn blend_layer_row(row: &mut [f32], alpha: &mut [f3
 #[inline(always)]
 fn blend_layer_row_body(row: &mut [f32], alpha: &mut [f32], premultiplied: &mut [f32]) {
     for ((v, a), p) in row.iter_mut().zip(alpha.iter_mut()).zip(premultiplied.iter_mut()) {
-        let (a, p) = (std::mem::take(a), std::mem::take(p));
-        // Both candidates computed and one selected, so the loop has no
-        // branch to take per sample.
-        let mean = p / a;
-        let blended = *v * (1.0 - a) + p;
-        // Fully covered (or faces overlapping after all): their mean grey.
-        *v = if a >= 1.0 {
-            mean
-        } else if a > 0.0 {
-            blended
-        } else {
-            *v
-        };
+        *v = blend(*v, std::mem::take(a), std::mem::take(p));
     }
 }
 
@@ -695,16 +715,9 @@ mod tests {
     /// cell by cell over its whole box, every coverage added to the layer's
     /// buffers, every cell of the layer blended.
     fn fill_faces_densely(canvas: &mut Canvas, faces: &[Face<'_>], rule: FillRule) {
-        let s = canvas.supersample as f64;
-        let (sw, sh) = (canvas.width * canvas.supersample, canvas.height * canvas.supersample);
-        let to_cell = |p: &[f64; 2]| [(p[0] + 0.5) * s, (p[1] + 0.5) * s];
-        let boxes: Vec<Option<CellBox>> = faces
-            .iter()
-            .map(|f| {
-                let drawable = f.points.len() >= 3 && f.points.iter().flatten().all(|c| c.is_finite());
-                drawable.then(|| CellBox::of(f.points.iter().map(to_cell), sw, sh)).flatten()
-            })
-            .collect();
+        let sw = canvas.width * canvas.supersample;
+        let to_cell = |p: &[f64; 2]| to_cell(p, canvas.supersample);
+        let boxes = canvas.cell_boxes(faces);
         let Some(layer) = boxes.iter().flatten().copied().reduce(CellBox::union) else { return };
         let (lw, lh) = (layer.x1 - layer.x0, layer.y1 - layer.y0);
         let (mut alpha, mut premultiplied) = (vec![0.0f32; lw * lh], vec![0.0f32; lw * lh]);

@@ -82,6 +82,13 @@ impl CrossingMap {
         (level > 0).then(|| (f64::from(level - 1) + 0.5) / LEVELS * 2.0 * PI)
     }
 
+    /// Whether the crossing at pixel (x, y) is dark on side `side` (±1; 0:
+    /// either) of a line of direction `u`: its gradient points from the
+    /// bright side to the dark side.
+    fn dark_on_side(&self, x: i64, y: i64, side: f64, u: [f64; 2]) -> bool {
+        side == 0.0 || self.direction(x, y).is_some_and(|a| (a.sin() * u[0] - a.cos() * u[1]) * side > 0.0)
+    }
+
     /// Index of pixel (x, y) in the window's cells.
     fn cell(&self, x: i64, y: i64) -> Option<usize> {
         let (cx, cy) = (x - i64::from(self.window.x0), y - i64::from(self.window.y0));
@@ -101,29 +108,18 @@ impl CrossingMap {
         let (x0w, y0w) = (i64::from(self.window.x0), i64::from(self.window.y0));
         let (w, h) = (self.width as i64, self.height as i64);
         for (p, q, side) in lines {
-            let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
-            let length = dx.hypot(dy);
-            if !(length.is_finite() && length > 2.0 * END_MARGIN_PX) {
-                continue;
-            }
-            let (ux, uy) = (dx / length, dy / length);
-            let orientation = dy.atan2(dx).rem_euclid(std::f64::consts::PI) / std::f64::consts::PI * LEVELS;
+            let Some((length, [ux, uy], orientation)) = sampled_line(p, q) else { continue };
             // Whether each level lies within the tolerance of the line's
-            // orientation, worked out the first time a sample meets it
-            // (0: not yet, 1: no, 2: yes).
+            // orientation, worked out the first time a sample meets it (0:
+            // not yet, 1: no, 2: yes); level 0, no crossing, never does.
             let mut accepts = [0u8; 256];
             accepts[0] = 1;
             let mut matches_level = |level: u8| {
                 let known = &mut accepts[usize::from(level)];
                 if *known == 0 {
-                    let d = (f64::from(level - 1) + 0.5 - orientation).abs();
-                    *known = if d.min(LEVELS - d) <= tolerance { 2 } else { 1 };
+                    *known = if level_within(level, orientation, tolerance) { 2 } else { 1 };
                 }
                 *known == 2
-            };
-            // The gradient points from the bright side to the dark side.
-            let dark_on_side = |x: i64, y: i64| {
-                side == 0.0 || self.direction(x, y).is_some_and(|a| (a.sin() * ux - a.cos() * uy) * side > 0.0)
             };
             let mut s = END_MARGIN_PX;
             while s <= length - END_MARGIN_PX {
@@ -145,10 +141,12 @@ impl CrossingMap {
                     }
                 }
                 let hit = levels.iter().enumerate().any(|(k, &level)| {
-                    level != 0 && matches_level(level) && {
+                    matches_level(level) && {
                         let (x, y) = (xc + k as i64 % 3 - 1, yc + k as i64 / 3 - 1);
                         let (rx, ry) = (x as f64 - c[0], y as f64 - c[1]);
-                        (rx * uy - ry * ux).abs() <= 1.0 && (rx * ux + ry * uy).abs() <= 1.0 && dark_on_side(x, y)
+                        (rx * uy - ry * ux).abs() <= 1.0
+                            && (rx * ux + ry * uy).abs() <= 1.0
+                            && self.dark_on_side(x, y, side, [ux, uy])
                     }
                 });
                 if hit {
@@ -159,6 +157,26 @@ impl CrossingMap {
         }
         (supported, samples)
     }
+}
+
+/// The line `p → q` as [`CrossingMap::support`] samples it: its length,
+/// unit direction and orientation in levels; `None` when it is not finite
+/// or too short to leave a sample between the end margins.
+fn sampled_line(p: [f64; 2], q: [f64; 2]) -> Option<(f64, [f64; 2], f64)> {
+    let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+    let length = dx.hypot(dy);
+    if !(length.is_finite() && length > 2.0 * END_MARGIN_PX) {
+        return None;
+    }
+    let orientation = dy.atan2(dx).rem_euclid(PI) / PI * LEVELS;
+    Some((length, [dx / length, dy / length], orientation))
+}
+
+/// Whether orientation level `level` (1 ..= 255) lies within `tolerance`
+/// levels of `orientation`, round the half turn.
+fn level_within(level: u8, orientation: f64, tolerance: f64) -> bool {
+    let d = (f64::from(level - 1) + 0.5 - orientation).abs();
+    d.min(LEVELS - d) <= tolerance
 }
 
 #[cfg(test)]
@@ -175,24 +193,9 @@ mod tests {
             let tolerance = angle / std::f64::consts::PI * LEVELS;
             let (mut supported, mut samples) = (0, 0);
             for (p, q, side) in lines {
-                let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
-                let length = dx.hypot(dy);
-                if !(length.is_finite() && length > 2.0 * END_MARGIN_PX) {
-                    continue;
-                }
-                let (ux, uy) = (dx / length, dy / length);
-                let orientation = dy.atan2(dx).rem_euclid(std::f64::consts::PI) / std::f64::consts::PI * LEVELS;
-                let matches_level = |level: u8| {
-                    if level == 0 {
-                        return false;
-                    }
-                    let d = (f64::from(level - 1) + 0.5 - orientation).abs();
-                    d.min(LEVELS - d) <= tolerance
-                };
-                // The gradient points from the bright side to the dark side.
-                let dark_on_side = |x: i64, y: i64| {
-                    side == 0.0 || self.direction(x, y).is_some_and(|a| (a.sin() * ux - a.cos() * uy) * side > 0.0)
-                };
+                let Some((length, [ux, uy], orientation)) = sampled_line(p, q) else { continue };
+                let matches_level = |level: u8| level != 0 && level_within(level, orientation, tolerance);
+                let dark_on_side = |x: i64, y: i64| self.dark_on_side(x, y, side, [ux, uy]);
                 let mut s = END_MARGIN_PX;
                 while s <= length - END_MARGIN_PX {
                     samples += 1;

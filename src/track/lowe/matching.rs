@@ -121,13 +121,17 @@ pub fn match_probability(
     image: &Endpoints,
     ctx: &MatchContext,
 ) -> Option<f64> {
-    ModelLine::of(seg, spread, ctx).match_probability(seg, spread, p, n, image, ctx)
+    ModelLine::of(seg, spread, ctx).match_probability(p, n, image)
 }
 
-/// What [`match_probability`] needs of a model segment and its spread
-/// whatever the image segment: worked out once for all its candidates.
+/// A model segment with its spread under a frame's matching context, and
+/// what [`match_probability`] needs of them whatever the image segment,
+/// worked out once for all its candidates.
 #[derive(Clone, Copy, Debug)]
-pub struct ModelLine {
+pub struct ModelLine<'a> {
+    seg: &'a ModelSegment,
+    spread: &'a SegmentSpread,
+    ctx: &'a MatchContext,
     length: f64,
     direction: [f64; 2],
     normal: [f64; 2],
@@ -136,11 +140,14 @@ pub struct ModelLine {
     extension: [f64; 2],
 }
 
-impl ModelLine {
+impl<'a> ModelLine<'a> {
     /// The line of `seg` with the extension of `spread` under `ctx`.
     #[must_use]
-    pub fn of(seg: &ModelSegment, spread: &SegmentSpread, ctx: &MatchContext) -> Self {
+    pub fn of(seg: &'a ModelSegment, spread: &'a SegmentSpread, ctx: &'a MatchContext) -> Self {
         Self {
+            seg,
+            spread,
+            ctx,
             length: seg.length(),
             direction: seg.direction(),
             normal: seg.normal(),
@@ -149,17 +156,17 @@ impl ModelLine {
         }
     }
 
-    /// [`match_probability`] of `image` for `seg`, whose line this is.
+    /// The segment's undirected orientation in [0, π).
     #[must_use]
-    pub fn match_probability(
-        &self,
-        seg: &ModelSegment,
-        spread: &SegmentSpread,
-        p: &Matrix,
-        n: usize,
-        image: &Endpoints,
-        ctx: &MatchContext,
-    ) -> Option<f64> {
+    pub fn orientation(&self) -> f64 {
+        self.orientation
+    }
+
+    /// [`match_probability`] of `image` for this line's segment under
+    /// covariance `p` (n parameters).
+    #[must_use]
+    pub fn match_probability(&self, p: &Matrix, n: usize, image: &Endpoints) -> Option<f64> {
+        let (seg, spread, ctx) = (self.seg, self.spread, self.ctx);
         let length = self.length;
         let [ux, uy] = self.direction;
         let [nx, ny] = self.normal;
@@ -213,8 +220,9 @@ pub fn all_candidates(
     let mut out = Vec::new();
     for (m, seg) in segs.iter().enumerate() {
         let spread = SegmentSpread::of(seg, p, n);
+        let line = ModelLine::of(seg, &spread, ctx);
         for (i, image) in images.iter().enumerate() {
-            if let Some(probability) = match_probability(seg, &spread, p, n, image, ctx) {
+            if let Some(probability) = line.match_probability(p, n, image) {
                 out.push(Candidate { model: m, image: i, probability });
             }
         }

@@ -1334,10 +1334,10 @@ impl SearchFrame for FrameView<'_> {
             let [x0, y0, x1, y1] = search_bounds(seg, &spread, &self.ctx);
             let tolerance =
                 self.ctx.search_sigmas * spread.orientation.hypot(2.0 * self.ctx.measurement_sigma / min_length);
-            t.index.query(x0..=x1, y0..=y1, seg.orientation(), tolerance.min(std::f64::consts::FRAC_PI_2), &mut hits);
             let line = ModelLine::of(seg, &spread, &self.ctx);
+            t.index.query(x0..=x1, y0..=y1, line.orientation(), tolerance.min(std::f64::consts::FRAC_PI_2), &mut hits);
             for &i in &hits {
-                if let Some(probability) = line.match_probability(seg, &spread, p, n, &self.endpoints(i), &self.ctx) {
+                if let Some(probability) = line.match_probability(p, n, &self.endpoints(i)) {
                     out.push(Candidate { model: m, image: i, probability });
                 }
             }
