@@ -19,11 +19,14 @@
 //! [`crate::io::AtomicFile`], so `<name>.jsonl` exists only once its run
 //! ended; it counts as complete when it reads as tracker output
 //! ([`crate::cli::score::read_predictions`]) with exactly one line per frame
-//! of the sequence. A complete output is not tracked again; anything else
-//! (missing, or a file left by another sequence of that name) is tracked
-//! and replaced. A killed batch run again therefore finishes the rest. The
-//! check does not look at which tracker or config wrote an output: after
-//! changing them, remove the outputs to track again.
+//! of the sequence, and `<name>.run.json` beside it records the tracker
+//! and the config text (or none) that the manifest now gives the sequence.
+//! A complete output is not tracked again; anything else (missing, a file
+//! left by another sequence of that name, or an output of another tracker
+//! or config) is tracked and replaced. The record is removed before a
+//! sequence is tracked and written once its output is in place, so a
+//! killed batch leaves no output with another run's record, and a killed
+//! batch run again finishes the rest.
 //!
 //! **Summary.** Each line is one JSON object ([`SummaryLine`]): the
 //! sequence's name, folder, tracker, `status` (`tracked`, `skipped` for a
@@ -373,6 +376,7 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
     let mut first_error = None;
     let mut jobs = Vec::new();
     let mut job_entry = Vec::new();
+    let mut job_record = Vec::new();
     for (k, entry) in selected.iter().enumerate() {
         let seq = match Sequence::open(&entry.dir, false) {
             Ok(seq) => seq,
@@ -385,7 +389,8 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
             }
         };
         let out_path = opts.out_dir.join(format!("{}.jsonl", entry.name));
-        if let Some(predictions) = complete_output(&seq, &out_path) {
+        let record = RunRecord::of(entry);
+        if let Some(predictions) = complete_output(&seq, &out_path, record.as_ref()) {
             let mut line = SummaryLine::new(entry, SequenceStatus::Skipped);
             if let Some(before) = earlier.iter().find(|l| l.name == entry.name && l.status != SequenceStatus::Failed) {
                 line.fps = before.fps;
@@ -402,15 +407,23 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
             overlay: None,
             progress: false,
         };
+        RunRecord::remove(&out_path)?;
         jobs.push(BatchJob { seq, opts: track, out_path });
         job_entry.push(k);
+        job_record.push(record);
     }
 
     let bar = progress_bar(opts.progress, &jobs);
     let sequences_done = std::sync::atomic::AtomicUsize::new(0);
     let progress = |p: BatchProgress| match p {
         BatchProgress::Frame => bar.inc(1),
-        BatchProgress::Sequence => {
+        BatchProgress::Sequence { job, written } => {
+            // Without its record an output is tracked again next time.
+            if let (true, Some(record)) = (written, &job_record[job]) {
+                if let Err(e) = record.write(&jobs[job].out_path) {
+                    bar.suspend(|| eprintln!("pipetrack: {e}"));
+                }
+            }
             let done = sequences_done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             bar.set_message(format!("{done}/{} sequences", jobs.len()));
         }
@@ -441,10 +454,60 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
     Ok(BatchReport { lines, first_error })
 }
 
-/// The output at `out_path` when it is a complete output of `seq` (module doc).
-fn complete_output(seq: &Sequence, out_path: &Path) -> Option<Vec<FrameResult>> {
+/// What made an output (module doc): `<name>.run.json` beside it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RunRecord {
+    /// The tracker.
+    tracker: String,
+    /// The text of the config file, if one was given.
+    config: Option<String>,
+}
+
+impl RunRecord {
+    /// The record `entry` would leave, or `None` when its config cannot be
+    /// read (then its run fails and says why).
+    fn of(entry: &ManifestEntry) -> Option<Self> {
+        let config = match &entry.config {
+            Some(path) => Some(fs::read_to_string(path).ok()?),
+            None => None,
+        };
+        Some(Self { tracker: entry.tracker.clone(), config })
+    }
+
+    /// Where the record of output `out_path` lies.
+    fn path(out_path: &Path) -> PathBuf {
+        out_path.with_extension("run.json")
+    }
+
+    /// The record beside `out_path`, if one reads.
+    fn read(out_path: &Path) -> Option<Self> {
+        serde_json::from_str(&fs::read_to_string(Self::path(out_path)).ok()?).ok()
+    }
+
+    /// Write the record beside `out_path`, atomically.
+    fn write(&self, out_path: &Path) -> Result<()> {
+        let path = Self::path(out_path);
+        let mut file = AtomicFile::create(&path)?;
+        serde_json::to_writer(&mut file, self).map_err(|e| Error::io(&path, e.into()))?;
+        file.finish()
+    }
+
+    /// Remove the record beside `out_path`; none there is no error.
+    fn remove(out_path: &Path) -> Result<()> {
+        let path = Self::path(out_path);
+        match fs::remove_file(&path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(&path, e)),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// The output at `out_path` when it is a complete output of `seq` made as
+/// `record` says (module doc).
+fn complete_output(seq: &Sequence, out_path: &Path, record: Option<&RunRecord>) -> Option<Vec<FrameResult>> {
     let frames = seq.frame_count()?;
-    if !out_path.is_file() {
+    if !out_path.is_file() || record.is_none() || RunRecord::read(out_path).as_ref() != record {
         return None;
     }
     read_predictions(out_path)

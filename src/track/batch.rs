@@ -67,8 +67,14 @@ pub struct BatchJob {
 pub enum BatchProgress {
     /// One more frame tracked.
     Frame,
-    /// One more sequence finished, or failed.
-    Sequence,
+    /// One more sequence finished, or failed: job `job` of the list, whose
+    /// output is `written` (complete, in place) or not.
+    Sequence {
+        /// Its place in the job list.
+        job: usize,
+        /// Whether its output was written.
+        written: bool,
+    },
 }
 
 /// Track every job with up to `lanes` sequences in flight (1 ..= [`MAX_LANES`](crate::backend::MAX_LANES))
@@ -108,8 +114,9 @@ fn run_on_cpu(jobs: &[BatchJob], lanes: usize, progress: &(dyn Fn(BatchProgress)
                         TrackOptions { backend: BackendKind::Cpu, overlay: None, progress: false, ..job.opts.clone() };
                     let result =
                         run::track_to_file_with(&job.seq, &opts, &job.out_path, |_| progress(BatchProgress::Frame));
+                    let written = result.is_ok();
                     results.lock().unwrap_or_else(|p| p.into_inner())[index] = Some(result);
-                    progress(BatchProgress::Sequence);
+                    progress(BatchProgress::Sequence { job: index, written });
                 }
             });
         }
@@ -360,8 +367,9 @@ impl<'j> Lanes<'j, '_> {
                         if let Some(r) = self.running[lane].take() {
                             let job = r.job;
                             let summary = r.finish(&self.backend_name);
+                            let written = summary.is_ok();
                             self.results[job] = Some(summary);
-                            (self.progress)(BatchProgress::Sequence);
+                            (self.progress)(BatchProgress::Sequence { job, written });
                         }
                         freed = true;
                     }
@@ -390,7 +398,7 @@ impl<'j> Lanes<'j, '_> {
                 }
                 Err(e) => {
                     self.results[job] = Some(Err(e));
-                    (self.progress)(BatchProgress::Sequence);
+                    (self.progress)(BatchProgress::Sequence { job, written: false });
                 }
             }
         }
@@ -492,8 +500,9 @@ impl<'j> Lanes<'j, '_> {
     /// output is removed as the sequence is dropped).
     fn end(&mut self, lane: usize, result: Result<RunSummary>) {
         if let Some(r) = self.running[lane].take() {
+            let written = result.is_ok();
             self.results[r.job] = Some(result);
-            (self.progress)(BatchProgress::Sequence);
+            (self.progress)(BatchProgress::Sequence { job: r.job, written });
         }
     }
 }

@@ -146,6 +146,49 @@ fn a_bad_sequence_is_reported_and_the_others_finish() {
     assert_eq!(status_of(&lines, "s2"), "failed");
 }
 
+/// An output is skipped only while the manifest gives its sequence the
+/// tracker and the config text that made it (`<name>.run.json`); after a
+/// change of either, or with that record gone, the sequence is tracked
+/// again.
+#[test]
+fn an_output_of_another_tracker_or_config_is_tracked_again() {
+    let root = crate::common::scratch("batch", "record");
+    let manifest = sequences(&root, 2);
+    let out = root.join("out");
+    let run = |first: &str| {
+        std::fs::write(&manifest, format!("{first}\ns1\n")).unwrap();
+        let run = batch_cpu(&manifest, &out, &[]);
+        let lines = summary(&out);
+        (run, status_of(&lines, "s0"), status_of(&lines, "s1"))
+    };
+    let (first, s0, s1) = run("s0");
+    assert!(first.status.success(), "{}", text(&first).1);
+    assert_eq!((s0.as_str(), s1.as_str()), ("tracked", "tracked"));
+    assert!(out.join("s0.run.json").is_file(), "the record beside the output");
+
+    let config = root.join("smooth.toml");
+    std::fs::write(&config, "[motion-edge]\nsigma = 1.5\n").unwrap();
+    assert_eq!(run("s0 motion-edge smooth.toml").1, "tracked", "a config given");
+    let (again, s0, s1) = run("s0 motion-edge smooth.toml");
+    assert!(again.status.success());
+    assert_eq!((s0.as_str(), s1.as_str()), ("skipped", "skipped"), "the same config");
+    std::fs::write(&config, "[motion-edge]\nsigma = 2.0\n").unwrap();
+    assert_eq!(run("s0 motion-edge smooth.toml").1, "tracked", "the config's text changed");
+
+    // Another tracker: lowe refuses the pendulum's model in pixels, so the
+    // old output is not reported as lowe's, and after it the record is gone.
+    let (other, s0, _) = run("s0 lowe");
+    assert_eq!(other.status.code(), Some(2));
+    assert_eq!(s0, "failed");
+    assert!(text(&other).1.contains("model.json"), "{}", text(&other).1);
+    assert!(!out.join("s0.run.json").exists(), "no record for an output lowe did not write");
+    assert_eq!(run("s0 motion-edge smooth.toml").1, "tracked", "back to motion-edge");
+
+    // The record gone (a run stopped between the output and its record).
+    std::fs::remove_file(out.join("s1.run.json")).unwrap();
+    assert_eq!(run("s0 motion-edge smooth.toml").2, "tracked", "an output without its record");
+}
+
 /// The names `--list` prints for `--shard I/N` with the binary's own parser.
 fn listed(args: &[String]) -> Vec<String> {
     let args: Vec<&str> = args.iter().map(String::as_str).chain(["--list"]).collect();
