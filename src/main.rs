@@ -86,20 +86,23 @@ enum Command {
         scene: String,
         /// Output folder (must be absent or empty).
         out_dir: PathBuf,
-        /// Number of frames (scene default when omitted).
-        #[arg(long)]
+        /// Number of frames [default: 200 for pendulum and textured-plane, 300 for the others].
+        #[arg(long, allow_negative_numbers = true)]
         frames: Option<usize>,
         /// Seed of textures and noise.
         #[arg(long, default_value_t = 0)]
         seed: u64,
-        /// Peak speed: px/frame for pendulum, box and hinged-box, rad/s of angular speed for target3dof.
-        #[arg(long)]
+        /// Peak speed: px/frame for pendulum [default: 3.9], box and hinged-box [default: 4]; rad/s of angular
+        /// speed for target3dof [default: 0.3]; the scale of the motion's amplitudes for textured-plane
+        /// [default: 1].
+        #[arg(long, allow_negative_numbers = true)]
         speed: Option<String>,
-        /// Gaussian noise σ in grey levels.
-        #[arg(long)]
+        /// Gaussian noise σ in grey levels [default: 2; 1.5 for textured-plane].
+        #[arg(long, allow_negative_numbers = true)]
         noise: Option<String>,
-        /// Fraction of the target hidden by an occluding bar: of its area, 0–0.3 (target3dof); of its visible edge length, 0–0.5 (box, hinged-box).
-        #[arg(long)]
+        /// Fraction of the target hidden by an occluding bar: of its area, 0–0.3 (target3dof); of its visible edge
+        /// length, 0–0.5 (box, hinged-box) [default: 0].
+        #[arg(long, allow_negative_numbers = true)]
         occlude: Option<String>,
         /// Shake the target with abrupt reversals (target3dof; same as --set shake=true).
         #[arg(long)]
@@ -439,10 +442,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             if shake {
                 extra.push(("shake".to_string(), "true".to_string()));
             }
+            let flags = extra.len();
             for kv in set {
                 let (k, v) = kv
                     .split_once('=')
                     .ok_or_else(|| pipetrack::Error::Parameter(format!("--set {kv:?} is not KEY=VALUE")))?;
+                if let Some(at) = extra.iter().position(|(key, _)| key == k) {
+                    let other = if at < flags { format!("--{k}") } else { "another --set".to_string() };
+                    let msg = format!("--set {kv:?} and {other} both set {k}; give it once");
+                    return Err(pipetrack::Error::Parameter(msg).into());
+                }
                 extra.push((k.to_string(), v.to_string()));
             }
             let seq = synth::generate(&scene, &out_dir, frames, seed, &extra)?;

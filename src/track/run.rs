@@ -104,6 +104,7 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
         "blue" => {
             let params: BlueParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
+            BlueTracker::check_model(&seq.model).map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
             let tracker = BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), params)
                 .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
             Ok(Box::new(tracker))

@@ -294,6 +294,33 @@ fn synth_refuses_a_non_empty_folder_and_unknown_scenes() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("pendulum"), "lists known scenes");
 }
 
+/// A negative value of a scene option reaches its range check; an option
+/// given both as a flag and by `--set`, or by `--set` twice, is refused
+/// rather than one silently winning. Each: exit 2, one line, no folder.
+#[test]
+fn synth_checks_negative_values_and_refuses_an_option_given_twice() {
+    let root = scratch("synth-options");
+    let dir = root.join("seq");
+    let cases: [(&[&str], &str); 5] = [
+        (&["box", "--speed", "-2"], "speed = -2"),
+        (&["pendulum", "--noise", "-1"], "noise"),
+        (&["pendulum", "--speed", "4", "--set", "speed=3"], "--speed both set speed"),
+        (&["target3dof", "--shake", "--set", "shake=false"], "--shake both set shake"),
+        (&["box", "--set", "noise=3", "--set", "noise=4"], "another --set both set noise"),
+    ];
+    for (args, needle) in cases {
+        let mut all = vec!["synth", args[0], dir.to_str().unwrap(), "--frames", "2"];
+        all.extend_from_slice(&args[1..]);
+        let out = pipetrack(&all);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
+        assert_eq!(lines.len(), 1, "{args:?}: {stderr}");
+        assert!(lines[0].contains(needle), "{args:?}: {needle:?} missing from {}", lines[0]);
+        assert!(!dir.exists(), "{args:?}: nothing written");
+    }
+}
+
 #[test]
 fn score_rejects_short_predictions() {
     let root = scratch("score");
@@ -668,4 +695,37 @@ fn keys_no_reader_reads_are_noted_after_the_run() {
     assert!(lines[0].contains("frames/s"), "the run's summary first: {stderr}");
     assert!(lines[1].contains("camera.json: ignored, not read by pipetrack: \"k1\""), "{stderr}");
     assert!(lines[2].contains("init.json: ignored, not read by pipetrack: \"corner\""), "{stderr}");
+}
+
+/// `track --tracker blue` on a model with a joint (the hinged box): blue
+/// holds the model rigid, so it is one line naming `model.json` and the
+/// joint, exit status 2, no output; the rigid box is tracked.
+#[test]
+fn blue_refuses_a_model_with_joints() {
+    let root = scratch("blue-joints");
+    let pred = root.join("pred.jsonl");
+    let track = |scene: &str| {
+        let seq = root.join(scene);
+        let out = pipetrack(&["synth", scene, seq.to_str().unwrap(), "--frames", "2"]);
+        assert!(out.status.success(), "synth failed: {}", String::from_utf8_lossy(&out.stderr));
+        pipetrack(&[
+            "track",
+            seq.to_str().unwrap(),
+            "--tracker",
+            "blue",
+            "--backend",
+            "cpu",
+            "--out",
+            pred.to_str().unwrap(),
+        ])
+    };
+    let out = track("hinged-box");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    assert!(lines[0].contains("model.json") && lines[0].contains("1 joint;"), "{}", lines[0]);
+    assert!(!pred.exists(), "no output");
+    let out = track("box");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }

@@ -330,10 +330,33 @@ pub struct BlueTracker {
 }
 
 impl BlueTracker {
+    /// Errors on a model the tracker cannot use: no vertices or edges, or
+    /// joints (002 tracks a rigid target at a fixed orientation; a joint's
+    /// part would be drawn at its rest position). [`BlueTracker::new`]
+    /// checks it first; a caller that read the model from a file calls it
+    /// to name that file.
+    pub fn check_model(model: &Model) -> Result<()> {
+        let bad = |msg: String| Err(Error::Parameter(format!("blue: {msg}")));
+        if model.vertices.is_empty() || model.edges.is_empty() {
+            return bad("the model needs vertices and edges".into());
+        }
+        let joints = model.joints.len();
+        if joints > 0 {
+            return bad(format!(
+                "the model has {joints} joint{}; blue tracks a rigid target at a fixed orientation \
+                 (track an articulated model with lowe)",
+                if joints == 1 { "" } else { "s" }
+            ));
+        }
+        Ok(())
+    }
+
     /// A tracker for `model` seen by `camera`, starting at `init.pose`
-    /// (required; its rotation stays fixed).
+    /// (required; its rotation stays fixed). Errors on a model the tracker
+    /// cannot use ([`BlueTracker::check_model`]).
     pub fn new(camera: Camera, model: Model, init: InitState, params: BlueParams) -> Result<Self> {
         params.validate()?;
+        Self::check_model(&model)?;
         let bad = |msg: String| Err(Error::Parameter(format!("blue: {msg}")));
         if let Some(problem) = camera.intrinsics_problem() {
             return bad(format!("camera: {problem}"));
@@ -341,9 +364,6 @@ impl BlueTracker {
         let Some(init_pose) = init.pose else {
             return bad("init.json has no pose; the blue tracker needs the initial pose".into());
         };
-        if model.vertices.is_empty() || model.edges.is_empty() {
-            return bad("the model needs vertices and edges".into());
-        }
         if !model
             .vertices
             .iter()
