@@ -56,7 +56,47 @@ pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>
         Some(_) => return Err(Error::input(path, format!("[{tracker}] must be a table"))),
         None => table,
     };
-    toml::Value::Table(section).try_into().map_err(|e: toml::de::Error| toml_error(path, &text, &e))
+    toml::Value::Table(section).try_into().map_err(|e: toml::de::Error| {
+        let params = std::any::type_name::<P>().rsplit("::").next().unwrap_or(tracker);
+        unknown_key_error(path, &text, tracker, params, e.message()).unwrap_or_else(|| toml_error(path, &text, &e))
+    })
+}
+
+/// serde's `unknown field `K`, expected one of `A`, `B`, …` as one line
+/// naming the line of `text` that sets K and the known key closest to it
+/// (a table named like a tracker, `[motion_edge]`, as that tracker's), or
+/// else the type `params` that documents the keys.
+fn unknown_key_error(path: &Path, text: &str, tracker: &str, params: &str, message: &str) -> Option<Error> {
+    let rest = message.strip_prefix("unknown field `")?;
+    let (key, expected) = rest.split_once('`')?;
+    let shown: String = key.chars().take(40).collect();
+    let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
+    let at = text
+        .lines()
+        .position(|line| {
+            let line = line.trim_start().trim_start_matches('[');
+            line.strip_prefix(key).is_some_and(|after| after.trim_start().starts_with(['=', '.', ']']))
+        })
+        .map_or_else(String::new, |l| format!("line {}: ", l + 1));
+    let closest = |names: &[&str]| {
+        names
+            .iter()
+            .map(|name| (strsim::damerau_levenshtein(key, name), *name))
+            .filter(|&(distance, name)| distance <= 2.max(name.len() / 4))
+            .min()
+            .map(|(_, name)| name.to_string())
+    };
+    let message = match closest(TRACKERS) {
+        Some(name) => format!("{at}[{shown}] is no tracker's table: did you mean [{name}]?"),
+        None => {
+            let hint = closest(&known).map_or_else(
+                || format!(" (its parameters are documented on {params}: `cargo doc --open`)"),
+                |name| format!(": did you mean {name}?"),
+            );
+            format!("{at}unknown key {shown:?} for {tracker}{hint}")
+        }
+    };
+    Some(Error::input(path, message))
 }
 
 /// A TOML error as one line naming `path`: `line L, column C: message` when

@@ -259,7 +259,21 @@ fn unknown_tracker_and_bad_config() {
     std::fs::write(&cfg2, "zetta = 3.0\n").unwrap();
     let out = track_motion_edge_cpu(&seq, &["--config", cfg2.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("typo.toml"));
+    // A misspelt key or table: its line and the name meant.
+    for (text, needle) in [
+        ("zetta = 3.0\n", "typo.toml: line 1: unknown key \"zetta\" for motion-edge: did you mean zeta?"),
+        (
+            "epsilon = 20.0\n\n[motion_edge]\nzeta = 3.0\n",
+            "typo.toml: line 3: [motion_edge] is no tracker's table: did you mean [motion-edge]?",
+        ),
+        ("qqqqqq = 1\n", "unknown key \"qqqqqq\" for motion-edge (its parameters are documented on MotionEdgeParams"),
+    ] {
+        std::fs::write(&cfg2, text).unwrap();
+        let out = track_motion_edge_cpu(&seq, &["--config", cfg2.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{text}: {stderr}");
+        assert!(stderr.contains(needle), "{text}: {needle:?} missing from {stderr}");
+    }
     // Beside the tracker's table, a key or table that belongs to no tracker
     // is refused (it would be ignored); another tracker's table is not.
     let cfg3 = root.join("outside.toml");
