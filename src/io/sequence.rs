@@ -75,19 +75,19 @@ impl Sequence {
     pub fn open(dir: &Path, frames_from_stdin: bool) -> Result<Self> {
         check_folder(dir)?;
         let camera_path = dir.join(CAMERA_FILE);
-        let (camera, mut ignored_keys) = read_json_noting::<Camera>(&camera_path)?;
+        let (camera, mut ignored_keys, camera_keys) = read_json_noting::<Camera>(&camera_path)?;
         // A size no frame may have is named as such before the intrinsics
         // are judged against it.
         check_frame_size(&camera_path, camera.width as usize, camera.height as usize)?;
-        camera.validate(&camera_path)?;
+        noting_ignored(camera.validate(&camera_path), &camera_path, &camera_keys)?;
 
         let (model, model_path, ignored) = read_model(dir)?;
         ignored_keys.extend(ignored);
 
         let init_path = dir.join(INIT_FILE);
-        let (init, ignored) = read_json_noting::<InitState>(&init_path)?;
+        let (init, ignored, init_keys) = read_json_noting::<InitState>(&init_path)?;
         ignored_keys.extend(ignored);
-        init.validate(&init_path, &model, &model_path)?;
+        noting_ignored(init.validate(&init_path, &model, &model_path), &init_path, &init_keys)?;
 
         let frames = if frames_from_stdin {
             FrameList::Stdin
@@ -224,15 +224,40 @@ fn check_folder(dir: &Path) -> Result<()> {
 }
 
 /// [`read_json_noting_ignored`] with its keys as one line naming `path`
-/// (none when every key is read).
-fn read_json_noting<T: serde::de::DeserializeOwned + serde::Serialize>(path: &Path) -> Result<(T, Vec<String>)> {
+/// (none when every key is read), and the keys themselves.
+fn read_json_noting<T: serde::de::DeserializeOwned + serde::Serialize>(
+    path: &Path,
+) -> Result<(T, Vec<String>, Vec<String>)> {
     let (value, keys) = read_json_noting_ignored(path)?;
-    let line = (!keys.is_empty()).then(|| {
-        let shown: Vec<String> = keys.iter().take(5).map(|k| format!("{k:?}")).collect();
-        let more = if keys.len() > 5 { format!(" and {} more", keys.len() - 5) } else { String::new() };
-        format!("{}: ignored, not read by pipetrack: {}{more}", path.display(), shown.join(", "))
-    });
-    Ok((value, line.into_iter().collect()))
+    let line = (!keys.is_empty())
+        .then(|| format!("{}: ignored, not read by pipetrack: {}", path.display(), shown_keys(&keys)));
+    Ok((value, line.into_iter().collect(), keys))
+}
+
+/// Up to five of `keys`, quoted (each cut at 40 characters), and how many more.
+fn shown_keys(keys: &[String]) -> String {
+    let cut = |k: &String| {
+        let mut shown: String = k.chars().take(40).collect();
+        if shown.len() < k.len() {
+            shown.push('…');
+        }
+        format!("{shown:?}")
+    };
+    let shown: Vec<String> = keys.iter().take(5).map(cut).collect();
+    let more = if keys.len() > 5 { format!(" and {} more", keys.len() - 5) } else { String::new() };
+    format!("{}{more}", shown.join(", "))
+}
+
+/// `result`, its error about `file` naming the keys of `file` that were
+/// not read: a misspelt key (`"joint"` for `"joints"`) is often what the
+/// error is about.
+fn noting_ignored<T>(result: Result<T>, file: &Path, keys: &[String]) -> Result<T> {
+    result.map_err(|e| match e {
+        Error::Input { path, message } if path == file && !keys.is_empty() => {
+            Error::Input { path, message: format!("{message} (keys not read: {}; misspelt?)", shown_keys(keys)) }
+        }
+        other => other,
+    })
 }
 
 /// The model of the folder: `model.json`, else `model.cao`, else
@@ -249,16 +274,17 @@ fn read_model(dir: &Path) -> Result<(Model, PathBuf, Vec<String>)> {
     if !json_path.exists() && obj_path.exists() {
         return Ok((obj::read_obj(&obj_path)?, obj_path, Vec::new()));
     }
-    let (model, ignored) = read_json_noting::<Model>(&json_path).map_err(|e| match e {
+    let (model, ignored, keys) = read_json_noting::<Model>(&json_path).map_err(|e| match e {
         Error::Input { path, message } if message == MISSING => {
             Error::input(path, "missing (and there is no model.cao or model.obj either)")
         }
         other => other,
     })?;
-    model.validate_at(&json_path, |part| {
+    let checked = model.validate_at(&json_path, |part| {
         let text = read_text(&json_path).ok()?;
         model_json_line(&text, part).map(|line| (json_path.clone(), line))
-    })?;
+    });
+    noting_ignored(checked, &json_path, &keys)?;
     Ok((model, json_path, ignored))
 }
 

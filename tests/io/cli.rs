@@ -711,6 +711,27 @@ fn keys_no_reader_reads_are_noted_after_the_run() {
     assert!(lines[2].contains("init.json: ignored, not read by pipetrack: \"corner\""), "{stderr}");
 }
 
+/// An error in a file that has keys pipetrack does not read names them: the
+/// hinged box's `"joints"` misspelt leaves its lid's vertices on the box's,
+/// and the error about that says which key went unread.
+#[test]
+fn an_error_in_a_file_names_its_unread_keys() {
+    let root = scratch("unread-keys");
+    let seq = root.join("hinged");
+    let out = pipetrack(&["synth", "hinged-box", seq.to_str().unwrap(), "--frames", "2"]);
+    assert!(out.status.success(), "synth failed: {}", String::from_utf8_lossy(&out.stderr));
+    let model = seq.join("model.json");
+    let text = std::fs::read_to_string(&model).unwrap();
+    assert!(text.contains("\"joints\""));
+    std::fs::write(&model, text.replace("\"joints\"", "\"joint\"")).unwrap();
+    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "lowe", "--backend", "cpu"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    assert!(lines[0].contains("model.json") && lines[0].contains("(keys not read: \"joint\"; misspelt?)"), "{stderr}");
+}
+
 /// `track --tracker blue` on a model with a joint (the hinged box): blue
 /// holds the model rigid, so it is one line naming `model.json` and the
 /// joint, exit status 2, no output; the rigid box is tracked.
