@@ -5,7 +5,8 @@
 //! **Manifest.** Either a folder, whose sub-folders (sorted by name, the
 //! output folder and hidden ones left out) are the sequences, or a text
 //! file with one sequence per line:
-//! `SEQ_DIR [TRACKER [CONFIG]]`, fields separated by spaces or tabs, blank
+//! `SEQ_DIR [TRACKER [CONFIG]]`, fields separated by spaces or tabs (no
+//! quoting: a folder whose name has a space is listed by its parent), blank
 //! lines and lines starting with `#` ignored, relative paths taken from the
 //! manifest's folder. A missing TRACKER (or `-`) is `--tracker`'s. A
 //! sequence's `<name>` is its folder's name; two sequences of one name, or
@@ -158,7 +159,20 @@ pub fn read_manifest(path: &Path, default_tracker: Option<&str>, out_dir: &Path)
             let dir = base.join(fields[0]);
             let tracker = match fields.get(1) {
                 None | Some(&"-") => default(&place)?,
-                Some(t) => check_tracker(t, &place)?,
+                Some(t) => check_tracker(t, &place).map_err(|e| {
+                    // A folder name with a space reads as two fields.
+                    let spaced = line.contains(['"', '\'']) || base.join(format!("{} {t}", fields[0])).is_dir();
+                    match e {
+                        Error::Input { path, message } if spaced => Error::Input {
+                            path,
+                            message: format!(
+                                "{message} (fields are separated by spaces or tabs, without quoting: \
+                                 rename a folder with a space, or list its parent folder as the manifest)"
+                            ),
+                        },
+                        other => other,
+                    }
+                })?,
             };
             let config = fields.get(2).map(|c| base.join(c));
             entries.push(ManifestEntry { name: name_of(&dir), dir, tracker, config });

@@ -324,6 +324,11 @@ fn manifest_errors_name_the_manifest_and_line() {
         ("# nothing\n\n", vec!["manifest.txt", "lists no sequences"]),
         ("a blue cfg.toml extra\n", vec!["line 1", "4 fields"]),
         ("summary blue\n", vec!["line 1", "\"summary\""]),
+        ("\"sp ace\" blue\n", vec!["line 1", "unknown tracker \"ace\\\"\"", "without quoting"]),
+        (
+            "a lowe-ish\n",
+            vec!["line 1", "unknown tracker \"lowe-ish\"; known: motion-edge, blue, condensation, lowe\n"],
+        ),
     ] {
         std::fs::write(&manifest, content).unwrap();
         let run = pipetrack(&["batch", manifest.to_str().unwrap(), "--out", out.to_str().unwrap()]);
