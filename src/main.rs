@@ -165,7 +165,7 @@ enum Command {
         /// Also draw the per-frame corner error and status over time into this PNG.
         #[arg(long)]
         plot: Option<PathBuf>,
-        /// Size of the plot in pixels, WxH, each side 200 to 8192.
+        /// Size of the plot in pixels, WxH: width 480 to 8192, height 300 to 8192.
         #[arg(long, default_value = "1000x500", value_parser = parse_plot_size)]
         plot_size: (usize, usize),
     },
@@ -253,12 +253,8 @@ struct Sizes(Vec<(usize, usize)>);
 
 fn parse_plot_size(s: &str) -> Result<(usize, usize), String> {
     let (w, h) = parse_wxh(s)?;
-    let range = pipetrack::cli::plot::PLOT_SIDE_RANGE;
-    if range.contains(&w) && range.contains(&h) {
-        Ok((w, h))
-    } else {
-        Err(format!("plot size {w}x{h}: each side must be {} to {} pixels", range.start(), range.end()))
-    }
+    pipetrack::cli::plot::check_plot_size(w, h)?;
+    Ok((w, h))
 }
 
 /// One `WxH` (or `WXH`), any sizes.

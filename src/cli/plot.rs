@@ -13,8 +13,27 @@ use crate::io::AtomicFile;
 use crate::io::formats::{FrameResult, Status};
 use crate::{Error, Result};
 
-/// Smallest and largest plot side, pixels.
-pub const PLOT_SIDE_RANGE: std::ops::RangeInclusive<usize> = 200..=8192;
+/// Smallest and largest plot width, pixels (narrower, the legend covers
+/// the curve and the status caption is cut).
+pub const PLOT_WIDTH_RANGE: std::ops::RangeInclusive<usize> = 480..=8192;
+/// Smallest and largest plot height, pixels (lower, the status strip is
+/// squeezed out).
+pub const PLOT_HEIGHT_RANGE: std::ops::RangeInclusive<usize> = 300..=8192;
+
+/// Error unless `(w, h)` lies within [`PLOT_WIDTH_RANGE`] and [`PLOT_HEIGHT_RANGE`].
+pub fn check_plot_size(w: usize, h: usize) -> std::result::Result<(), String> {
+    let (width, height) = (PLOT_WIDTH_RANGE, PLOT_HEIGHT_RANGE);
+    if width.contains(&w) && height.contains(&h) {
+        return Ok(());
+    }
+    Err(format!(
+        "plot size {w}x{h}: the width must be {} to {} pixels, the height {} to {}",
+        width.start(),
+        width.end(),
+        height.start(),
+        height.end()
+    ))
+}
 
 /// Font family the plot's text is drawn in.
 const FONT: &str = "sans-serif";
@@ -35,17 +54,11 @@ fn register_font() {
 /// Draw `score`'s per-frame corner error (px, one line per run of scored
 /// frames, with the false-tracking threshold) above a strip giving each
 /// frame's status, `size` = (width, height) pixels, and save it at `path`.
-/// A size outside [`PLOT_SIDE_RANGE`] is an [`Error::Parameter`]; drawing or
+/// A size [`check_plot_size`] refuses is an [`Error::Parameter`]; drawing or
 /// writing errors name `path`.
 pub fn plot_score(score: &Score, predictions: &[FrameResult], path: &Path, size: (usize, usize)) -> Result<()> {
     let (w, h) = size;
-    if !PLOT_SIDE_RANGE.contains(&w) || !PLOT_SIDE_RANGE.contains(&h) {
-        return Err(Error::Parameter(format!(
-            "plot size {w}x{h}: each side must be {} to {} pixels",
-            PLOT_SIDE_RANGE.start(),
-            PLOT_SIDE_RANGE.end()
-        )));
-    }
+    check_plot_size(w, h).map_err(Error::Parameter)?;
     register_font();
     let mut pixels = vec![0u8; w * h * 3];
     draw(score, predictions, &mut pixels, (w as u32, h as u32))

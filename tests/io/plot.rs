@@ -42,10 +42,15 @@ fn score_plot_errors_are_bad_input() {
     assert!(stderr.contains("score.png"), "{stderr}");
     assert!(!png.exists());
     let small = root.join("small.png");
-    let out = pipetrack(&["score", &seq, &pred, "--plot", small.to_str().unwrap(), "--plot-size", "20x20"]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("plot size 20x20"));
-    assert!(!small.exists());
+    for size in ["20x20", "300x200", "479x300", "480x299"] {
+        let out = pipetrack(&["score", &seq, &pred, "--plot", small.to_str().unwrap(), "--plot-size", size]);
+        assert_eq!(out.status.code(), Some(2), "{size}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains(&format!("plot size {size}")), "{size}");
+        assert!(!small.exists());
+    }
+    let out = pipetrack(&["score", &seq, &pred, "--plot", small.to_str().unwrap(), "--plot-size", "480x300"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(small.exists(), "the smallest size allowed");
 }
 
 /// The plot never overwrites what it plots: the sequence's truth, a frame,
