@@ -45,6 +45,8 @@ struct Case {
     /// `LoweParams::ambiguous_carry_ratio` (the other parameters'
     /// defaults).
     carry_ratio: f64,
+    /// `LoweParams::confident_window_doublings`.
+    window_doublings: Option<usize>,
 }
 
 const BOX_SLOW: Case = Case {
@@ -59,6 +61,7 @@ const BOX_SLOW: Case = Case {
     max_lid_frames_over_2deg: 0,
     max_lid_deg: 0.0,
     carry_ratio: 0.0,
+    window_doublings: None,
 };
 const BOX_FAST: Case = Case { speed: 20.0, ..BOX_SLOW };
 const BOX_OCCLUDED: Case = Case { occlude: 0.5, ..BOX_SLOW };
@@ -178,7 +181,11 @@ fn check_scene(
     backend: &mut dyn EarlyVision,
     backend_name: &str,
 ) -> Vec<FrameResult> {
-    let params = LoweParams { ambiguous_carry_ratio: case.carry_ratio, ..LoweParams::default() };
+    let params = LoweParams {
+        ambiguous_carry_ratio: case.carry_ratio,
+        confident_window_doublings: case.window_doublings,
+        ..LoweParams::default()
+    };
     let (results, lost) = track(seq, params, backend);
     let s = score(&seq.truth, &results).expect("score");
     let stats = s.stats.expect("scored frames");
@@ -248,6 +255,15 @@ fn lowe_holds_box_slow_fast_and_occluded_on_both_backends() {
         "lowe_holds_box_slow_fast_and_occluded_on_both_backends",
         &[BOX_SLOW, BOX_FAST, BOX_OCCLUDED],
     );
+}
+
+/// With the window after a confident frame sized for the first range
+/// (`confident_window_doublings = 0`, about half the time per frame), the
+/// six acceptance scenes meet the same bounds.
+#[test]
+fn lowe_holds_the_acceptance_scenes_with_the_narrow_window_cpu() {
+    let narrow = |case: Case| Case { window_doublings: Some(0), ..case };
+    check_each_cpu(&[BOX_SLOW, BOX_FAST, BOX_OCCLUDED, HINGED_SLOW, HINGED_FAST, HINGED_OCCLUDED].map(narrow));
 }
 
 #[test]
@@ -525,4 +541,52 @@ fn lowe_holds_a_box_cut_by_the_image_border_cpu() {
     assert!(s.tracked >= 78, "{} of 80 frames tracked", s.tracked);
     assert_eq!(s.false_tracking, Vec::<usize>::new(), "frames reported tracking more than 5 px off");
     assert!(stats.mean <= 1.0, "mean vertex error {:.3} px", stats.mean);
+}
+
+/// Step 2 of the tracker, with `confident_window_doublings = 0`: a frame
+/// verified with confident support at its first range sizes the next
+/// window for the first range alone, with the same answers as windows
+/// sized for the widest range (the default); a lost frame (here a blank
+/// one) sizes it for the widest again, and so does the frame that finds
+/// the box at the doubled range after it.
+#[test]
+fn lowe_narrows_the_window_after_a_confident_frame_and_widens_it_after_a_loss_cpu() {
+    use pipetrack::image::GrayImage;
+    use pipetrack::io::formats::Status;
+    use pipetrack::track::Tracker;
+    use pipetrack::track::run::{AsFrame, track_step};
+    const BLANK: usize = 20;
+    let opts = BoxOptions { kind: BoxKind::Rigid, speed: 4.0, frames: 30, ..BoxOptions::default() };
+    let mut seq = render_box(&opts).expect("render the box scene");
+    let (width, height) = (seq.camera.width as usize, seq.camera.height as usize);
+    seq.frames[BLANK] = GrayImage::from_vec(width, height, vec![128; width * height]).expect("blank frame");
+    // Each frame's status, corners and the area of the next frame's window.
+    let run = |params: LoweParams| {
+        let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, params).expect("lowe tracker");
+        let mut backend = CpuBackend::new();
+        backend.reset();
+        let mut frames = Vec::new();
+        for (i, frame) in seq.frames.iter().enumerate() {
+            let (_, result) = track_step(&mut tracker, &mut backend, i, frame.as_frame()).expect("track");
+            frames.push((result, tracker.window_of_interest(width, height).area()));
+        }
+        frames
+    };
+    let narrow = run(LoweParams { confident_window_doublings: Some(0), ..LoweParams::default() });
+    let wide = run(LoweParams::default());
+    for ((n, n_area), (w, w_area)) in narrow.iter().zip(&wide) {
+        let f = n.frame;
+        assert_eq!(n.status, w.status, "frame {f}");
+        for (a, b) in n.corners.iter().zip(&w.corners) {
+            assert!((a[0] - b[0]).abs() < 0.05 && (a[1] - b[1]).abs() < 0.05, "frame {f}: {a:?} vs {b:?}");
+        }
+        let ratio = *n_area as f64 / *w_area as f64;
+        if f == BLANK || f == BLANK + 1 {
+            assert!(ratio > 0.95, "frame {f}: the window after it has {ratio:.2} of the widest's pixels");
+        } else {
+            assert_eq!(n.status, Status::Tracking, "frame {f}");
+            assert!(ratio < 0.6, "frame {f}: the window after it has {ratio:.2} of the widest's pixels");
+        }
+    }
+    assert_eq!(narrow[BLANK].0.status, Status::Lost, "the blank frame");
 }

@@ -24,8 +24,10 @@
 //!    20 px/frame, seed 14).
 //! 2. **Features** ([`segments`]): LoG σ = 1.2 zero crossings in a window
 //!    around the predicted model (wide enough for the largest search
-//!    range), linked with hysteresis, cut into straight segments, indexed
-//!    by midpoint and orientation.
+//!    range; with `confident_window_doublings`, after a frame verified
+//!    with `confident_support` at its first range, for that many
+//!    doublings), linked with hysteresis, cut into straight segments,
+//!    indexed by midpoint and orientation.
 //! 3. **Visible model** at the prediction: back-face test and hidden-line
 //!    removal ([`crate::geometry::hidden_lines`]), and each visible part of
 //!    an edge clipped to the image ([`projection::clip_to_image`]: a part
@@ -431,7 +433,12 @@ impl LoweTracker {
             geometry,
             params,
         };
-        tracker.window = tracker.window_at(&tracker.prediction, camera.width as usize, camera.height as usize);
+        tracker.window = tracker.window_at(
+            &tracker.prediction,
+            tracker.params.range_doublings,
+            camera.width as usize,
+            camera.height as usize,
+        );
         Ok(tracker)
     }
 
@@ -483,10 +490,10 @@ impl LoweTracker {
     }
 
     /// Window of interest around the model at `state`, grown by the search
-    /// reach of the widest prior.
-    fn window_at(&self, state: &State, width: usize, height: usize) -> Window {
+    /// reach of the prior after `doublings` doublings.
+    fn window_at(&self, state: &State, doublings: usize, width: usize, height: usize) -> Window {
         let n = self.n();
-        let widest = estimation::diagonal(&self.prior_sigmas(state, self.params.range_doublings), n);
+        let widest = estimation::diagonal(&self.prior_sigmas(state, doublings), n);
         let Ok(lin) = Linearised::at(&self.geometry, state, self.centre) else {
             return Window::full(width, height);
         };
@@ -1532,6 +1539,7 @@ impl Tracker for LoweTracker {
         diag.segments_ms = (segmented - started).as_secs_f64() * 1e3;
         diag.estimation_ms = estimation * 1e3;
         diag.matching_ms = ((segmented.elapsed().as_secs_f64() - estimation) * 1e3).max(0.0);
+        let at_first_range = accepted.as_ref().is_some_and(|found| found.doubling == 0);
         let mut lost_reason = None;
         let verified = match &accepted {
             None => {
@@ -1655,10 +1663,18 @@ impl Tracker for LoweTracker {
             .collect();
         let corners = self.corners_at(&reported);
         self.prediction = self.predict();
+        // Step 2: a frame verified with confident support at its first
+        // range sizes the next window for `confident_window_doublings`.
+        let confident = status == Status::Tracking
+            && at_first_range
+            && !rival_carried
+            && diag.support >= self.params.confident_support;
         self.window = if self.lost_frames >= self.params.search_after {
             Window::full(width, height)
         } else {
-            self.window_at(&self.prediction, width, height)
+            let widest = self.params.range_doublings;
+            let doublings = if confident { self.params.confident_window_doublings.unwrap_or(widest) } else { widest };
+            self.window_at(&self.prediction, doublings, width, height)
         };
         let covariance = covariance.map(|p| (0..n).flat_map(|i| (0..n).map(move |j| p[i][j])).collect());
         self.last_diagnostics = diag;

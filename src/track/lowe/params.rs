@@ -182,6 +182,19 @@ pub struct LoweParams {
     /// Extra margin of the window of interest around the predicted model,
     /// px, on top of the search range. Range: [0, 4096].
     pub window_margin_px: f64,
+    /// Doublings of the prior ranges that the next frame's window of
+    /// interest is sized for after a frame verified with
+    /// `confident_support` at its first range; unset (the default), and
+    /// after any other frame, the window is sized for `range_doublings`.
+    /// The frame after a confident one seldom searches the wider ranges,
+    /// and when it does it searches the features of the narrower window.
+    /// 0 sizes it for the first range: on the rendered box at 4 px/frame
+    /// that window holds about 40 % of the pixels and a frame takes about
+    /// half the time, but at 30 px/frame, where the motion reverses
+    /// abruptly, a doubled search in it can fit a wrong pose that passes
+    /// the verification (BENCHMARKS.md, "A narrower window after a
+    /// confident frame"). Range: 0 ..= `range_doublings`.
+    pub confident_window_doublings: Option<usize>,
     /// Widest gap between a matched model edge and an unmatched, nearly
     /// parallel neighbour that the search tries the other way round after
     /// a verified solution, px (the two sides of a thin face; see
@@ -301,6 +314,7 @@ impl Default for LoweParams {
             search_min_support: 0.7,
             search_max_rotation_sigma: 0.03,
             window_margin_px: 8.0,
+            confident_window_doublings: None,
             swap_gap_px: 8.0,
             swap_residual_ratio: 0.8,
             ambiguous_support_ratio: 0.95,
@@ -354,6 +368,9 @@ impl LoweParams {
             " rad",
         )?;
         Interval::closed(0.0, 4096.0).check(WHO, "window_margin_px", self.window_margin_px, " px")?;
+        if let Some(doublings) = self.confident_window_doublings {
+            check_count(WHO, "confident_window_doublings", doublings, 0, self.range_doublings)?;
+        }
         Interval::closed(0.0, 50.0).check(WHO, "swap_gap_px", self.swap_gap_px, " px")?;
         Interval::closed(0.0, 1.0).check(WHO, "swap_residual_ratio", self.swap_residual_ratio, "")?;
         Interval::closed(0.0, 10.0).check(WHO, "ambiguous_support_ratio", self.ambiguous_support_ratio, "")?;
