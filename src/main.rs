@@ -251,6 +251,11 @@ enum Command {
 #[derive(Clone, Debug)]
 struct Sizes(Vec<(usize, usize)>);
 
+/// `n` and the noun for it: `1 frame`, `2 frames`.
+fn counted(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
 fn parse_plot_size(s: &str) -> Result<(usize, usize), String> {
     let (w, h) = parse_wxh(s)?;
     pipetrack::cli::plot::check_plot_size(w, h)?;
@@ -418,8 +423,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 None => run::track_to_stdout(&seq, &opts)?,
             };
             note(format_args!(
-                "pipetrack: {} frames, {} tracking, {:.1} frames/s on {}",
-                summary.frames, summary.tracked, summary.fps, summary.backend
+                "pipetrack: {}, {} tracking, {:.1} frames/s on {}",
+                counted(summary.frames, "frame", "frames"),
+                summary.tracked,
+                summary.fps,
+                summary.backend
             ));
             note_ignored_keys(&seq);
             Ok(())
@@ -451,7 +459,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 extra.push((k.to_string(), v.to_string()));
             }
             let seq = synth::generate(&scene, &out_dir, frames, seed, &extra)?;
-            note(format_args!("pipetrack: wrote {} frames of '{}' to {}", seq.frames.len(), scene, out_dir.display()));
+            let frames = counted(seq.frames.len(), "frame", "frames");
+            note(format_args!("pipetrack: wrote {frames} of '{}' to {}", scene, out_dir.display()));
             Ok(())
         }
         Command::ImportVisp { src, out_dir, model, camera, init, frames, overlay, include } => {
@@ -464,13 +473,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             let over = if r.truth { "" } else { " of the first frame" };
             note(format_args!(
-                "pipetrack: wrote {} frames of {}x{} and a model of {} vertices ({} files) to {}; {motion}; \
+                "pipetrack: wrote {} of {}x{} and a model of {} ({}) to {}; {motion}; \
                  visible edges{over} to image edges: {:.3} px mean, {:.3} px median over {} of {} points",
-                r.frames,
+                counted(r.frames, "frame", "frames"),
                 r.camera.width,
                 r.camera.height,
-                r.vertices,
-                r.model_files.len(),
+                counted(r.vertices, "vertex", "vertices"),
+                counted(r.model_files.len(), "file", "files"),
                 out_dir.display(),
                 a.mean_px,
                 a.median_px,
@@ -528,8 +537,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let tracked: Vec<_> = report.lines.iter().filter(|l| l.status == batch::SequenceStatus::Tracked).collect();
             let frames: usize = tracked.iter().filter_map(|l| l.frames).sum();
             note(format_args!(
-                "pipetrack: {} sequences tracked, {} skipped, {} failed in {seconds:.2} s: {:.2} sequences/s, {:.1} frames/s",
-                tracked.len(),
+                "pipetrack: {} tracked, {} skipped, {} failed in {seconds:.2} s: {:.2} sequences/s, {:.1} frames/s",
+                counted(tracked.len(), "sequence", "sequences"),
                 report.lines.iter().filter(|l| l.status == batch::SequenceStatus::Skipped).count(),
                 report.failed(),
                 tracked.len() as f64 / seconds,

@@ -764,3 +764,16 @@ fn blue_refuses_a_model_with_joints() {
     let out = track("box");
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+/// One frame is said as one: `synth` and `track` of a single frame.
+#[test]
+fn one_frame_is_counted_in_the_singular() {
+    let root = scratch("singular");
+    let seq = root.join("one");
+    let out = pipetrack(&["synth", "pendulum", seq.to_str().unwrap(), "--frames", "1"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && stderr.contains("wrote 1 frame of 'pendulum'"), "{stderr}");
+    let out = track_motion_edge_cpu(&seq, &["--out", root.join("p.jsonl").to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && stderr.contains("pipetrack: 1 frame, "), "{stderr}");
+}
