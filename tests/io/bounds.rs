@@ -136,18 +136,30 @@ fn walk_parameters(tracker: &str, seq_dir: &Path, names: Vec<(String, toml::Valu
     }
 }
 
+/// [`walk_parameters`] of `tracker` on a rendered `scene`.
+fn walk_on_scene(tracker: &str, scene: &str, names: Vec<(String, toml::Value)>) {
+    let root = scratch(&format!("{tracker}-walk"));
+    walk_parameters(tracker, &synth(&root, scene), names);
+}
+
 #[test]
 fn every_blue_parameter_is_bounded() {
-    let root = scratch("blue-walk");
-    let seq = synth(&root, "target3dof");
-    walk_parameters("blue", &seq, parameter_names(&BlueParams::default(), &["nominal_range"]));
+    walk_on_scene("blue", "target3dof", parameter_names(&BlueParams::default(), &["nominal_range"]));
 }
 
 #[test]
 fn every_motion_edge_parameter_is_bounded() {
-    let root = scratch("me-walk");
-    let seq = synth(&root, "pendulum");
-    walk_parameters("motion-edge", &seq, parameter_names(&MotionEdgeParams::default(), &[]));
+    walk_on_scene("motion-edge", "pendulum", parameter_names(&MotionEdgeParams::default(), &[]));
+}
+
+#[test]
+fn every_lowe_parameter_is_bounded() {
+    walk_on_scene("lowe", "box", parameter_names(&LoweParams::default(), &["confident_window_doublings"]));
+}
+
+#[test]
+fn every_condensation_parameter_is_bounded() {
+    walk_on_scene("condensation", "textured-plane", parameter_names(&CondensationParams::default(), &[]));
 }
 
 #[test]
@@ -200,20 +212,6 @@ fn binary_refuses_each_parameter(tracker: &str, scene: &str, names: Vec<(String,
         assert_short(&line);
         assert!(!out_file.exists(), "no output file may be left");
     }
-}
-
-#[test]
-fn every_lowe_parameter_is_bounded() {
-    let root = scratch("lowe-walk");
-    let seq = synth(&root, "box");
-    walk_parameters("lowe", &seq, parameter_names(&LoweParams::default(), &["confident_window_doublings"]));
-}
-
-#[test]
-fn every_condensation_parameter_is_bounded() {
-    let root = scratch("condensation-walk");
-    let seq = synth(&root, "textured-plane");
-    walk_parameters("condensation", &seq, parameter_names(&CondensationParams::default(), &[]));
 }
 
 #[test]
