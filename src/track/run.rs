@@ -71,13 +71,15 @@ fn unknown_key_error(path: &Path, text: &str, tracker: &str, params: &str, messa
     let (key, expected) = rest.split_once('`')?;
     let shown: String = key.chars().take(40).collect();
     let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
-    let at = text
-        .lines()
-        .position(|line| {
-            let line = line.trim_start().trim_start_matches('[');
-            line.strip_prefix(key).is_some_and(|after| after.trim_start().starts_with(['=', '.', ']']))
-        })
-        .map_or_else(String::new, |l| format!("line {}: ", l + 1));
+    // The first line that sets the key or opens a table of that name.
+    let found = text.lines().enumerate().find_map(|(l, line)| {
+        let line = line.trim_start();
+        let header = line.starts_with('[');
+        let after = line.trim_start_matches('[').strip_prefix(key)?;
+        after.trim_start().starts_with(['=', '.', ']']).then_some((l + 1, header))
+    });
+    let at = found.map_or_else(String::new, |(l, _)| format!("line {l}: "));
+    let table = found.is_some_and(|(_, header)| header);
     let closest = |names: &[&str]| {
         names
             .iter()
@@ -86,7 +88,7 @@ fn unknown_key_error(path: &Path, text: &str, tracker: &str, params: &str, messa
             .min()
             .map(|(_, name)| name.to_string())
     };
-    let message = match closest(TRACKERS) {
+    let message = match closest(TRACKERS).filter(|_| table) {
         Some(name) => format!("{at}[{shown}] is no tracker's table: did you mean [{name}]?"),
         None => {
             let hint = closest(&known).map_or_else(

@@ -267,6 +267,7 @@ fn unknown_tracker_and_bad_config() {
             "typo.toml: line 3: [motion_edge] is no tracker's table: did you mean [motion-edge]?",
         ),
         ("qqqqqq = 1\n", "unknown key \"qqqqqq\" for motion-edge (its parameters are documented on MotionEdgeParams"),
+        ("delta = 2.0\nlowe = 1\n", "typo.toml: line 2: unknown key \"lowe\" for motion-edge (its parameters"),
     ] {
         std::fs::write(&cfg2, text).unwrap();
         let out = track_motion_edge_cpu(&seq, &["--config", cfg2.to_str().unwrap()]);
