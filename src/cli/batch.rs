@@ -53,7 +53,7 @@ use crate::backend::BackendKind;
 use crate::io::formats::FrameResult;
 use crate::io::{AtomicFile, Sequence};
 use crate::track::batch::{BatchJob, BatchProgress, run_batch};
-use crate::track::run::{RunSummary, TRACKERS, TrackOptions};
+use crate::track::run::{MAX_CONFIG_BYTES, RunSummary, TRACKERS, TrackOptions};
 use crate::{Error, Result};
 
 /// File name of the summary in the output folder.
@@ -150,29 +150,32 @@ pub fn read_manifest(path: &Path, default_tracker: Option<&str>, out_dir: &Path)
             if fields.is_empty() || fields[0].starts_with('#') {
                 continue;
             }
+            // A folder name with a space reads as more than one field.
+            let spaced = |e: Error| match e {
+                Error::Input { path, message }
+                    if line.contains(['"', '\''])
+                        || fields
+                            .get(1)
+                            .is_some_and(|second| base.join(format!("{} {second}", fields[0])).is_dir()) =>
+                {
+                    Error::Input {
+                        path,
+                        message: format!(
+                            "{message} (fields are separated by spaces or tabs, without quoting: \
+                             rename a folder with a space, or list its parent folder as the manifest)"
+                        ),
+                    }
+                }
+                other => other,
+            };
             if fields.len() > 3 {
-                return Err(Error::input(
-                    path,
-                    format!("{place}expected SEQ_DIR [TRACKER [CONFIG]], got {} fields", fields.len()),
-                ));
+                let message = format!("{place}expected SEQ_DIR [TRACKER [CONFIG]], got {} fields", fields.len());
+                return Err(spaced(Error::input(path, message)));
             }
             let dir = base.join(fields[0]);
             let tracker = match fields.get(1) {
                 None | Some(&"-") => default(&place)?,
-                Some(t) => check_tracker(t, &place).map_err(|e| {
-                    // A folder name with a space reads as two fields.
-                    let spaced = line.contains(['"', '\'']) || base.join(format!("{} {t}", fields[0])).is_dir();
-                    match e {
-                        Error::Input { path, message } if spaced => Error::Input {
-                            path,
-                            message: format!(
-                                "{message} (fields are separated by spaces or tabs, without quoting: \
-                                 rename a folder with a space, or list its parent folder as the manifest)"
-                            ),
-                        },
-                        other => other,
-                    }
-                })?,
+                Some(t) => check_tracker(t, &place).map_err(spaced)?,
             };
             let config = fields.get(2).map(|c| base.join(c));
             entries.push(ManifestEntry { name: name_of(&dir), dir, tracker, config });
@@ -483,7 +486,7 @@ impl RunRecord {
     /// read (then its run fails and says why).
     fn of(entry: &ManifestEntry) -> Option<Self> {
         let config = match &entry.config {
-            Some(path) => Some(fs::read_to_string(path).ok()?),
+            Some(path) => Some(crate::io::json::read_text_at_most(path, MAX_CONFIG_BYTES).ok()?),
             None => None,
         };
         Some(Self { tracker: entry.tracker.clone(), config })

@@ -234,16 +234,10 @@ fn read_json_noting<T: serde::de::DeserializeOwned + serde::Serialize>(
     Ok((value, line.into_iter().collect(), keys))
 }
 
-/// Up to five of `keys`, quoted (each cut at 40 characters), and how many more.
+/// Up to five of `keys`, quoted and shortened as messages quote user text
+/// ([`one_short_line`]), and how many more.
 fn shown_keys(keys: &[String]) -> String {
-    let cut = |k: &String| {
-        let mut shown: String = k.chars().take(40).collect();
-        if shown.len() < k.len() {
-            shown.push('…');
-        }
-        format!("{shown:?}")
-    };
-    let shown: Vec<String> = keys.iter().take(5).map(cut).collect();
+    let shown: Vec<String> = keys.iter().take(5).map(|k| one_short_line(&format!("{k:?}"))).collect();
     let more = if keys.len() > 5 { format!(" and {} more", keys.len() - 5) } else { String::new() };
     format!("{}{more}", shown.join(", "))
 }

@@ -338,7 +338,7 @@ impl<'j> Lanes<'j, '_> {
             .collect();
         for (lane, result) in tracked {
             if let Err(e) = result {
-                self.end(lane, Err(e));
+                self.end(lane, e);
             }
         }
         Ok(())
@@ -374,7 +374,7 @@ impl<'j> Lanes<'j, '_> {
                         freed = true;
                     }
                     Err(e) => {
-                        self.end(lane, Err(e));
+                        self.end(lane, e);
                         freed = true;
                     }
                 }
@@ -465,7 +465,7 @@ impl<'j> Lanes<'j, '_> {
                 "frame {index} asks for other early-vision stages than the sequences stacked beside it; track it \
                  alone or with --jobs 1"
             );
-            self.end(lane, Err(Error::Parameter(message)));
+            self.end(lane, Error::Parameter(message));
         }
         let Some(stack) = self.stacks[g].as_mut() else { return Ok(()) };
         if !group.iter().any(|&lane| self.running[lane].as_ref().is_some_and(|r| r.stacked == Some(true))) {
@@ -496,13 +496,12 @@ impl<'j> Lanes<'j, '_> {
         Ok(())
     }
 
-    /// End the sequence in `lane` with `result` (after an error its partial
-    /// output is removed as the sequence is dropped).
-    fn end(&mut self, lane: usize, result: Result<RunSummary>) {
+    /// End the sequence in `lane` with `error` (its partial output is
+    /// removed as the sequence is dropped).
+    fn end(&mut self, lane: usize, error: Error) {
         if let Some(r) = self.running[lane].take() {
-            let written = result.is_ok();
-            self.results[r.job] = Some(result);
-            (self.progress)(BatchProgress::Sequence { job: r.job, written });
+            self.results[r.job] = Some(Err(error));
+            (self.progress)(BatchProgress::Sequence { job: r.job, written: false });
         }
     }
 }

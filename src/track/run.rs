@@ -63,21 +63,15 @@ pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>
 }
 
 /// serde's `unknown field `K`, expected one of `A`, `B`, …` as one line
-/// naming the line of `text` that sets K and the known key closest to it
-/// (a table named like a tracker, `[motion_edge]`, as that tracker's), or
-/// else the type `params` that documents the keys.
+/// naming the line of `text` that sets K in `tracker`'s part of the file
+/// and the known key closest to it (a table named like a tracker,
+/// `[motion_edge]`, as that tracker's), or else the type `params` that
+/// documents the keys.
 fn unknown_key_error(path: &Path, text: &str, tracker: &str, params: &str, message: &str) -> Option<Error> {
     let rest = message.strip_prefix("unknown field `")?;
-    let (key, expected) = rest.split_once('`')?;
-    let shown: String = key.chars().take(40).collect();
+    let (key, expected) = rest.rsplit_once("`, expected").unwrap_or((rest.strip_suffix('`')?, ""));
     let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
-    // The first line that sets the key or opens a table of that name.
-    let found = text.lines().enumerate().find_map(|(l, line)| {
-        let line = line.trim_start();
-        let header = line.starts_with('[');
-        let after = line.trim_start_matches('[').strip_prefix(key)?;
-        after.trim_start().starts_with(['=', '.', ']']).then_some((l + 1, header))
-    });
+    let found = key_line(text, tracker, key);
     let at = found.map_or_else(String::new, |(l, _)| format!("line {l}: "));
     let table = found.is_some_and(|(_, header)| header);
     let closest = |names: &[&str]| {
@@ -89,16 +83,41 @@ fn unknown_key_error(path: &Path, text: &str, tracker: &str, params: &str, messa
             .map(|(_, name)| name.to_string())
     };
     let message = match closest(TRACKERS).filter(|_| table) {
-        Some(name) => format!("{at}[{shown}] is no tracker's table: did you mean [{name}]?"),
+        Some(name) => format!("{at}[{key}] is no tracker's table: did you mean [{name}]?"),
         None => {
             let hint = closest(&known).map_or_else(
                 || format!(" (its parameters are documented on {params}: `cargo doc --open`)"),
                 |name| format!(": did you mean {name}?"),
             );
-            format!("{at}unknown key {shown:?} for {tracker}{hint}")
+            format!("{at}unknown key {key:?} for {tracker}{hint}")
         }
     };
-    Some(Error::input(path, message))
+    Some(input_error(path, message))
+}
+
+/// The line (from 1) of TOML `text` that sets `key` or opens a table named
+/// `key`, at the top level or in `tracker`'s tables, and whether it opens
+/// a table.
+fn key_line(text: &str, tracker: &str, key: &str) -> Option<(usize, bool)> {
+    let last = |name: &str| name.rsplit('.').next().unwrap_or(name).trim().trim_matches('"').to_string();
+    // The top level and the tracker's own tables (`lowe`, `lowe.segments`).
+    let ours = |table: Option<&str>| table.is_none_or(|t| t == tracker || t.starts_with(&format!("{tracker}.")));
+    let mut table: Option<String> = None;
+    for (l, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if let Some(header) = line.strip_prefix('[') {
+            let name = header.trim_start_matches('[').split(']').next().unwrap_or("").trim();
+            if ours(name.rsplit_once('.').map(|(parent, _)| parent.trim())) && last(name) == key {
+                return Some((l + 1, true));
+            }
+            table = Some(name.to_string());
+        } else if let Some((name, _)) = line.split_once('=') {
+            if ours(table.as_deref()) && last(name) == key {
+                return Some((l + 1, false));
+            }
+        }
+    }
+    None
 }
 
 /// A TOML error as one line naming `path`: `line L, column C: message` when

@@ -187,6 +187,18 @@ fn an_output_of_another_tracker_or_config_is_tracked_again() {
     // The record gone (a run stopped between the output and its record).
     std::fs::remove_file(out.join("s1.run.json")).unwrap();
     assert_eq!(run("s0 motion-edge smooth.toml").2, "tracked", "an output without its record");
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("s0.run.json")).unwrap()).unwrap();
+    assert_eq!(record["tracker"], "motion-edge");
+    assert_eq!(record["config"], "[motion-edge]\nsigma = 2.0\n");
+
+    // The config gone: the sequence fails naming it, and leaves no record.
+    std::fs::remove_file(&config).unwrap();
+    let (gone, s0, _) = run("s0 motion-edge smooth.toml");
+    assert_eq!(gone.status.code(), Some(2));
+    assert_eq!(s0, "failed");
+    assert!(text(&gone).1.contains("smooth.toml"), "{}", text(&gone).1);
+    assert!(!out.join("s0.run.json").exists());
 }
 
 /// The names `--list` prints for `--shard I/N` with the binary's own parser.
@@ -329,6 +341,7 @@ fn manifest_errors_name_the_manifest_and_line() {
             "a lowe-ish\n",
             vec!["line 1", "unknown tracker \"lowe-ish\"; known: motion-edge, blue, condensation, lowe\n"],
         ),
+        ("\"my big seq\" lowe\n", vec!["line 1", "got 4 fields", "without quoting"]),
     ] {
         std::fs::write(&manifest, content).unwrap();
         let run = pipetrack(&["batch", manifest.to_str().unwrap(), "--out", out.to_str().unwrap()]);

@@ -110,7 +110,15 @@ fn allowed(tracker: &str, name: &str, value: &str) -> bool {
 fn walk_parameters(tracker: &str, seq_dir: &Path, names: Vec<(String, toml::Value)>) {
     let seq = Sequence::open(seq_dir, false).expect("sequence");
     let root = seq_dir.parent().expect("parent");
-    assert!(names.len() >= 10, "{tracker}: only {} parameters found", names.len());
+    // Fewest parameters each tracker has today: a walk that finds fewer
+    // has lost some.
+    let fewest = match tracker {
+        "blue" => 30,
+        "motion-edge" => 20,
+        "lowe" => 40,
+        _ => 12,
+    };
+    assert!(names.len() >= fewest, "{tracker}: only {} parameters found", names.len());
     for (name, _) in &names {
         for value in absurd_values() {
             let config = root.join(format!("{tracker}-{name}.toml"));
@@ -159,7 +167,11 @@ fn every_lowe_parameter_is_bounded() {
 
 #[test]
 fn every_condensation_parameter_is_bounded() {
-    walk_on_scene("condensation", "textured-plane", parameter_names(&CondensationParams::default(), &[]));
+    walk_on_scene(
+        "condensation",
+        "textured-plane",
+        parameter_names(&CondensationParams::default(), &["camera_motion"]),
+    );
 }
 
 #[test]

@@ -268,6 +268,11 @@ fn unknown_tracker_and_bad_config() {
         ),
         ("qqqqqq = 1\n", "unknown key \"qqqqqq\" for motion-edge (its parameters are documented on MotionEdgeParams"),
         ("delta = 2.0\nlowe = 1\n", "typo.toml: line 2: unknown key \"lowe\" for motion-edge (its parameters"),
+        // The line in the tracker's own table, not in another tracker's.
+        (
+            "[lowe]\nwindow_margin_px = 8.0\n[motion-edge]\nwindow_margin_px = 8.0\n",
+            "typo.toml: line 4: unknown key \"window_margin_px\" for motion-edge",
+        ),
     ] {
         std::fs::write(&cfg2, text).unwrap();
         let out = track_motion_edge_cpu(&seq, &["--config", cfg2.to_str().unwrap()]);

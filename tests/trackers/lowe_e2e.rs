@@ -577,6 +577,7 @@ fn lowe_narrows_the_window_after_a_confident_frame_and_widens_it_after_a_loss_cp
     for ((n, n_area), (w, w_area)) in narrow.iter().zip(&wide) {
         let f = n.frame;
         assert_eq!(n.status, w.status, "frame {f}");
+        assert_eq!(n.corners.len(), w.corners.len(), "frame {f}");
         for (a, b) in n.corners.iter().zip(&w.corners) {
             assert!((a[0] - b[0]).abs() < 0.05 && (a[1] - b[1]).abs() < 0.05, "frame {f}: {a:?} vs {b:?}");
         }

@@ -1665,10 +1665,7 @@ impl Tracker for LoweTracker {
         self.prediction = self.predict();
         // Step 2: a frame verified with confident support at its first
         // range sizes the next window for `confident_window_doublings`.
-        let confident = status == Status::Tracking
-            && at_first_range
-            && !rival_carried
-            && diag.support >= self.params.confident_support;
+        let confident = status == Status::Tracking && at_first_range && diag.support >= self.params.confident_support;
         self.window = if self.lost_frames >= self.params.search_after {
             Window::full(width, height)
         } else {
