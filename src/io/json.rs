@@ -304,7 +304,29 @@ fn describe_json_error(text: &str, e: &serde_json::Error, line: Option<usize>) -
         serde_json::error::Category::Data => "wrong content",
         _ => "malformed JSON",
     };
-    format!("{kind} at {}: {message}", position(e.line(), e.column()))
+    let misspelt = message
+        .strip_prefix("missing field `")
+        .and_then(|rest| rest.split('`').next())
+        .and_then(|field| key_like(text, field))
+        .map_or_else(String::new, |key| format!(" (the file's {key:?} is not read: misspelt?)"));
+    format!("{kind} at {}: {message}{misspelt}", position(e.line(), e.column()))
+}
+
+/// A key of an object in JSON `text`, other than `field`, spelt within two
+/// edits of it (`"widht"` for a missing `"width"`).
+fn key_like(text: &str, field: &str) -> Option<String> {
+    fn walk(value: &serde_json::Value, field: &str) -> Option<String> {
+        match value {
+            serde_json::Value::Object(map) => map
+                .keys()
+                .find(|key| *key != field && strsim::damerau_levenshtein(key, field) <= 2)
+                .cloned()
+                .or_else(|| map.values().find_map(|v| walk(v, field))),
+            serde_json::Value::Array(items) => items.iter().find_map(|v| walk(v, field)),
+            _ => None,
+        }
+    }
+    walk(&serde_json::from_str(text).ok()?, field)
 }
 
 /// The first bare `NaN`, `Infinity` or `inf` token outside strings (any

@@ -736,6 +736,19 @@ fn an_error_in_a_file_names_its_unread_keys() {
     let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
     assert_eq!(lines.len(), 1, "{stderr}");
     assert!(lines[0].contains("model.json") && lines[0].contains("(keys not read: \"joint\"; misspelt?)"), "{stderr}");
+
+    // A required key misspelt: the key the file has instead of it.
+    let camera = seq.join("camera.json");
+    let text = std::fs::read_to_string(&camera).unwrap();
+    std::fs::write(&camera, text.replace("\"width\"", "\"widht\"")).unwrap();
+    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "lowe", "--backend", "cpu"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("camera.json")
+            && stderr.contains("missing field `width` (the file's \"widht\" is not read: misspelt?)"),
+        "{stderr}"
+    );
 }
 
 /// `track --tracker blue` on a model with a joint (the hinged box): blue
