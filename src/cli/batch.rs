@@ -407,7 +407,7 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
         };
         let out_path = opts.out_dir.join(format!("{}.jsonl", entry.name));
         let record = RunRecord::of(entry);
-        if let Some(predictions) = complete_output(&seq, &out_path, record.as_ref()) {
+        if let Some(predictions) = record.as_ref().and_then(|record| complete_output(&seq, &out_path, record)) {
             let mut line = SummaryLine::new(entry, SequenceStatus::Skipped);
             if let Some(before) = earlier.iter().find(|l| l.name == entry.name && l.status != SequenceStatus::Failed) {
                 line.fps = before.fps;
@@ -522,9 +522,9 @@ impl RunRecord {
 
 /// The output at `out_path` when it is a complete output of `seq` made as
 /// `record` says (module doc).
-fn complete_output(seq: &Sequence, out_path: &Path, record: Option<&RunRecord>) -> Option<Vec<FrameResult>> {
+fn complete_output(seq: &Sequence, out_path: &Path, record: &RunRecord) -> Option<Vec<FrameResult>> {
     let frames = seq.frame_count()?;
-    if !out_path.is_file() || record.is_none() || RunRecord::read(out_path).as_ref() != record {
+    if !out_path.is_file() || RunRecord::read(out_path).as_ref() != Some(record) {
         return None;
     }
     read_predictions(out_path)

@@ -75,7 +75,8 @@ impl Sequence {
     pub fn open(dir: &Path, frames_from_stdin: bool) -> Result<Self> {
         check_folder(dir)?;
         let camera_path = dir.join(CAMERA_FILE);
-        let (camera, mut ignored_keys, camera_keys) = read_json_noting::<Camera>(&camera_path)?;
+        let (camera, camera_keys) = read_json_noting_ignored::<Camera>(&camera_path)?;
+        let mut ignored_keys: Vec<String> = ignored_line(&camera_path, &camera_keys).into_iter().collect();
         // A size no frame may have is named as such before the intrinsics
         // are judged against it.
         check_frame_size(&camera_path, camera.width as usize, camera.height as usize)?;
@@ -85,8 +86,8 @@ impl Sequence {
         ignored_keys.extend(ignored);
 
         let init_path = dir.join(INIT_FILE);
-        let (init, ignored, init_keys) = read_json_noting::<InitState>(&init_path)?;
-        ignored_keys.extend(ignored);
+        let (init, init_keys) = read_json_noting_ignored::<InitState>(&init_path)?;
+        ignored_keys.extend(ignored_line(&init_path, &init_keys));
         noting_ignored(init.validate(&init_path, &model, &model_path), &init_path, &init_keys)?;
 
         let frames = if frames_from_stdin {
@@ -223,15 +224,10 @@ fn check_folder(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// [`read_json_noting_ignored`] with its keys as one line naming `path`
-/// (none when every key is read), and the keys themselves.
-fn read_json_noting<T: serde::de::DeserializeOwned + serde::Serialize>(
-    path: &Path,
-) -> Result<(T, Vec<String>, Vec<String>)> {
-    let (value, keys) = read_json_noting_ignored(path)?;
-    let line = (!keys.is_empty())
-        .then(|| format!("{}: ignored, not read by pipetrack: {}", path.display(), shown_keys(&keys)));
-    Ok((value, line.into_iter().collect(), keys))
+/// The keys of `path` that were not read ([`read_json_noting_ignored`]) as
+/// one line naming it; none when every key was read.
+fn ignored_line(path: &Path, keys: &[String]) -> Option<String> {
+    (!keys.is_empty()).then(|| format!("{}: ignored, not read by pipetrack: {}", path.display(), shown_keys(keys)))
 }
 
 /// Up to five of `keys`, quoted and shortened as messages quote user text
@@ -257,7 +253,7 @@ fn noting_ignored<T>(result: Result<T>, file: &Path, keys: &[String]) -> Result<
 /// The model of the folder: `model.json`, else `model.cao`, else
 /// `model.obj` (SPEC §4), validated; a problem with one of its parts names
 /// the file and line the part was written on. With the model, its file and
-/// (for `model.json`) the line of [`read_json_noting`].
+/// (for `model.json`) the line of [`ignored_line`].
 fn read_model(dir: &Path) -> Result<(Model, PathBuf, Vec<String>)> {
     let json_path = dir.join(MODEL_JSON_FILE);
     let cao_path = dir.join(MODEL_CAO_FILE);
@@ -268,7 +264,7 @@ fn read_model(dir: &Path) -> Result<(Model, PathBuf, Vec<String>)> {
     if !json_path.exists() && obj_path.exists() {
         return Ok((obj::read_obj(&obj_path)?, obj_path, Vec::new()));
     }
-    let (model, ignored, keys) = read_json_noting::<Model>(&json_path).map_err(|e| match e {
+    let (model, keys) = read_json_noting_ignored::<Model>(&json_path).map_err(|e| match e {
         Error::Input { path, message } if message == MISSING => {
             Error::input(path, "missing (and there is no model.cao or model.obj either)")
         }
@@ -279,6 +275,7 @@ fn read_model(dir: &Path) -> Result<(Model, PathBuf, Vec<String>)> {
         model_json_line(&text, part).map(|line| (json_path.clone(), line))
     });
     noting_ignored(checked, &json_path, &keys)?;
+    let ignored = ignored_line(&json_path, &keys).into_iter().collect();
     Ok((model, json_path, ignored))
 }
 

@@ -36,44 +36,77 @@ pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
 /// Errors name the file, in one short line, with long numbers and long
 /// quoted text shortened (`io::json::one_short_line`).
 pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>, tracker: &str) -> Result<P> {
+    use toml::de::{DeTable, DeValue, Deserializer};
     let Some(path) = path else { return Ok(P::default()) };
     let text = crate::io::json::read_text_at_most(path, MAX_CONFIG_BYTES)?;
-    let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| toml_error(path, &text, &e))?;
-    // Other trackers' tables are theirs: one file may serve several trackers.
+    // Parsed with the span of every key and value, so that an unknown key
+    // is named with its line.
+    let document = DeTable::parse(&text).map_err(|e| toml_error(path, &text, &e))?;
+    let span = document.span();
+    let mut table = document.into_inner();
     let own = table.remove(tracker);
-    table.retain(|key, value| !(TRACKERS.contains(&key) && value.is_table()));
-    let section = match own {
+    // Other trackers' tables are theirs: one file may serve several trackers.
+    let theirs: Vec<String> = table
+        .iter()
+        .filter(|(key, value)| TRACKERS.contains(&key.as_ref().as_ref()) && matches!(value.as_ref(), DeValue::Table(_)))
+        .map(|(key, _)| key.as_ref().to_string())
+        .collect();
+    for key in &theirs {
+        table.remove(key.as_str());
+    }
+    let section = match own.map(|value| (value.span(), value.into_inner())) {
         // Beside the tracker's table, a key would be silently ignored.
-        Some(toml::Value::Table(t)) => match table.keys().next() {
+        Some((own_span, DeValue::Table(t))) => match table.keys().next() {
             Some(key) => {
+                let key = key.as_ref();
                 let message = format!(
                     "{key:?} lies outside [{tracker}], which holds this tracker's parameters: move it into the table"
                 );
                 return Err(input_error(path, message));
             }
-            None => t,
+            None => toml::Spanned::new(own_span, t),
         },
         Some(_) => return Err(Error::input(path, format!("[{tracker}] must be a table"))),
-        None => table,
+        None => toml::Spanned::new(span, table),
     };
-    toml::Value::Table(section).try_into().map_err(|e: toml::de::Error| {
+    let tables = table_keys(section.as_ref());
+    P::deserialize(Deserializer::from(section)).map_err(|e| {
         let params = std::any::type_name::<P>().rsplit("::").next().unwrap_or(tracker);
-        unknown_key_error(path, &text, tracker, params, e.message()).unwrap_or_else(|| toml_error(path, &text, &e))
+        let at = e.span().and_then(|span| text_position(&text, span.start)).map(|(line, _)| line);
+        unknown_key_error(path, tracker, params, e.message(), at, &tables)
+            .unwrap_or_else(|| input_error(path, one_line(&e.to_string())))
     })
 }
 
+/// The keys of `table` and of the tables in it whose values are tables.
+fn table_keys(table: &toml::de::DeTable<'_>) -> Vec<String> {
+    let mut keys = Vec::new();
+    for (key, value) in table {
+        if let toml::de::DeValue::Table(inner) = value.as_ref() {
+            keys.push(key.as_ref().to_string());
+            keys.extend(table_keys(inner));
+        }
+    }
+    keys
+}
+
 /// serde's `unknown field `K`, expected one of `A`, `B`, …` as one line
-/// naming the line of `text` that sets K in `tracker`'s part of the file
-/// and the known key closest to it (a table named like a tracker,
-/// `[motion_edge]`, as that tracker's), or else the type `params` that
-/// documents the keys.
-fn unknown_key_error(path: &Path, text: &str, tracker: &str, params: &str, message: &str) -> Option<Error> {
+/// naming its line (`at`) and the known key closest to K (a table named
+/// like a tracker, `[motion_edge]`, as that tracker's: `tables` are the
+/// keys that open tables), or else the type `params` that documents the
+/// keys.
+fn unknown_key_error(
+    path: &Path,
+    tracker: &str,
+    params: &str,
+    message: &str,
+    at: Option<usize>,
+    tables: &[String],
+) -> Option<Error> {
     let rest = message.strip_prefix("unknown field `")?;
     let (key, expected) = rest.rsplit_once("`, expected").unwrap_or((rest.strip_suffix('`')?, ""));
     let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
-    let found = key_line(text, tracker, key);
-    let at = found.map_or_else(String::new, |(l, _)| format!("line {l}: "));
-    let table = found.is_some_and(|(_, header)| header);
+    let at = at.map_or_else(String::new, |line| format!("line {line}: "));
     let closest = |names: &[&str]| {
         names
             .iter()
@@ -82,7 +115,7 @@ fn unknown_key_error(path: &Path, text: &str, tracker: &str, params: &str, messa
             .min()
             .map(|(_, name)| name.to_string())
     };
-    let message = match closest(TRACKERS).filter(|_| table) {
+    let message = match closest(TRACKERS).filter(|_| tables.iter().any(|t| t == key)) {
         Some(name) => format!("{at}[{key}] is no tracker's table: did you mean [{name}]?"),
         None => {
             let hint = closest(&known).map_or_else(
@@ -95,41 +128,20 @@ fn unknown_key_error(path: &Path, text: &str, tracker: &str, params: &str, messa
     Some(input_error(path, message))
 }
 
-/// The line (from 1) of TOML `text` that sets `key` or opens a table named
-/// `key`, at the top level or in `tracker`'s tables, and whether it opens
-/// a table.
-fn key_line(text: &str, tracker: &str, key: &str) -> Option<(usize, bool)> {
-    let last = |name: &str| name.rsplit('.').next().unwrap_or(name).trim().trim_matches('"').to_string();
-    // The top level and the tracker's own tables (`lowe`, `lowe.segments`).
-    let ours = |table: Option<&str>| table.is_none_or(|t| t == tracker || t.starts_with(&format!("{tracker}.")));
-    let mut table: Option<String> = None;
-    for (l, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if let Some(header) = line.strip_prefix('[') {
-            let name = header.trim_start_matches('[').split(']').next().unwrap_or("").trim();
-            if ours(name.rsplit_once('.').map(|(parent, _)| parent.trim())) && last(name) == key {
-                return Some((l + 1, true));
-            }
-            table = Some(name.to_string());
-        } else if let Some((name, _)) = line.split_once('=') {
-            if ours(table.as_deref()) && last(name) == key {
-                return Some((l + 1, false));
-            }
-        }
-    }
-    None
+/// The line and column (from 1) of byte `offset` of `text`.
+fn text_position(text: &str, offset: usize) -> Option<(usize, usize)> {
+    let before = text.get(..offset)?;
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    Some((line, column))
 }
 
 /// A TOML error as one line naming `path`: `line L, column C: message` when
 /// the error points into `text`, with what it quotes of the file shortened
 /// ([`crate::io::json::one_short_line`]).
 fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> Error {
-    let message = match e.span().and_then(|span| text.get(..span.start)) {
-        Some(before) => {
-            let line = before.matches('\n').count() + 1;
-            let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-            format!("line {line}, column {column}: {}", one_line(e.message()))
-        }
+    let message = match e.span().and_then(|span| text_position(text, span.start)) {
+        Some((line, column)) => format!("line {line}, column {column}: {}", one_line(e.message())),
         None => one_line(&e.to_string()),
     };
     input_error(path, message)
