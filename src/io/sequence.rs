@@ -58,6 +58,8 @@ pub struct Sequence {
     frames: FrameList,
     /// Keys of camera.json, model.json and init.json that no reader reads.
     ignored_keys: Vec<String>,
+    /// The keys of init.json that no reader reads.
+    init_keys: Vec<String>,
 }
 
 #[derive(Clone, Debug)]
@@ -98,7 +100,14 @@ impl Sequence {
             FrameList::Files(paths)
         };
 
-        Ok(Self { camera, model, init, dir: dir.to_path_buf(), model_path, frames, ignored_keys })
+        Ok(Self { camera, model, init, dir: dir.to_path_buf(), model_path, frames, ignored_keys, init_keys })
+    }
+
+    /// `result`, its error about init.json naming the file's keys that no
+    /// reader reads: a tracker that finds no `"pose"` there may have been
+    /// given `"poes"`.
+    pub(crate) fn noting_init_keys<T>(&self, result: Result<T>) -> Result<T> {
+        noting_ignored(result, &self.dir.join(INIT_FILE), &self.init_keys)
     }
 
     /// One line per input file with keys that no reader reads (misspelt,
@@ -115,7 +124,7 @@ impl Sequence {
     pub(crate) fn reversed(&self, count: usize, init: InitState) -> Option<Sequence> {
         let FrameList::Files(paths) = &self.frames else { return None };
         let frames = FrameList::Files(paths.iter().take(count).rev().cloned().collect());
-        Some(Self { init, frames, ..self.clone() })
+        Some(Self { init, frames, init_keys: Vec::new(), ..self.clone() })
     }
 
     /// The sequence folder.

@@ -167,7 +167,8 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             params.validate().map_err(|e| config_error(config, e))?;
             let init_path = seq.dir().join("init.json");
             if seq.init.corners.is_empty() {
-                return Err(Error::input(init_path, "motion-edge needs \"corners\" (the operator's points)"));
+                let error = Error::input(init_path, "motion-edge needs \"corners\" (the operator's points)");
+                return seq.noting_init_keys(Err(error));
             }
             check_simple_polygon(&seq.init.corners, &seq.model.edges).map_err(|msg| Error::input(&init_path, msg))?;
             let tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), params)
@@ -178,8 +179,10 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             let params: BlueParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
             BlueTracker::check_model(&seq.model).map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
-            let tracker = BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), params)
-                .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
+            let tracker = seq.noting_init_keys(
+                BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), params)
+                    .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string())),
+            )?;
             Ok(Box::new(tracker))
         }
         "condensation" => {
@@ -194,8 +197,10 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
                     ),
                 ));
             }
-            let tracker = CondensationTracker::new(seq.camera, &seq.model, &seq.init, params)
-                .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
+            let tracker = seq.noting_init_keys(
+                CondensationTracker::new(seq.camera, &seq.model, &seq.init, params)
+                    .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string())),
+            )?;
             Ok(Box::new(tracker))
         }
         "lowe" => {
@@ -203,8 +208,10 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             params.validate().map_err(|e| config_error(config, e))?;
             // What the model alone decides is the model file's error.
             LoweTracker::check_model(&seq.model).map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
-            let tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, params)
-                .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string()))?;
+            let tracker = seq.noting_init_keys(
+                LoweTracker::new(seq.camera, &seq.model, &seq.init, params)
+                    .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string())),
+            )?;
             Ok(Box::new(tracker))
         }
         other => Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", ")))),

@@ -736,6 +736,20 @@ fn an_error_in_a_file_names_its_unread_keys() {
     let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
     assert_eq!(lines.len(), 1, "{stderr}");
     assert!(lines[0].contains("model.json") && lines[0].contains("(keys not read: \"joint\"; misspelt?)"), "{stderr}");
+    std::fs::write(&model, text).unwrap();
+
+    // A key a tracker needs misspelt: the file reads without it, and the
+    // tracker's error about init.json names it.
+    let init = seq.join("init.json");
+    let text = std::fs::read_to_string(&init).unwrap();
+    std::fs::write(&init, text.replace("\"pose\"", "\"poes\"")).unwrap();
+    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "lowe", "--backend", "cpu"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    assert!(lines[0].contains("init.json") && lines[0].contains("(keys not read: \"poes\"; misspelt?)"), "{stderr}");
+    std::fs::write(&init, text).unwrap();
 
     // A required key misspelt: the key the file has instead of it.
     let camera = seq.join("camera.json");
