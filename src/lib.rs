@@ -72,5 +72,5 @@ pub use io::Sequence;
 pub use io::formats::{FrameResult, Pose, Status};
 pub use track::run::{AsFrame, Frame, track_frames, track_step};
 pub use track::{
-    BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Phase, Tracker,
+    BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Phase, Tracked, Tracker,
 };

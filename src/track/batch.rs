@@ -139,6 +139,9 @@ struct Running<'j> {
     /// The frame submitted this step (grey, or the luma of the colour frame
     /// beside it), with the tracker's request for it and when it was taken.
     current: Option<(GrayImage, Option<RgbImage>, FrameRequest, Instant)>,
+    /// Whether the tracker widened its window for the current frame, which
+    /// is then submitted again ([`Tracker::track_or_widen`]).
+    widened: bool,
     /// Whether the sequence runs in its group's stack (decided on its first
     /// frame), or in its own lane.
     stacked: Option<bool>,
@@ -178,6 +181,7 @@ impl<'j> Running<'j> {
             tracked: 0,
             started: Instant::now(),
             current: None,
+            widened: false,
             stacked: None,
         })
     }
@@ -209,15 +213,28 @@ impl<'j> Running<'j> {
         Ok(true)
     }
 
-    /// Let the tracker update with this step's features and write its line.
-    fn track(&mut self, features: &FrameFeatures) -> Result<()> {
-        let (_, _, _, requested) = self.current.take().ok_or_else(|| Error::Gpu("no frame submitted".into()))?;
-        let (_, result) = track_features(self.tracker.as_mut(), self.index, features, requested);
+    /// Let the tracker update with this step's features and write its line:
+    /// `Ok(true)`. `Ok(false)` when the tracker widened its window of
+    /// interest instead: the frame stays, with the new request, for the
+    /// next step.
+    fn track(&mut self, features: &FrameFeatures) -> Result<bool> {
+        let (frame, colour, _, requested) =
+            self.current.take().ok_or_else(|| Error::Gpu("no frame submitted".into()))?;
+        let tracker = self.tracker.as_mut();
+        let Some((_, result)) = track_features(tracker, self.index, features, requested, !self.widened) else {
+            let (w, h) = frame.size();
+            let request = self.tracker.request(w, h);
+            request.validate()?;
+            self.current = Some((frame, colour, request, requested));
+            self.widened = true;
+            return Ok(false);
+        };
+        self.widened = false;
         let name = self.out.path().to_path_buf();
         write_result_line(&mut self.out, &name, &result)?;
         self.tracked += usize::from(result.status == Status::Tracking);
         self.index += 1;
-        Ok(())
+        Ok(true)
     }
 
     /// Publish the output: the sequence is complete.
@@ -332,8 +349,10 @@ impl<'j> Lanes<'j, '_> {
             .into_par_iter()
             .map(|(lane, running, features)| {
                 let result = running.track(&features);
-                progress(BatchProgress::Frame);
-                (lane, result)
+                if matches!(result, Ok(true)) {
+                    progress(BatchProgress::Frame);
+                }
+                (lane, result.map(|_| ()))
             })
             .collect();
         for (lane, result) in tracked {

@@ -200,6 +200,16 @@ impl FrameOutcome {
     }
 }
 
+/// What [`Tracker::track_or_widen`] did with a frame's features.
+#[derive(Clone, Debug)]
+pub enum Tracked {
+    /// The frame's outcome.
+    Outcome(FrameOutcome),
+    /// The window of interest was widened: the frame's features are needed
+    /// again, from the tracker's new request.
+    Widened,
+}
+
 /// A model-based tracker driven frame by frame.
 pub trait Tracker {
     /// The `--tracker` name (SPEC §3).
@@ -215,6 +225,17 @@ pub trait Tracker {
 
     /// Take the features of frame `frame` and report the frame's outcome.
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome;
+
+    /// Like [`Tracker::track`], but a tracker whose window of interest was
+    /// narrower than this frame turns out to need may instead widen it and
+    /// answer [`Tracked::Widened`]: the caller then runs early vision on
+    /// the same frame again, with the tracker's new
+    /// [`request`](Tracker::request), and hands those features to
+    /// [`Tracker::track`]. The per-frame loop ([`run::track_step`]) does
+    /// this. The default never widens.
+    fn track_or_widen(&mut self, frame: usize, observations: &Observations<'_>) -> Tracked {
+        Tracked::Outcome(self.track(frame, observations))
+    }
 
     /// Whether the tracker reads colour (its requests have sample windows
     /// that compare hue): colour frames then reach the backend as colour.

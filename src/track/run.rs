@@ -19,7 +19,7 @@ use crate::io::sequence::CAMERA_FILE;
 use crate::io::{AtomicFile, Sequence, StagedDir};
 use crate::track::{
     BlueParams, BlueTracker, CondensationParams, CondensationTracker, FrameOutcome, LoweParams, LoweTracker,
-    MotionEdgeParams, MotionEdgeTracker, Observations, Tracker,
+    MotionEdgeParams, MotionEdgeTracker, Observations, Tracked, Tracker,
 };
 use crate::{Error, Result};
 
@@ -436,8 +436,10 @@ impl AsFrame for Frame<'_> {
 
 /// One turn of the per-frame loop: ask the tracker what it needs for a frame
 /// of this size, run the backend on `frame`, let the tracker update with the
-/// features as frame `index`. Returns the tracker's outcome and its output
-/// line, timed from the request to the outcome.
+/// features as frame `index` ([`Tracker::track_or_widen`]: a tracker that
+/// widens its window of interest gets the frame's features once more, from
+/// its new request). Returns the tracker's outcome and its output line,
+/// timed from the first request to the outcome.
 ///
 /// The backend differences each frame against the one before (motion), so
 /// successive calls must be successive frames of one sequence; call
@@ -450,35 +452,53 @@ pub fn track_step(
 ) -> Result<(FrameOutcome, FrameResult)> {
     let t0 = Instant::now();
     let (w, h) = frame.size();
-    let request = tracker.request(w, h);
-    let features = match frame {
-        Frame::Gray(g) => backend.process(g, &request)?,
-        Frame::Rgb(c) => backend.process_rgb(c, &request)?,
-        Frame::Texture(t) => backend.process_texture(t, &request)?,
-    };
-    let step = track_features(tracker, index, &features, t0);
-    backend.recycle(features);
-    Ok(step)
+    let mut may_widen = true;
+    loop {
+        let request = tracker.request(w, h);
+        let features = match frame {
+            Frame::Gray(g) => backend.process(g, &request)?,
+            Frame::Rgb(c) => backend.process_rgb(c, &request)?,
+            Frame::Texture(t) => backend.process_texture(t, &request)?,
+        };
+        let step = track_features(tracker, index, &features, t0, may_widen);
+        backend.recycle(features);
+        if let Some(step) = step {
+            return Ok(step);
+        }
+        may_widen = false;
+    }
 }
 
 /// The second half of [`track_step`], for a caller that ran early vision
 /// itself (several sequences' frames in one GPU submission): let the tracker
 /// update with `features` as frame `index`; the output line's time runs from
-/// `requested` (when the tracker's request was taken) to the outcome.
+/// `requested` (when the tracker's first request for the frame was taken)
+/// to the outcome. With `may_widen` the tracker may widen its window of
+/// interest instead ([`Tracker::track_or_widen`]): then `None`, and the
+/// caller runs early vision on the same frame with the tracker's new
+/// request and calls this again without `may_widen`.
 pub fn track_features(
     tracker: &mut dyn Tracker,
     index: usize,
     features: &FrameFeatures,
     requested: Instant,
-) -> (FrameOutcome, FrameResult) {
+    may_widen: bool,
+) -> Option<(FrameOutcome, FrameResult)> {
     let obs = Observations::from(features);
-    let outcome = tracker.track(index, &obs);
+    let outcome = if may_widen {
+        match tracker.track_or_widen(index, &obs) {
+            Tracked::Outcome(outcome) => outcome,
+            Tracked::Widened => return None,
+        }
+    } else {
+        tracker.track(index, &obs)
+    };
     let mut result = outcome.to_result(requested.elapsed().as_secs_f64() * 1e3);
     let extras = tracker.extras();
     result.velocity_screw = extras.velocity_screw.filter(|s| s.iter().all(|v| v.is_finite()));
     result.effective_sample_size = extras.effective_sample_size.filter(|v| v.is_finite());
     result.search_branches = extras.search_branches;
-    (outcome, result)
+    Some((outcome, result))
 }
 
 /// Write `result` as one JSON line to `out`; errors are [`Error::Io`] naming `out_name`.

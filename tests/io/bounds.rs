@@ -162,7 +162,7 @@ fn every_motion_edge_parameter_is_bounded() {
 
 #[test]
 fn every_lowe_parameter_is_bounded() {
-    walk_on_scene("lowe", "box", parameter_names(&LoweParams::default(), &["confident_window_doublings"]));
+    walk_on_scene("lowe", "box", parameter_names(&LoweParams::default(), &[]));
 }
 
 #[test]

@@ -12,15 +12,32 @@ use pipetrack::track::batch::{BatchJob, BatchProgress, run_batch, run_batch_on_g
 use pipetrack::track::run::{TrackOptions, track_to_file};
 use pipetrack::{GpuBackend, synth};
 
-/// Sequences of both trackers and of different lengths, so lanes end at
-/// different steps and take the next sequence while others run.
+/// Sequences of three trackers and of different lengths, so lanes end at
+/// different steps and take the next sequence while others run. The box
+/// turns round ([`turn_round`]): `lowe` widens its window there and tracks
+/// the frame again.
 const SEQUENCES: &[(&str, &str, usize, u64)] = &[
     ("pendulum", "motion-edge", 7, 1),
     ("target3dof", "blue", 6, 2),
+    ("box", "lowe", 14, 6),
     ("pendulum", "motion-edge", 4, 3),
     ("pendulum", "motion-edge", 9, 4),
     ("target3dof", "blue", 5, 5),
 ];
+
+/// The frame of the box sequence where its motion turns round.
+const TURN: usize = 10;
+
+/// The box sequence in `dir` played forward to frame `TURN - 1`, then
+/// backward from three frames before it: the prediction at the turn lies
+/// four steps from the box, beyond a narrowed window.
+fn turn_round(dir: &Path, frames: usize) {
+    let frame = |i: usize| dir.join("frames").join(format!("{i:06}.png"));
+    let images: Vec<Vec<u8>> = (0..frames).map(|i| std::fs::read(frame(i)).unwrap()).collect();
+    for i in TURN..frames {
+        std::fs::write(frame(i), &images[2 * TURN - 4 - i]).unwrap();
+    }
+}
 
 fn options(tracker: &str, backend: BackendKind) -> TrackOptions {
     TrackOptions { tracker: tracker.into(), backend, config: None, overlay: None, progress: false }
@@ -35,7 +52,12 @@ fn jobs(root: &Path, out: &str) -> Vec<BatchJob> {
         .map(|(i, &(scene, tracker, frames, seed))| {
             let dir = root.join(format!("seq{i}"));
             if !dir.exists() {
-                synth::generate(scene, &dir, Some(frames), seed, &[]).unwrap();
+                let speed = [("speed".to_string(), "20".to_string())];
+                let extra: &[(String, String)] = if scene == "box" { &speed } else { &[] };
+                synth::generate(scene, &dir, Some(frames), seed, extra).unwrap();
+                if scene == "box" {
+                    turn_round(&dir, frames);
+                }
             }
             let seq = Sequence::open(&dir, false).unwrap();
             BatchJob {

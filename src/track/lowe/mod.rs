@@ -23,11 +23,18 @@
 //!    limit, 45° beyond it, and left there unmeasured (half hidden at
 //!    20 px/frame, seed 14).
 //! 2. **Features** ([`segments`]): LoG σ = 1.2 zero crossings in a window
-//!    around the predicted model (wide enough for the largest search
-//!    range; with `confident_window_doublings`, after a frame verified
-//!    with `confident_support` at its first range, for that many
-//!    doublings), linked with hysteresis, cut into straight segments,
-//!    indexed by midpoint and orientation.
+//!    around the predicted model, linked with hysteresis, cut into
+//!    straight segments, indexed by midpoint and orientation. The window
+//!    is wide enough for the largest search range, or, after a frame
+//!    verified with `confident_support` at its first range, for
+//!    `confident_window_doublings` (our addition; the first range by
+//!    default). A frame whose narrowed window gives no solution with
+//!    `confident_support` widens it and is searched again in the wider
+//!    window ([`Tracker::track_or_widen`]; through [`Tracker::track`] the
+//!    wider ranges are searched in the narrowed window's features).
+//!    The wider ranges are seldom needed after a confident frame, and the
+//!    early vision and segments of the narrow window take half the time
+//!    or less.
 //! 3. **Visible model** at the prediction: back-face test and hidden-line
 //!    removal ([`crate::geometry::hidden_lines`]), and each visible part of
 //!    an edge clipped to the image ([`projection::clip_to_image`]: a part
@@ -233,7 +240,7 @@ use self::params::MAX_PARAMS;
 use self::projection::{Linearised, ModelSegment, Row, State};
 use self::search::{SearchFrame, SearchSettings, Support, segments_needed};
 use self::segments::{ImageSegment, SegmentExtractor, SegmentIndex};
-use super::{Diagnostics, FrameExtras, FrameOutcome, Observations, Phase, Tracker, support};
+use super::{Diagnostics, FrameExtras, FrameOutcome, Observations, Phase, Tracked, Tracker, support};
 use crate::backend::{FrameRequest, ListSpec, ZeroCrossingRequest};
 use crate::early::Window;
 use crate::early::log::LogParams;
@@ -308,6 +315,9 @@ pub struct LoweTracker {
     phase: Phase,
     /// Window of interest around this frame's prediction.
     window: Window,
+    /// Doublings of the prior ranges the window holds the features of:
+    /// the widest range this frame searches.
+    window_doublings: usize,
     last_diagnostics: LoweDiagnostics,
     /// Verified states at orientations at least [`VIEW_GAP_RAD`] apart, the
     /// oldest first (where the whole-image search also starts).
@@ -427,6 +437,7 @@ impl LoweTracker {
             lost_frames: 0,
             phase: Phase::Tracking,
             window: Window::full(camera.width as usize, camera.height as usize),
+            window_doublings: params.range_doublings,
             last_diagnostics: LoweDiagnostics::default(),
             views: Vec::new(),
             contrast_memory: vec![EdgeContrast::default(); geometry.edges().len()],
@@ -531,7 +542,7 @@ impl LoweTracker {
         let mut cands = Vec::new();
         let mut accepted = None;
         let mut verified: Option<Found> = None;
-        for doubling in first..=self.params.range_doublings {
+        for doubling in first..=view.widest_doubling.max(first) {
             diag.doublings = doubling;
             let sigmas = self.prior_sigmas(prediction, doubling);
             let p0 = estimation::diagonal(&sigmas, n);
@@ -1107,6 +1118,10 @@ struct FrameView<'a> {
     /// [`TRACKING_ROTATION_SIGMA_PRIORS`] times `prior_rotation_sigma`
     /// while tracking.
     max_rotation_sigma: f64,
+    /// The widest doubling of the prior ranges searched: that of a narrowed
+    /// window when the frame widens it rather than search beyond it (step
+    /// 2), `range_doublings` otherwise.
+    widest_doubling: usize,
     /// Every verified solution the frame's searches found so far: the
     /// rivals of its answer (module doc, step 10).
     verified: RefCell<Vec<Verified>>,
@@ -1453,6 +1468,22 @@ impl Tracker for LoweTracker {
     }
 
     fn track(&mut self, frame: usize, observations: &Observations<'_>) -> FrameOutcome {
+        match self.track_frame(frame, observations, false) {
+            Tracked::Outcome(outcome) => outcome,
+            Tracked::Widened => unreachable!("the window is widened only when asked"),
+        }
+    }
+
+    fn track_or_widen(&mut self, frame: usize, observations: &Observations<'_>) -> Tracked {
+        self.track_frame(frame, observations, true)
+    }
+}
+
+impl LoweTracker {
+    /// Steps 1–10 of the module doc on one frame's features; with
+    /// `may_widen`, a frame whose narrowed window (step 2) gives no
+    /// confident solution widens it instead.
+    fn track_frame(&mut self, frame: usize, observations: &Observations<'_>, may_widen: bool) -> Tracked {
         let (width, height) = (self.camera.width as usize, self.camera.height as usize);
         let started = std::time::Instant::now();
         let crossings = observations.zero_crossings.unwrap_or(&[]);
@@ -1499,6 +1530,7 @@ impl Tracker for LoweTracker {
             min_support,
             min_widened_support,
             max_rotation_sigma,
+            widest_doubling: if may_widen { self.window_doublings } else { p.range_doublings },
             verified: RefCell::new(Vec::new()),
         };
         let mut segs = Vec::new();
@@ -1513,6 +1545,15 @@ impl Tracker for LoweTracker {
         );
         if self.params.search_slower_predictions && self.lost_frames == 0 && self.before_last.is_some() {
             accepted = self.search_slower(&view, accepted, &mut diag);
+        }
+        // Step 2: a narrowed window without a confident solution in it is
+        // widened, and the frame searched again in the wider window.
+        let confident = |found: &Found| found.support.is_some_and(|s| support::fraction(s) >= p.confident_support);
+        if may_widen && self.window_doublings < p.range_doublings && !accepted.as_ref().is_some_and(confident) {
+            drop(view);
+            self.window_doublings = self.params.range_doublings;
+            self.window = self.window_at(&self.prediction, self.window_doublings, width, height);
+            return Tracked::Widened;
         }
         let verified_here = accepted.as_ref().is_some_and(Found::verified);
         if !verified_here && self.lost_frames >= self.params.search_after {
@@ -1666,16 +1707,16 @@ impl Tracker for LoweTracker {
         // Step 2: a frame verified with confident support at its first
         // range sizes the next window for `confident_window_doublings`.
         let confident = status == Status::Tracking && at_first_range && diag.support >= self.params.confident_support;
+        let widest = self.params.range_doublings;
+        self.window_doublings = if confident { self.params.confident_window_doublings } else { widest };
         self.window = if self.lost_frames >= self.params.search_after {
             Window::full(width, height)
         } else {
-            let widest = self.params.range_doublings;
-            let doublings = if confident { self.params.confident_window_doublings.unwrap_or(widest) } else { widest };
-            self.window_at(&self.prediction, doublings, width, height)
+            self.window_at(&self.prediction, self.window_doublings, width, height)
         };
         let covariance = covariance.map(|p| (0..n).flat_map(|i| (0..n).map(move |j| p[i][j])).collect());
         self.last_diagnostics = diag;
-        FrameOutcome {
+        Tracked::Outcome(FrameOutcome {
             frame,
             status,
             phase: self.phase,
@@ -1685,7 +1726,7 @@ impl Tracker for LoweTracker {
             covariance,
             labelled: Vec::new(),
             diagnostics: Diagnostics { lost_reason, bands, ..Diagnostics::default() },
-        }
+        })
     }
 }
 

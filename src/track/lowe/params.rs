@@ -184,17 +184,18 @@ pub struct LoweParams {
     pub window_margin_px: f64,
     /// Doublings of the prior ranges that the next frame's window of
     /// interest is sized for after a frame verified with
-    /// `confident_support` at its first range; unset (the default), and
-    /// after any other frame, the window is sized for `range_doublings`.
-    /// The frame after a confident one seldom searches the wider ranges,
-    /// and when it does it searches the features of the narrower window.
-    /// 0 sizes it for the first range: on the rendered box at 4 px/frame
-    /// that window holds about 92 000 pixels against 252 000 and a frame
-    /// takes less than half the time, but at 30 px/frame, where the motion reverses
-    /// abruptly, a doubled search in it can fit a wrong pose that passes
-    /// the verification (BENCHMARKS.md, "A narrower window after a
-    /// confident frame"). Range: 0 ..= `range_doublings`.
-    pub confident_window_doublings: Option<usize>,
+    /// `confident_support` at its first range; after any other frame the
+    /// window is sized for `range_doublings`. A frame whose narrowed
+    /// window gives no solution with `confident_support` in its ranges
+    /// widens it to the widest and is searched again
+    /// ([`crate::track::Tracker::track_or_widen`]), so the wider ranges are
+    /// searched with their own features, as with the widest window. The
+    /// default, 0, sizes it for the first range: on the rendered box at
+    /// 4 px/frame that window holds about 92 000 pixels against 252 000,
+    /// and a frame takes less than half the time (BENCHMARKS.md, "A
+    /// narrower window after a confident frame"). `range_doublings` keeps
+    /// the widest window on every frame. Range: 0 ..= `range_doublings`.
+    pub confident_window_doublings: usize,
     /// Widest gap between a matched model edge and an unmatched, nearly
     /// parallel neighbour that the search tries the other way round after
     /// a verified solution, px (the two sides of a thin face; see
@@ -314,7 +315,7 @@ impl Default for LoweParams {
             search_min_support: 0.7,
             search_max_rotation_sigma: 0.03,
             window_margin_px: 8.0,
-            confident_window_doublings: None,
+            confident_window_doublings: 0,
             swap_gap_px: 8.0,
             swap_residual_ratio: 0.8,
             ambiguous_support_ratio: 0.95,
@@ -368,9 +369,7 @@ impl LoweParams {
             " rad",
         )?;
         Interval::closed(0.0, 4096.0).check(WHO, "window_margin_px", self.window_margin_px, " px")?;
-        if let Some(doublings) = self.confident_window_doublings {
-            check_count(WHO, "confident_window_doublings", doublings, 0, self.range_doublings)?;
-        }
+        check_count(WHO, "confident_window_doublings", self.confident_window_doublings, 0, self.range_doublings)?;
         Interval::closed(0.0, 50.0).check(WHO, "swap_gap_px", self.swap_gap_px, " px")?;
         Interval::closed(0.0, 1.0).check(WHO, "swap_residual_ratio", self.swap_residual_ratio, "")?;
         Interval::closed(0.0, 10.0).check(WHO, "ambiguous_support_ratio", self.ambiguous_support_ratio, "")?;
