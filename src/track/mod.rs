@@ -201,6 +201,9 @@ impl FrameOutcome {
 }
 
 /// What [`Tracker::track_or_widen`] did with a frame's features.
+// Returned once per frame and taken apart at once: boxing the outcome
+// would only add an allocation per frame.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Tracked {
     /// The frame's outcome.
