@@ -74,8 +74,8 @@ fn time_lowe_split() -> pipetrack::Result<()> {
     let (mut early, mut segments, mut matching, mut estimation, mut branches) = (0.0, 0.0, 0.0, 0.0, 0usize);
     for (i, frame) in seq.frames.iter().enumerate() {
         let (w, h) = frame.size();
-        // A frame whose window the tracker widens is processed twice; its
-        // first search's times are not in the diagnostics.
+        // A frame whose window the tracker widens is processed twice; the
+        // diagnostics hold both searches' times.
         let mut may_widen = true;
         loop {
             let request = tracker.request(w, h);

@@ -262,7 +262,8 @@ const TRACKING_ROTATION_SIGMA_PRIORS: f64 = 2.0;
 pub struct LoweDiagnostics {
     /// Image segments found in the window.
     pub image_segments: usize,
-    /// Search nodes tried this frame, over all ranges.
+    /// Search nodes tried this frame, over all ranges (and both searches
+    /// of a frame whose window was widened).
     pub branches: usize,
     /// Times the prior ranges were doubled this frame.
     pub doublings: usize,
@@ -282,6 +283,17 @@ pub struct LoweDiagnostics {
     pub matching_ms: f64,
     /// Host time of the Gauss–Newton solutions, ms.
     pub estimation_ms: f64,
+}
+
+impl LoweDiagnostics {
+    /// The branches and host times of `earlier`, a search of the same frame
+    /// before its window was widened, added to these.
+    fn add_earlier(&mut self, earlier: &LoweDiagnostics) {
+        self.branches += earlier.branches;
+        self.segments_ms += earlier.segments_ms;
+        self.matching_ms += earlier.matching_ms;
+        self.estimation_ms += earlier.estimation_ms;
+    }
 }
 
 /// The Lowe tracker.
@@ -315,9 +327,11 @@ pub struct LoweTracker {
     phase: Phase,
     /// Window of interest around this frame's prediction.
     window: Window,
-    /// Doublings of the prior ranges the window holds the features of:
-    /// the widest range this frame searches.
+    /// Doublings of the prior ranges the window is sized for.
     window_doublings: usize,
+    /// The diagnostics of this frame's search before its window was
+    /// widened, added to the frame's.
+    before_widening: Option<LoweDiagnostics>,
     last_diagnostics: LoweDiagnostics,
     /// Verified states at orientations at least [`VIEW_GAP_RAD`] apart, the
     /// oldest first (where the whole-image search also starts).
@@ -438,6 +452,7 @@ impl LoweTracker {
             phase: Phase::Tracking,
             window: Window::full(camera.width as usize, camera.height as usize),
             window_doublings: params.range_doublings,
+            before_widening: None,
             last_diagnostics: LoweDiagnostics::default(),
             views: Vec::new(),
             contrast_memory: vec![EdgeContrast::default(); geometry.edges().len()],
@@ -1551,6 +1566,10 @@ impl LoweTracker {
         let confident = |found: &Found| found.support.is_some_and(|s| support::fraction(s) >= p.confident_support);
         if may_widen && self.window_doublings < p.range_doublings && !accepted.as_ref().is_some_and(confident) {
             drop(view);
+            diag.segments_ms = (segmented - started).as_secs_f64() * 1e3;
+            diag.estimation_ms = estimation::take_solve_time().as_secs_f64() * 1e3;
+            diag.matching_ms = ((segmented.elapsed().as_secs_f64() * 1e3) - diag.estimation_ms).max(0.0);
+            self.before_widening = Some(diag);
             self.window_doublings = self.params.range_doublings;
             self.window = self.window_at(&self.prediction, self.window_doublings, width, height);
             return Tracked::Widened;
@@ -1715,6 +1734,9 @@ impl LoweTracker {
             self.window_at(&self.prediction, self.window_doublings, width, height)
         };
         let covariance = covariance.map(|p| (0..n).flat_map(|i| (0..n).map(move |j| p[i][j])).collect());
+        if let Some(earlier) = self.before_widening.take() {
+            diag.add_earlier(&earlier);
+        }
         self.last_diagnostics = diag;
         Tracked::Outcome(FrameOutcome {
             frame,
