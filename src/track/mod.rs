@@ -235,7 +235,9 @@ pub trait Tracker {
     /// the same frame again, with the tracker's new
     /// [`request`](Tracker::request), and hands those features to
     /// [`Tracker::track`]. The per-frame loop ([`run::track_step`]) does
-    /// this. The default never widens.
+    /// this. The backend sees the frame twice, so a tracker that widens
+    /// must not ask for the motion stage (the second pass would difference
+    /// the frame against itself). The default never widens.
     fn track_or_widen(&mut self, frame: usize, observations: &Observations<'_>) -> Tracked {
         Tracked::Outcome(self.track(frame, observations))
     }
