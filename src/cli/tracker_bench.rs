@@ -117,6 +117,9 @@ pub fn time_replay(
             let mut ms = 0.0;
             let mut outcome = None;
             for (k, (request, features)) in attempts.iter().enumerate() {
+                if outcome.is_some() {
+                    return Err(Error::Parameter(format!("{name}: frame {i} widened its window less than recorded")));
+                }
                 if tracker.request(w, h) != *request {
                     return Err(Error::Parameter(format!("{name}: frame {i} asks for other features than recorded")));
                 }
@@ -187,6 +190,7 @@ mod tests {
         let timing = time_replay("motion-edge", &seq, &recorded, 2).unwrap();
         assert_eq!(timing.frames, 6);
         assert!(timing.median_ms > 0.0 && timing.median_ms <= timing.max_ms);
+        // motion-edge never widens its window: one request per frame.
         let mut tracker = new_tracker("motion-edge", &seq).unwrap();
         let expected = recorded
             .iter()
@@ -194,5 +198,20 @@ mod tests {
             .filter(|(i, attempts)| tracker.track(*i, &Observations::from(&attempts[0].1)).status == Status::Tracking)
             .count();
         assert_eq!(timing.tracked, expected);
+    }
+
+    /// `lowe` on the box at 30 px/frame widens its narrowed window on some
+    /// frames: those are recorded with both requests, and the replay asks
+    /// for the same features frame by frame (else an error) and tracks.
+    #[test]
+    fn replay_of_a_tracker_that_widens_its_window_follows_the_recording() {
+        let seq = render_scene("box", Some(60), 0, &[("speed".to_string(), "30".to_string())]).unwrap();
+        let recorded = record_features("lowe", &seq).unwrap();
+        assert_eq!(recorded.len(), 60);
+        let widened = recorded.iter().filter(|attempts| attempts.len() == 2).count();
+        assert!(widened > 0 && recorded.iter().all(|a| (1..=2).contains(&a.len())), "{widened} frames widened");
+        let timing = time_replay("lowe", &seq, &recorded, 1).unwrap();
+        assert_eq!(timing.frames, 60);
+        assert!(timing.tracked >= 58, "{} of 60 frames tracking", timing.tracked);
     }
 }

@@ -9,6 +9,9 @@
 //! the other group's trackers (in parallel, one sequence per thread); a lane
 //! whose sequence ends takes the next one. Each tracker still sees its own
 //! frames in order, one at a time: only the scheduling differs from `track`.
+//! A frame whose tracker widens its window of interest
+//! ([`Tracker::track_or_widen`]) stays in its lane and is submitted again,
+//! with the new request, at the lane's next step.
 //! A tracker that reads colour gets colour frames here too: its lane's
 //! frames carry their colour for the sample windows.
 //!
@@ -137,7 +140,8 @@ struct Running<'j> {
     tracked: usize,
     started: Instant,
     /// The frame submitted this step (grey, or the luma of the colour frame
-    /// beside it), with the tracker's request for it and when it was taken.
+    /// beside it), with the tracker's request for it and when its first
+    /// request was taken (the output line's time runs from there).
     current: Option<(GrayImage, Option<RgbImage>, FrameRequest, Instant)>,
     /// Whether the tracker widened its window for the current frame, which
     /// is then submitted again ([`Tracker::track_or_widen`]).

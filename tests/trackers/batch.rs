@@ -130,13 +130,48 @@ fn gpu_batch_equals_tracking_each_sequence_alone_on_the_cpu() {
     let mut backend = GpuBackend::new(ctx.clone());
     for lanes in [1, 2, 3, 8] {
         let jobs = jobs(&root, &format!("lanes{lanes}"));
-        let results = run_batch_on_gpu(&jobs, &mut backend, lanes, &no_progress).unwrap();
+        // A frame submitted again after the tracker widened its window is
+        // counted once.
+        let frames = std::sync::atomic::AtomicUsize::new(0);
+        let count = |p: BatchProgress| {
+            if p == BatchProgress::Frame {
+                frames.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
+        };
+        let results = run_batch_on_gpu(&jobs, &mut backend, lanes, &count).unwrap();
+        assert_eq!(frames.into_inner(), SEQUENCES.iter().map(|s| s.2).sum::<usize>(), "{lanes} lanes");
         for (job, r) in jobs.iter().zip(&results) {
             let summary = r.as_ref().unwrap_or_else(|e| panic!("{}: {e}", job.out_path.display()));
             assert!(summary.backend.starts_with("GPU"), "{}", summary.backend);
         }
         check_equal(&format!("gpu, {lanes} lanes"), &jobs, &reference);
     }
+}
+
+/// The premise of the batches above: `lowe` widens its window on the box
+/// sequence where it turns round.
+#[test]
+fn lowe_widens_its_window_where_the_box_sequence_turns() {
+    use pipetrack::backend::EarlyVision;
+    use pipetrack::track::{LoweParams, LoweTracker, Observations, Tracked, Tracker};
+    let root = common::scratch("batch", "turn");
+    let job = jobs(&root, "out").into_iter().find(|j| j.opts.tracker == "lowe").expect("a lowe sequence");
+    let seq = &job.seq;
+    let (w, h) = (seq.camera.width as usize, seq.camera.height as usize);
+    let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, LoweParams::default()).unwrap();
+    let mut backend = pipetrack::CpuBackend::new();
+    backend.reset();
+    let mut widened = Vec::new();
+    for (i, frame) in seq.frames().enumerate() {
+        let frame = frame.unwrap();
+        let features = backend.process(&frame, &tracker.request(w, h)).unwrap();
+        if let Tracked::Widened = tracker.track_or_widen(i, &Observations::from(&features)) {
+            widened.push(i);
+            let features = backend.process(&frame, &tracker.request(w, h)).unwrap();
+            tracker.track(i, &Observations::from(&features));
+        }
+    }
+    assert!(widened.contains(&TURN), "widened on frames {widened:?}");
 }
 
 /// A sequence whose frame cannot be read fails alone: no output, its error

@@ -573,7 +573,8 @@ fn lowe_narrows_the_window_after_a_confident_frame_and_widens_it_after_a_loss_cp
         frames
     };
     let narrow = run(LoweParams::default());
-    let wide = run(LoweParams { confident_window_doublings: 2, ..LoweParams::default() });
+    let wide =
+        run(LoweParams { confident_window_doublings: LoweParams::default().range_doublings, ..LoweParams::default() });
     for ((n, n_area), (w, w_area)) in narrow.iter().zip(&wide) {
         let f = n.frame;
         assert_eq!(n.status, w.status, "frame {f}");
@@ -612,7 +613,10 @@ fn lowe_widens_a_narrowed_window_where_the_motion_turns_cpu() {
     let (width, height) = (seq.camera.width as usize, seq.camera.height as usize);
     let tracker = |params| LoweTracker::new(seq.camera, &seq.model, &seq.init, params).expect("lowe tracker");
 
-    let mut wide = tracker(LoweParams { confident_window_doublings: 2, ..LoweParams::default() });
+    let mut wide = tracker(LoweParams {
+        confident_window_doublings: LoweParams::default().range_doublings,
+        ..LoweParams::default()
+    });
     let mut backend = CpuBackend::new();
     backend.reset();
     let wide: Vec<_> = (seq.frames.iter().enumerate())

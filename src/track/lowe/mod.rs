@@ -286,10 +286,9 @@ pub struct LoweDiagnostics {
 }
 
 impl LoweDiagnostics {
-    /// The branches and host times of `earlier`, a search of the same frame
-    /// before its window was widened, added to these.
-    fn add_earlier(&mut self, earlier: &LoweDiagnostics) {
-        self.branches += earlier.branches;
+    /// The host times of `earlier`, a search of the same frame before its
+    /// window was widened, added to these.
+    fn add_earlier_times(&mut self, earlier: &LoweDiagnostics) {
         self.segments_ms += earlier.segments_ms;
         self.matching_ms += earlier.matching_ms;
         self.estimation_ms += earlier.estimation_ms;
@@ -1523,7 +1522,14 @@ impl LoweTracker {
             search_sigmas: self.params.search_sigmas,
             min_probability: self.params.min_probability,
         };
-        let mut diag = LoweDiagnostics { image_segments: self.image_segments.len(), ..LoweDiagnostics::default() };
+        // The search of this frame before its window was widened, if this
+        // is the frame's second look (else a frame left unfinished).
+        let earlier = self.before_widening.take().filter(|_| !may_widen);
+        let mut diag = LoweDiagnostics {
+            image_segments: self.image_segments.len(),
+            branches: earlier.as_ref().map_or(0, |e| e.branches),
+            ..LoweDiagnostics::default()
+        };
         // After a loss the bar of a re-acquisition; while tracking, the
         // last frame (verified) sets the bar of a widened range's solution.
         let p = &self.params;
@@ -1727,15 +1733,24 @@ impl LoweTracker {
         // range sizes the next window for `confident_window_doublings`.
         let confident = status == Status::Tracking && at_first_range && diag.support >= self.params.confident_support;
         let widest = self.params.range_doublings;
-        self.window_doublings = if confident { self.params.confident_window_doublings } else { widest };
+        self.window_doublings = widest;
         self.window = if self.lost_frames >= self.params.search_after {
             Window::full(width, height)
         } else {
-            self.window_at(&self.prediction, self.window_doublings, width, height)
+            let wide = self.window_at(&self.prediction, widest, width, height);
+            let narrow = self.params.confident_window_doublings;
+            // A narrowed window the image clips to the widest one is the widest.
+            match confident.then(|| self.window_at(&self.prediction, narrow, width, height)) {
+                Some(window) if window.clipped(width, height) != wide.clipped(width, height) => {
+                    self.window_doublings = narrow;
+                    window
+                }
+                _ => wide,
+            }
         };
         let covariance = covariance.map(|p| (0..n).flat_map(|i| (0..n).map(move |j| p[i][j])).collect());
-        if let Some(earlier) = self.before_widening.take() {
-            diag.add_earlier(&earlier);
+        if let Some(earlier) = &earlier {
+            diag.add_earlier_times(earlier);
         }
         self.last_diagnostics = diag;
         Tracked::Outcome(FrameOutcome {
