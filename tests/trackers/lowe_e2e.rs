@@ -92,8 +92,9 @@ const HINGED_25: Case = Case {
 /// The fastest motion `synth` makes (the box turns up to ≈ 20° per frame,
 /// with abrupt reversals): at most 1 % of the frames more than 5 px off;
 /// frames that lose the box as it slips out of reach are `lost`, not wrong,
-/// and the whole-image search finds it again (box seed 1 is lost four
-/// times and holds 291 frames).
+/// and the whole-image search finds it again (box seeds 0–2 hold every
+/// frame; before the search from slower predictions seed 1 was lost four
+/// times and held 291).
 const BOX_30: Case = Case { speed: 30.0, min_tracked: 285, max_false: 3, max_mean_px: 1.0, ..BOX_SLOW };
 const HINGED_30: Case = Case { seed: 2, min_tracked: 270, ..Case { speed: 30.0, ..HINGED_25 } };
 /// Half the edges hidden at 20 px/frame: at most 1 % of the frames more
@@ -110,7 +111,7 @@ const BOX_OCCLUDED_10: Case = Case { speed: 10.0, occlude: 0.5, min_tracked: 295
 /// tracking off target). A re-acquisition must now fix the rotation.
 const BOX_OCCLUDED_10_SEED_9: Case = Case { seed: 9, min_tracked: 250, ..BOX_OCCLUDED_10 };
 /// Half the edges hidden: 4 frames with the lid more than 2° off and a
-/// mean vertex error of 0.238 px (7 and 0.291 px without the contrast
+/// mean vertex error of 0.237 px (7 and 0.291 px without the contrast
 /// memory; 13 frames with a step from an unmeasured lid extrapolated,
 /// frames 245–255 behind the band).
 const HINGED_OCCLUDED: Case =
