@@ -67,6 +67,7 @@ fn main() -> pipetrack::Result<()> {
 /// one thread: means over its 300 frames.
 fn time_lowe_split() -> pipetrack::Result<()> {
     use pipetrack::synth::boxes::{BoxOptions, render_box};
+    use pipetrack::track::run::track_once;
     use pipetrack::track::{LoweParams, LoweTracker, Observations, Tracked, Tracker};
     let seq = render_box(&BoxOptions::default())?;
     let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, LoweParams::default())?;
@@ -82,15 +83,10 @@ fn time_lowe_split() -> pipetrack::Result<()> {
             let start = Instant::now();
             let features = backend.process(frame, &request)?;
             early += start.elapsed().as_secs_f64() * 1e3;
-            let observations = Observations::from(&features);
-            if may_widen && matches!(tracker.track_or_widen(i, &observations), Tracked::Widened) {
-                may_widen = false;
-                continue;
+            if let Tracked::Outcome(_) = track_once(&mut tracker, i, &Observations::from(&features), may_widen) {
+                break;
             }
-            if !may_widen {
-                tracker.track(i, &observations);
-            }
-            break;
+            may_widen = false;
         }
         let d = tracker.diagnostics();
         segments += d.segments_ms;

@@ -16,6 +16,7 @@ use serde::Serialize;
 use crate::backend::{CpuBackend, EarlyVision, FrameFeatures, FrameRequest};
 use crate::io::formats::Status;
 use crate::synth::{SyntheticSequence, render_scene};
+use crate::track::run::track_once;
 use crate::track::{
     BlueParams, BlueTracker, LoweParams, LoweTracker, MotionEdgeParams, MotionEdgeTracker, Observations, Tracked,
     Tracker,
@@ -81,13 +82,8 @@ pub fn record_features(name: &str, seq: &SyntheticSequence) -> Result<Vec<FrameR
         loop {
             let request = tracker.request(w, h);
             let features = backend.process(frame, &request)?;
-            let observations = Observations::from(&features);
-            let done = if attempts.is_empty() {
-                matches!(tracker.track_or_widen(i, &observations), Tracked::Outcome(_))
-            } else {
-                tracker.track(i, &observations);
-                true
-            };
+            let look = track_once(tracker.as_mut(), i, &Observations::from(&features), attempts.is_empty());
+            let done = matches!(look, Tracked::Outcome(_));
             attempts.push((request, features));
             if done {
                 break;
@@ -125,11 +121,7 @@ pub fn time_replay(
                 }
                 let observations = Observations::from(features);
                 let start = Instant::now();
-                let tracked_here = if k == 0 {
-                    tracker.track_or_widen(i, &observations)
-                } else {
-                    Tracked::Outcome(tracker.track(i, &observations))
-                };
+                let tracked_here = track_once(tracker.as_mut(), i, &observations, k == 0);
                 ms += start.elapsed().as_secs_f64() * 1e3;
                 if let Tracked::Outcome(o) = tracked_here {
                     outcome = Some(o);

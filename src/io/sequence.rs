@@ -103,11 +103,12 @@ impl Sequence {
         Ok(Self { camera, model, init, dir: dir.to_path_buf(), model_path, frames, ignored_keys, init_keys })
     }
 
-    /// `result`, its error about init.json naming the file's keys that no
+    /// An error about init.json (`message`), naming the file's keys that no
     /// reader reads: a tracker that finds no `"pose"` there may have been
     /// given `"poes"`.
-    pub(crate) fn noting_init_keys<T>(&self, result: Result<T>) -> Result<T> {
-        noting_ignored(result, &self.dir.join(INIT_FILE), &self.init_keys)
+    pub(crate) fn init_error(&self, message: impl Into<String>) -> Error {
+        let path = self.dir.join(INIT_FILE);
+        noting_unread(Error::input(&path, message), &path, &self.init_keys)
     }
 
     /// One line per input file with keys that no reader reads (misspelt,
@@ -251,12 +252,18 @@ fn shown_keys(keys: &[String]) -> String {
 /// not read: a misspelt key (`"joint"` for `"joints"`) is often what the
 /// error is about.
 fn noting_ignored<T>(result: Result<T>, file: &Path, keys: &[String]) -> Result<T> {
-    result.map_err(|e| match e {
+    result.map_err(|e| noting_unread(e, file, keys))
+}
+
+/// `error`, when it is about `file`, naming the keys of `file` that were
+/// not read ([`noting_ignored`]).
+fn noting_unread(error: Error, file: &Path, keys: &[String]) -> Error {
+    match error {
         Error::Input { path, message } if path == file && !keys.is_empty() => {
             Error::Input { path, message: format!("{message} (keys not read: {}; misspelt?)", shown_keys(keys)) }
         }
         other => other,
-    })
+    }
 }
 
 /// The model of the folder: `model.json`, else `model.cao`, else

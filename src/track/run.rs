@@ -165,12 +165,10 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
         "motion-edge" => {
             let params: MotionEdgeParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
-            let init_path = seq.dir().join("init.json");
             if seq.init.corners.is_empty() {
-                let error = Error::input(init_path, "motion-edge needs \"corners\" (the operator's points)");
-                return seq.noting_init_keys(Err(error));
+                return Err(seq.init_error("motion-edge needs \"corners\" (the operator's points)"));
             }
-            check_simple_polygon(&seq.init.corners, &seq.model.edges).map_err(|msg| Error::input(&init_path, msg))?;
+            check_simple_polygon(&seq.init.corners, &seq.model.edges).map_err(|msg| seq.init_error(msg))?;
             let tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), params)
                 .map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
             Ok(Box::new(tracker))
@@ -179,10 +177,8 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             let params: BlueParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
             BlueTracker::check_model(&seq.model).map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
-            let tracker = seq.noting_init_keys(
-                BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), params)
-                    .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string())),
-            )?;
+            let tracker = BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), params)
+                .map_err(|e| seq.init_error(e.to_string()))?;
             Ok(Box::new(tracker))
         }
         "condensation" => {
@@ -197,10 +193,8 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
                     ),
                 ));
             }
-            let tracker = seq.noting_init_keys(
-                CondensationTracker::new(seq.camera, &seq.model, &seq.init, params)
-                    .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string())),
-            )?;
+            let tracker = CondensationTracker::new(seq.camera, &seq.model, &seq.init, params)
+                .map_err(|e| seq.init_error(e.to_string()))?;
             Ok(Box::new(tracker))
         }
         "lowe" => {
@@ -208,10 +202,8 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             params.validate().map_err(|e| config_error(config, e))?;
             // What the model alone decides is the model file's error.
             LoweTracker::check_model(&seq.model).map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
-            let tracker = seq.noting_init_keys(
-                LoweTracker::new(seq.camera, &seq.model, &seq.init, params)
-                    .map_err(|e| Error::input(seq.dir().join("init.json"), e.to_string())),
-            )?;
+            let tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, params)
+                .map_err(|e| seq.init_error(e.to_string()))?;
             Ok(Box::new(tracker))
         }
         other => Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", ")))),
@@ -484,14 +476,8 @@ pub fn track_features(
     requested: Instant,
     may_widen: bool,
 ) -> Option<(FrameOutcome, FrameResult)> {
-    let obs = Observations::from(features);
-    let outcome = if may_widen {
-        match tracker.track_or_widen(index, &obs) {
-            Tracked::Outcome(outcome) => outcome,
-            Tracked::Widened => return None,
-        }
-    } else {
-        tracker.track(index, &obs)
+    let Tracked::Outcome(outcome) = track_once(tracker, index, &Observations::from(features), may_widen) else {
+        return None;
     };
     let mut result = outcome.to_result(requested.elapsed().as_secs_f64() * 1e3);
     let extras = tracker.extras();
@@ -499,6 +485,22 @@ pub fn track_features(
     result.effective_sample_size = extras.effective_sample_size.filter(|v| v.is_finite());
     result.search_branches = extras.search_branches;
     Some((outcome, result))
+}
+
+/// One look of `tracker` at frame `index`: [`Tracker::track_or_widen`]
+/// with `may_widen`, else [`Tracker::track`] (the frame's second look,
+/// after its window was widened).
+pub fn track_once(
+    tracker: &mut dyn Tracker,
+    index: usize,
+    observations: &Observations<'_>,
+    may_widen: bool,
+) -> Tracked {
+    if may_widen {
+        tracker.track_or_widen(index, observations)
+    } else {
+        Tracked::Outcome(tracker.track(index, observations))
+    }
 }
 
 /// Write `result` as one JSON line to `out`; errors are [`Error::Io`] naming `out_name`.

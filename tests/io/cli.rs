@@ -726,42 +726,35 @@ fn an_error_in_a_file_names_its_unread_keys() {
     let seq = root.join("hinged");
     let out = pipetrack(&["synth", "hinged-box", seq.to_str().unwrap(), "--frames", "2"]);
     assert!(out.status.success(), "synth failed: {}", String::from_utf8_lossy(&out.stderr));
-    let model = seq.join("model.json");
-    let text = std::fs::read_to_string(&model).unwrap();
-    assert!(text.contains("\"joints\""));
-    std::fs::write(&model, text.replace("\"joints\"", "\"joint\"")).unwrap();
-    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "lowe", "--backend", "cpu"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
-    assert_eq!(lines.len(), 1, "{stderr}");
-    assert!(lines[0].contains("model.json") && lines[0].contains("(keys not read: \"joint\"; misspelt?)"), "{stderr}");
-    std::fs::write(&model, text).unwrap();
+    // `key` of `file` spelt `typo`: `lowe` fails with exit status 2; its
+    // one error line, and the file put back.
+    let misspelt = |file: &str, key: &str, typo: &str| {
+        let path = seq.join(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains(&format!("{key:?}")), "{file} has no {key:?}");
+        std::fs::write(&path, text.replace(&format!("{key:?}"), &format!("{typo:?}"))).unwrap();
+        let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "lowe", "--backend", "cpu"]);
+        std::fs::write(&path, text).unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
+        assert_eq!(lines.len(), 1, "{stderr}");
+        lines[0].to_string()
+    };
+    let line = misspelt("model.json", "joints", "joint");
+    assert!(line.contains("model.json") && line.contains("(keys not read: \"joint\"; misspelt?)"), "{line}");
 
     // A key a tracker needs misspelt: the file reads without it, and the
     // tracker's error about init.json names it.
-    let init = seq.join("init.json");
-    let text = std::fs::read_to_string(&init).unwrap();
-    std::fs::write(&init, text.replace("\"pose\"", "\"poes\"")).unwrap();
-    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "lowe", "--backend", "cpu"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("pipetrack:")).collect();
-    assert_eq!(lines.len(), 1, "{stderr}");
-    assert!(lines[0].contains("init.json") && lines[0].contains("(keys not read: \"poes\"; misspelt?)"), "{stderr}");
-    std::fs::write(&init, text).unwrap();
+    let line = misspelt("init.json", "pose", "poes");
+    assert!(line.contains("init.json") && line.contains("(keys not read: \"poes\"; misspelt?)"), "{line}");
 
     // A required key misspelt: the key the file has instead of it.
-    let camera = seq.join("camera.json");
-    let text = std::fs::read_to_string(&camera).unwrap();
-    std::fs::write(&camera, text.replace("\"width\"", "\"widht\"")).unwrap();
-    let out = pipetrack(&["track", seq.to_str().unwrap(), "--tracker", "lowe", "--backend", "cpu"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let line = misspelt("camera.json", "width", "widht");
     assert!(
-        stderr.contains("camera.json")
-            && stderr.contains("missing field `width` (the file's \"widht\" is not read: misspelt?)"),
-        "{stderr}"
+        line.contains("camera.json")
+            && line.contains("missing field `width` (the file's \"widht\" is not read: misspelt?)"),
+        "{line}"
     );
 }
 

@@ -286,6 +286,15 @@ pub struct LoweDiagnostics {
 }
 
 impl LoweDiagnostics {
+    /// The host times of a search that started at `started` and had its
+    /// segments at `segmented`: linking and segmentation, Gauss–Newton
+    /// (taken from its timer), and the rest of the time since as matching.
+    fn time_since(&mut self, started: std::time::Instant, segmented: std::time::Instant) {
+        self.segments_ms = (segmented - started).as_secs_f64() * 1e3;
+        self.estimation_ms = estimation::take_solve_time().as_secs_f64() * 1e3;
+        self.matching_ms = (segmented.elapsed().as_secs_f64() * 1e3 - self.estimation_ms).max(0.0);
+    }
+
     /// The host times of `earlier`, a search of the same frame before its
     /// window was widened, added to these.
     fn add_earlier_times(&mut self, earlier: &LoweDiagnostics) {
@@ -1572,9 +1581,7 @@ impl LoweTracker {
         let confident = |found: &Found| found.support.is_some_and(|s| support::fraction(s) >= p.confident_support);
         if may_widen && self.window_doublings < p.range_doublings && !accepted.as_ref().is_some_and(confident) {
             drop(view);
-            diag.segments_ms = (segmented - started).as_secs_f64() * 1e3;
-            diag.estimation_ms = estimation::take_solve_time().as_secs_f64() * 1e3;
-            diag.matching_ms = ((segmented.elapsed().as_secs_f64() * 1e3) - diag.estimation_ms).max(0.0);
+            diag.time_since(started, segmented);
             self.before_widening = Some(diag);
             self.window_doublings = self.params.range_doublings;
             self.window = self.window_at(&self.prediction, self.window_doublings, width, height);
@@ -1601,10 +1608,7 @@ impl LoweTracker {
         // its place (module doc, step 10).
         let carry_ratio = self.params.ambiguous_carry_ratio;
         let rival_carried = ambiguity.as_ref().is_some_and(|a| carry_ratio > 0.0 && a.support_ratio >= carry_ratio);
-        let estimation = estimation::take_solve_time().as_secs_f64();
-        diag.segments_ms = (segmented - started).as_secs_f64() * 1e3;
-        diag.estimation_ms = estimation * 1e3;
-        diag.matching_ms = ((segmented.elapsed().as_secs_f64() - estimation) * 1e3).max(0.0);
+        diag.time_since(started, segmented);
         let at_first_range = accepted.as_ref().is_some_and(|found| found.doubling == 0);
         let mut lost_reason = None;
         let verified = match &accepted {
@@ -1732,20 +1736,20 @@ impl LoweTracker {
         // Step 2: a frame verified with confident support at its first
         // range sizes the next window for `confident_window_doublings`.
         let confident = status == Status::Tracking && at_first_range && diag.support >= self.params.confident_support;
-        let widest = self.params.range_doublings;
-        self.window_doublings = widest;
+        let full = Window::full(width, height);
+        self.window_doublings = self.params.range_doublings;
         self.window = if self.lost_frames >= self.params.search_after {
-            Window::full(width, height)
+            full
         } else {
-            let wide = self.window_at(&self.prediction, widest, width, height);
             let narrow = self.params.confident_window_doublings;
-            // A narrowed window the image clips to the widest one is the widest.
+            // A narrowed window the image clips to the whole frame is the
+            // widest one as well.
             match confident.then(|| self.window_at(&self.prediction, narrow, width, height)) {
-                Some(window) if window.clipped(width, height) != wide.clipped(width, height) => {
+                Some(window) if window.clipped(width, height) != full => {
                     self.window_doublings = narrow;
                     window
                 }
-                _ => wide,
+                _ => self.window_at(&self.prediction, self.window_doublings, width, height),
             }
         };
         let covariance = covariance.map(|p| (0..n).flat_map(|i| (0..n).map(move |j| p[i][j])).collect());
