@@ -359,7 +359,7 @@ pub struct BatchOptions {
 pub struct BatchReport {
     /// This run's lines.
     pub lines: Vec<SummaryLine>,
-    /// The first failure's error, when some sequence failed.
+    /// The error of the first sequence in the manifest that failed, when some did.
     pub first_error: Option<Error>,
 }
 
@@ -390,7 +390,7 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
     let selected = opts.shard.select(all.clone());
 
     let mut lines: Vec<Option<SummaryLine>> = selected.iter().map(|_| None).collect();
-    let mut first_error = None;
+    let mut failures: Vec<(usize, Error)> = Vec::new();
     let mut jobs = Vec::new();
     let mut job_entry = Vec::new();
     let mut job_record = Vec::new();
@@ -399,9 +399,9 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
             Ok(seq) => seq,
             Err(e) => {
                 let line = SummaryLine::failed(entry, &e);
-                eprintln!("pipetrack: {}: {}", entry.name, line.error.as_deref().unwrap_or_default());
+                report_failure(entry, &line);
                 lines[k] = Some(line);
-                first_error.get_or_insert(e);
+                failures.push((k, e));
                 continue;
             }
         };
@@ -435,8 +435,12 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
     let progress = |p: BatchProgress| match p {
         BatchProgress::Frame => bar.inc(1),
         BatchProgress::Sequence { job, written } => {
-            // Without its record an output is tracked again next time.
-            if let (true, Some(record)) = (written, &job_record[job]) {
+            // Without its record an output is tracked again next time: so
+            // too when its config changed while the batch ran (the tracker
+            // read it after the record was made).
+            let entry = &selected[job_entry[job]];
+            let unchanged = |record: &&RunRecord| RunRecord::of(entry).as_ref() == Some(*record);
+            if let (true, Some(record)) = (written, job_record[job].as_ref().filter(unchanged)) {
                 if let Err(e) = record.write(&jobs[job].out_path) {
                     bar.suspend(|| eprintln!("pipetrack: {e}"));
                 }
@@ -448,7 +452,7 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
     let results = run_batch(&jobs, opts.backend, opts.jobs, &progress)?;
     bar.finish_and_clear();
 
-    for ((job, k), result) in jobs.iter().zip(job_entry).zip(results) {
+    for ((job, &k), result) in jobs.iter().zip(&job_entry).zip(results) {
         let entry = &selected[k];
         lines[k] = Some(match result {
             Ok(RunSummary { backend, fps, .. }) => {
@@ -460,15 +464,29 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
             }
             Err(e) => {
                 let line = SummaryLine::failed(entry, &e);
-                eprintln!("pipetrack: {}: {}", entry.name, line.error.as_deref().unwrap_or_default());
-                first_error.get_or_insert(e);
+                report_failure(entry, &line);
+                failures.push((k, e));
                 line
             }
         });
     }
     let lines: Vec<SummaryLine> = lines.into_iter().flatten().collect();
     write_summary(&summary_path, &all, earlier, &lines)?;
+    let first_error = failures.into_iter().min_by_key(|(k, _)| *k).map(|(_, e)| e);
     Ok(BatchReport { lines, first_error })
+}
+
+/// Say on stderr why the sequence of `entry` failed: the error of its
+/// summary `line`, led by the sequence's folder unless it names that already.
+fn report_failure(entry: &ManifestEntry, line: &SummaryLine) {
+    let error = line.error.as_deref().unwrap_or_default();
+    let dir = entry.dir.display().to_string();
+    let names_dir = error.strip_prefix(&dir).is_some_and(|rest| rest.starts_with([':', std::path::MAIN_SEPARATOR]));
+    if names_dir {
+        eprintln!("pipetrack: {error}");
+    } else {
+        eprintln!("pipetrack: {dir}: {error}");
+    }
 }
 
 /// What made an output (module doc): `<name>.run.json` beside it.

@@ -382,9 +382,18 @@ impl Sources {
     }
 
     fn tracking_sequence(src: &Path, opts: &ImportOptions) -> Result<Self> {
-        // `.` or `..` has no name of its own: the folder's full path has.
-        let src = fs::canonicalize(src).map_err(|e| Error::input(src, format!("cannot resolve the folder: {e}")))?;
-        let base = src.parent().map_or_else(|| PathBuf::from("/"), Path::to_path_buf);
+        // Errors name the folder as given; a path ending in `.` or `..` has
+        // no name of its own, so its full path stands for it.
+        let src = if src.file_name().is_some() {
+            src.to_path_buf()
+        } else {
+            fs::canonicalize(src).map_err(|e| Error::input(src, format!("cannot resolve the folder: {e}")))?
+        };
+        let base = match src.parent() {
+            Some(parent) if parent.as_os_str().is_empty() => PathBuf::from("."),
+            Some(parent) => parent.to_path_buf(),
+            None => PathBuf::from("/"),
+        };
         let name = src.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let found = frame_files(&src, SEQUENCE_IMAGE_PREFIX)?;
         if found.is_empty() {

@@ -23,7 +23,7 @@ use crate::image::GrayImage;
 use crate::{Error, Result};
 
 /// How stdin is named in error messages.
-pub const STDIN_NAME: &str = "-";
+pub const STDIN_NAME: &str = "standard input";
 
 const MAGIC: &[u8] = b"YUV4MPEG2";
 const FRAME_TAG: &[u8] = b"FRAME";
@@ -391,7 +391,7 @@ mod tests {
     fn message(err: Error) -> String {
         match err {
             Error::Input { path, message } => {
-                assert_eq!(path, Path::new("-"));
+                assert_eq!(path, Path::new(STDIN_NAME));
                 message
             }
             other => panic!("expected an input error, got {other:?}"),

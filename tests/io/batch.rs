@@ -110,8 +110,9 @@ fn complete_outputs_are_skipped_and_a_stopped_run_is_finished() {
 fn a_bad_sequence_is_reported_and_the_others_finish() {
     let root = crate::common::scratch("batch", "bad");
     let manifest = sequences(&root, 4);
-    std::fs::write(root.join("s1/camera.json"), "{\"width\": 64,").unwrap();
-    std::fs::write(root.join("s2/frames/000002.png"), "not a png").unwrap();
+    // s1 fails while tracked, s2 before: the first failure named is s1's.
+    std::fs::write(root.join("s1/frames/000002.png"), "not a png").unwrap();
+    std::fs::write(root.join("s2/camera.json"), "{\"width\": 64,").unwrap();
     let with_missing = std::fs::read_to_string(&manifest).unwrap() + "nowhere\n";
     std::fs::write(&manifest, with_missing).unwrap();
     let out = root.join("out");
@@ -120,16 +121,19 @@ fn a_bad_sequence_is_reported_and_the_others_finish() {
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
     let last = stderr.lines().last().unwrap();
-    assert!(last.starts_with("pipetrack: 3 of 5 sequences failed") && last.contains("camera.json"), "{last}");
+    assert!(last.starts_with("pipetrack: 3 of 5 sequences failed") && last.contains("000002.png"), "{last}");
     let lines = summary(&out);
     assert_eq!(lines.len(), 5);
-    for (name, needle) in [("s1", "camera.json"), ("s2", "000002.png"), ("nowhere", "no such folder")] {
+    for (name, needle) in [("s1", "000002.png"), ("s2", "camera.json"), ("nowhere", "no such folder")] {
         assert_eq!(status_of(&lines, name), "failed");
         let l = lines.iter().find(|l| l["name"] == name).unwrap();
         assert!(l["error"].as_str().unwrap().contains(needle), "{l}");
         assert!(!out.join(format!("{name}.jsonl")).exists(), "no output for {name}");
         assert!(!out.join(format!("{name}.jsonl.partial")).exists(), "no partial output for {name}");
-        assert!(stderr.contains(&format!("pipetrack: {name}: ")), "{stderr}");
+        // One line names the failure, its folder once.
+        let dir = root.join(name).display().to_string();
+        let said = |l: &&str| l.starts_with(&format!("pipetrack: {dir}")) && l.matches(&dir).count() == 1;
+        assert_eq!(stderr.lines().filter(said).count(), 1, "{stderr}");
         assert!(stdout.contains(&format!("| {name} | motion-edge | failed |")), "{stdout}");
     }
     for name in ["s0", "s3"] {
@@ -137,13 +141,13 @@ fn a_bad_sequence_is_reported_and_the_others_finish() {
         assert!(out.join(format!("{name}.jsonl")).is_file());
     }
 
-    // Mended, s1 is tracked on the next run; s2 still fails.
-    std::fs::copy(root.join("s0/camera.json"), root.join("s1/camera.json")).unwrap();
+    // Mended, s2 is tracked on the next run; s1 still fails.
+    std::fs::copy(root.join("s0/camera.json"), root.join("s2/camera.json")).unwrap();
     let run = batch_cpu(&manifest, &out, &[]);
     assert_eq!(run.status.code(), Some(2));
     let lines = summary(&out);
-    assert_eq!(status_of(&lines, "s1"), "tracked");
-    assert_eq!(status_of(&lines, "s2"), "failed");
+    assert_eq!(status_of(&lines, "s2"), "tracked");
+    assert_eq!(status_of(&lines, "s1"), "failed");
 }
 
 /// An output is skipped only while the manifest gives its sequence the

@@ -308,7 +308,7 @@ fn y4m_headers_are_checked_against_the_frame_limits() {
     use pipetrack::io::y4m::Y4mReader;
     let msg = |s: &[u8]| Y4mReader::new(s).err().expect("should fail").to_string();
     let m = msg(b"YUV4MPEG2 W65536 H65536 Cmono\n");
-    assert!(m.starts_with("-: ") && m.contains("too large") && m.contains("16384"), "{m}");
+    assert!(m.starts_with("standard input: ") && m.contains("too large") && m.contains("16384"), "{m}");
     let m = msg(b"YUV4MPEG2 W16384 H16384 Cmono\n");
     assert!(m.contains("too large") && m.contains("33554432 pixels"), "{m}");
     let m = msg(format!("YUV4MPEG2 W1{} H4\n", "0".repeat(300)).as_bytes());

@@ -124,6 +124,22 @@ fn y4m_frames_on_stdin() {
     assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 6);
 }
 
+/// A stream that is not Y4M: one error line naming standard input, exit 2.
+#[test]
+fn a_bad_stream_on_stdin_is_named_standard_input() {
+    use std::io::Write;
+    let root = scratch("y4m-bad");
+    let seq = good_sequence(&root);
+    let mut child = track_y4m_on_stdin(&seq, Stdio::piped());
+    child.stdin.take().unwrap().write_all(b"garbage\n").unwrap();
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.starts_with("pipetrack: standard input: not a YUV4MPEG2 stream"), "{stderr}");
+    assert!(out.stdout.is_empty());
+}
+
 /// With the stream still open after two frames, both frames' lines have
 /// already been written: a reader of a live stream sees each result as its
 /// frame is tracked.

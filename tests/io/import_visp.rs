@@ -413,6 +413,33 @@ fn a_tracking_sequence_without_its_first_pose_or_frames_is_refused_by_name() {
     expect_refused(&root, &src, &["neither a ViSP data set", "image0000.png"]);
 }
 
+/// An error names a folder as the command line gave it, not its full path.
+#[test]
+fn a_tracking_sequence_given_by_a_relative_path_is_named_so() {
+    let root = crate::common::scratch("import-visp", "tracking-sequence-relative");
+    let src = visp_tracking_sequence(&root);
+    std::fs::remove_file(root.join("src/tetra.0.pos")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .current_dir(root.path())
+        .args(["import-visp", "src/tetra", "seq"])
+        .output()
+        .expect("binary runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.starts_with("pipetrack: src/tetra.0.pos: missing"), "{stderr}");
+    for k in 0..3 {
+        std::fs::remove_file(src.join(format!("image{k:04}.png"))).unwrap();
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .current_dir(src.parent().unwrap())
+        .args(["import-visp", "tetra", "seq"])
+        .output()
+        .expect("binary runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.starts_with("pipetrack: tetra: neither a ViSP data set"), "{stderr}");
+    assert!(!root.join("seq").exists() && !root.join("src/seq").exists(), "nothing written");
+}
+
 /// As ViSP's `mbt-depth/castel`: frames `image_0000.png …` in a folder
 /// named unlike the model, the only `.cao` beside it taken, its settings
 /// and first pose named like the model; `--init` names another pose file.
