@@ -20,6 +20,12 @@ const SCIENTIFIC_BELOW: f64 = 1e-4;
 /// Digit runs longer than this are shortened by [`shorten_digit_runs`].
 const MAX_DIGIT_RUN: usize = 12;
 
+/// `n` and the noun for it: `1 joint`, `2 joints`.
+#[must_use]
+pub fn counted(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
 /// `v` for a one-line message: as Rust prints it when it is moderate
 /// (`12.5`, `0.001`, `NaN`, `inf`), in scientific notation with a few
 /// significant digits otherwise (`1.0e300`, `-2.5e-12`), never longer than

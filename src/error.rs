@@ -96,6 +96,19 @@ pub enum Error {
 }
 
 impl Error {
+    /// What is wrong, for a message that names the file it lies in: a
+    /// parameter error without its `invalid parameter:` lead, any other
+    /// error as it displays.
+    #[must_use]
+    pub fn message(&self) -> String {
+        match self {
+            Error::Parameter(message) => message.clone(),
+            other => other.to_string(),
+        }
+    }
+}
+
+impl Error {
     /// An input error for `path` with a one-line message.
     pub fn input(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         Error::Input { path: path.into(), message: message.into() }

@@ -9,13 +9,14 @@
 //! with 128 + the signal's number (130, 143).
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand};
 use pipetrack::backend::BackendKind;
+use pipetrack::bounds::counted;
 use pipetrack::io::Sequence;
 use pipetrack::synth;
 use pipetrack::track::run::{self, TrackOptions};
@@ -70,10 +71,10 @@ enum Command {
         seq_dir: PathBuf,
         #[command(flatten)]
         tracker_args: TrackerArgs,
-        /// Write the JSON Lines here instead of stdout (appears only when complete).
+        /// Write the JSON Lines here instead of stdout (appears only when complete; `-`: stdout).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Write one overlay PNG per frame into this folder.
+        /// Write one overlay PNG per frame into this folder (must be absent or empty).
         #[arg(long)]
         overlay: Option<PathBuf>,
         /// `-` reads the frames as a Y4M stream from stdin instead of SEQ_DIR/frames.
@@ -160,22 +161,23 @@ enum Command {
         /// The tracker's JSON Lines.
         pred: PathBuf,
         /// Corner error (px) above which a frame reported `tracking` counts as false tracking.
-        #[arg(long = "false-tracking-px", default_value_t = pipetrack::cli::score::DEFAULT_FALSE_TRACKING_PX)]
+        #[arg(long = "false-tracking-px", allow_negative_numbers = true, default_value_t = pipetrack::cli::score::DEFAULT_FALSE_TRACKING_PX)]
         false_tracking_px: f64,
         /// Also draw the per-frame corner error and status over time into this PNG.
         #[arg(long)]
         plot: Option<PathBuf>,
-        /// Size of the plot in pixels, WxH: width 480 to 8192, height 300 to 8192.
-        #[arg(long, default_value = "1000x500", value_parser = parse_plot_size)]
+        /// With --plot: the plot's size in pixels, WxH: width 480 to 8192, height 300 to 8192.
+        #[arg(long, default_value = "1000x500", value_parser = parse_plot_size, requires = "plot")]
         plot_size: (usize, usize),
     },
     /// Track every sequence of a manifest into OUT/<name>.jsonl, skipping complete outputs.
     Batch {
-        /// A file listing `SEQ_DIR [TRACKER [CONFIG]]` per line, or a folder of sequence folders.
+        /// A file listing `SEQ_DIR [TRACKER [CONFIG]]` per line (paths relative to the file's folder), or a
+        /// folder of sequence folders.
         manifest: PathBuf,
-        /// Output folder: <name>.jsonl per sequence and summary.jsonl.
-        #[arg(long)]
-        out: PathBuf,
+        /// Output folder: <name>.jsonl per sequence and summary.jsonl (not needed with --list).
+        #[arg(long, required_unless_present = "list")]
+        out: Option<PathBuf>,
         /// Tracker for sequences whose manifest line names none.
         #[arg(long)]
         tracker: Option<String>,
@@ -220,7 +222,8 @@ enum Command {
         /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
-        /// Only these stages (comma-separated); default all.
+        /// Only these stages (comma-separated) of gaussian, temporal_diff, frame_sum, sobel, compaction, log,
+        /// zero_crossing, cpf, edge_pyramid and chain; default all.
         #[arg(long, value_delimiter = ',')]
         stages: Vec<String>,
         /// Seconds of timing per stage, size and backend.
@@ -231,7 +234,7 @@ enum Command {
         cpu_only: bool,
         /// Instead of the stages: the window energy with these numbers of
         /// sample windows (comma-separated), e.g. 200,1000,5000.
-        #[arg(long, value_delimiter = ',')]
+        #[arg(long, value_delimiter = ',', conflicts_with_all = ["stages", "sizes"])]
         windows: Vec<usize>,
         /// Instead of the stages: the whole chain with these numbers of
         /// sequences in flight (comma-separated, 1 to 64), as `batch` runs
@@ -250,11 +253,6 @@ enum Command {
 
 #[derive(Clone, Debug)]
 struct Sizes(Vec<(usize, usize)>);
-
-/// `n` and the noun for it: `1 frame`, `2 frames`.
-fn counted(n: usize, one: &str, many: &str) -> String {
-    format!("{n} {}", if n == 1 { one } else { many })
-}
 
 fn parse_plot_size(s: &str) -> Result<(usize, usize), String> {
     let (w, h) = parse_wxh(s)?;
@@ -288,7 +286,10 @@ const EXIT_BAD_INPUT: u8 = 2;
 
 fn main() -> ExitCode {
     quiet_headless_vulkan();
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(&e),
+    };
     remove_unfinished_outputs_on_signals();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
@@ -309,6 +310,33 @@ fn main() -> ExitCode {
             ExitCode::from(if bad_input { EXIT_BAD_INPUT } else { 1 })
         }
     }
+}
+
+/// Help and version on stdout as clap prints them; a mistake on the command
+/// line as one line on stderr, as every other bad input, with exit status 2.
+fn usage_error(e: &clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(
+        e.kind(),
+        ErrorKind::DisplayHelp | ErrorKind::DisplayVersion | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        e.exit();
+    }
+    // The message and its tips, without the usage clap adds after them.
+    let text = e.render().to_string();
+    let mut message = String::new();
+    for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        match (line.strip_prefix("error: "), line.strip_prefix("tip: ")) {
+            (Some(first), _) => message.push_str(first),
+            (_, Some(tip)) => message.extend(["; ", tip]),
+            _ => message.extend([" ", line]),
+        }
+    }
+    note(format_args!("pipetrack: {message} (see --help)"));
+    ExitCode::from(EXIT_BAD_INPUT)
 }
 
 /// Mesa's device-selection Vulkan layer (installed with its drivers) asks
@@ -418,7 +446,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             let seq = Sequence::open(&seq_dir, from_stdin)?;
             let opts = tracker_args.options(overlay);
-            let summary = match &out {
+            let summary = match out.as_deref().filter(|path| *path != Path::new("-")) {
                 Some(path) => run::track_to_file(&seq, &opts, path)?,
                 None => run::track_to_stdout(&seq, &opts)?,
             };
@@ -472,19 +500,27 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 _ => "no truth, init.json from the first frame's pose".to_string(),
             };
             let over = if r.truth { "" } else { " of the first frame" };
+            let alignment = if a.found == 0 {
+                // Nothing measured is no alignment, good or bad.
+                format!(
+                    "no image edge found near the visible edges{over} ({} points sampled): \
+                     check the intrinsics and the poses (--overlay draws them)",
+                    a.samples
+                )
+            } else {
+                format!(
+                    "visible edges{over} to image edges: {:.3} px mean, {:.3} px median over {} of {} points",
+                    a.mean_px, a.median_px, a.found, a.samples
+                )
+            };
             note(format_args!(
-                "pipetrack: wrote {} of {}x{} and a model of {} ({}) to {}; {motion}; \
-                 visible edges{over} to image edges: {:.3} px mean, {:.3} px median over {} of {} points",
+                "pipetrack: wrote {} of {}x{} and a model of {} ({}) to {}; {motion}; {alignment}",
                 counted(r.frames, "frame", "frames"),
                 r.camera.width,
                 r.camera.height,
                 counted(r.vertices, "vertex", "vertices"),
                 counted(r.model_files.len(), "file", "files"),
                 out_dir.display(),
-                a.mean_px,
-                a.median_px,
-                a.found,
-                a.samples
             ));
             Ok(())
         }
@@ -517,7 +553,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Batch { manifest, out, tracker, backend, jobs, shard, list } => {
             use pipetrack::cli::batch::{self, BatchOptions, Shard};
             let opts = BatchOptions {
-                out_dir: out,
+                out_dir: out.unwrap_or_default(),
                 tracker,
                 backend: backend.into(),
                 jobs: usize::from(jobs),
@@ -661,12 +697,15 @@ fn bench(
         stages
             .iter()
             .map(|s| {
-                all.iter().copied().find(|a| a == s).ok_or_else(|| {
+                all.iter().copied().find(|a| *a == s.trim()).ok_or_else(|| {
                     pipetrack::Error::Parameter(format!("unknown stage {s:?}; known: {}", all.join(", ")))
                 })
             })
             .collect::<Result<_, _>>()?
     };
+    if let Some(twice) = chosen.iter().enumerate().find_map(|(i, s)| chosen[..i].contains(s).then_some(s)) {
+        return Err(pipetrack::Error::Parameter(format!("--stages names {twice} twice")).into());
+    }
     if !(seconds > 0.0 && seconds < 60.0) {
         return Err(pipetrack::Error::Parameter(format!("--seconds {seconds} must be in (0, 60)")).into());
     }

@@ -201,6 +201,15 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
     if opts.frames == Some(0) {
         return Err(Error::Parameter("--frames must be at least 1".into()));
     }
+    if let Some(overlay) = opts.overlay.as_deref().filter(|overlay| nested(overlay, out_dir)) {
+        return Err(Error::input(
+            overlay,
+            format!(
+                "is the output folder {}, or one holds the other: give --overlay a folder of its own",
+                out_dir.display()
+            ),
+        ));
+    }
     let Sources { images, poses, truth: has_truth, model: model_path, camera: camera_path, base } =
         Sources::of(src, opts)?;
     let first = decode_gray(&images[0].1)?;
@@ -432,6 +441,19 @@ impl Sources {
 /// error "missing: `what`" naming it.
 fn given_file(base: &Path, given: &Path, what: &str) -> Result<PathBuf> {
     existing(base.join(given), what)
+}
+
+/// Whether folders `a` and `b` are one, or one lies inside the other (as
+/// written, from the current folder; links are not followed).
+fn nested(a: &Path, b: &Path) -> bool {
+    match (std::path::absolute(a), std::path::absolute(b)) {
+        (Ok(a), Ok(b)) => {
+            let normal = |p: &Path| -> PathBuf { p.components().collect() };
+            let (a, b) = (normal(&a), normal(&b));
+            a.starts_with(&b) || b.starts_with(&a)
+        }
+        _ => false,
+    }
 }
 
 /// `path` when it is a file; else the input error "missing: `what`" naming it.

@@ -75,19 +75,20 @@ pub fn plot_score(score: &Score, predictions: &[FrameResult], path: &Path, size:
     AtomicFile::write_all_to(path, &png)
 }
 
-/// Check `--plot` before anything is read or written: it must not be a
-/// folder nor one of `inputs` (the sequence's files and the predictions),
-/// which the plot would overwrite. Errors name `path`.
+/// Check `--plot` before anything is read or written: it must be named
+/// `.png`, and not be a folder nor one of `inputs` (the sequence's files and
+/// the predictions), which the plot would overwrite. Errors name `path`.
 pub fn check_plot_path(path: &Path, inputs: &[PathBuf]) -> Result<()> {
     if path.is_dir() {
         return Err(Error::input(path, "is a folder: --plot takes a file name"));
     }
-    match crate::io::Sequence::same_file_among(path, inputs) {
-        Some(input) => {
-            Err(Error::input(path, format!("is the input file {}: write the plot elsewhere", input.display())))
-        }
-        None => Ok(()),
+    if let Some(input) = crate::io::Sequence::same_file_among(path, inputs) {
+        return Err(Error::input(path, format!("is the input file {}: write the plot elsewhere", input.display())));
     }
+    if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+        return Err(Error::input(path, "the plot is a PNG image: name it .png"));
+    }
+    Ok(())
 }
 
 type DrawResult = std::result::Result<(), Box<dyn std::error::Error>>;

@@ -185,9 +185,9 @@ impl ModelGeometry {
         }
         if params.len() != self.joints.len() {
             return Err(Error::Parameter(format!(
-                "{} joint values for a model with {} joints",
-                params.len(),
-                self.joints.len()
+                "{} for a model with {}",
+                crate::bounds::counted(params.len(), "joint value", "joint values"),
+                crate::bounds::counted(self.joints.len(), "joint", "joints")
             )));
         }
         for (joint, &q) in self.joints.iter().zip(params).rev() {
@@ -209,7 +209,11 @@ impl ModelGeometry {
     pub fn posed_vertices_with_joint_derivatives(&self, params: &[f64]) -> Result<(Vec<DVec3>, Vec<DVec3>)> {
         let joints = self.joints.len();
         if params.len() != joints {
-            return Err(Error::Parameter(format!("{} joint values for a model with {joints} joints", params.len())));
+            return Err(Error::Parameter(format!(
+                "{} for a model with {}",
+                crate::bounds::counted(params.len(), "joint value", "joint values"),
+                crate::bounds::counted(joints, "joint", "joints")
+            )));
         }
         let mut vertices = self.vertices.clone();
         let mut derivatives = vec![DVec3::ZERO; vertices.len() * joints];

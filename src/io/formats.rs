@@ -789,9 +789,9 @@ fn validate_state(
     }
     if !params.is_empty() && params.len() != model.joints.len() {
         return fail(format!(
-            "{} params but the model has {} joints (give one value per joint, or none)",
+            "{} params but the model has {} (give one value per joint, or none)",
             params.len(),
-            model.joints.len()
+            crate::bounds::counted(model.joints.len(), "joint", "joints")
         ));
     }
     if corners.iter().any(|c| !all_finite(c)) {

@@ -228,7 +228,7 @@ fn check_folder(dir: &Path) -> Result<()> {
     if entries.next().is_none() {
         return Err(Error::input(
             dir,
-            "empty folder: a sequence needs camera.json, model.json (or model.cao), init.json and frames/",
+            "empty folder: a sequence needs camera.json, model.json (or model.cao or model.obj), init.json and frames/",
         ));
     }
     Ok(())
@@ -274,8 +274,20 @@ fn read_model(dir: &Path) -> Result<(Model, PathBuf, Vec<String>)> {
     let json_path = dir.join(MODEL_JSON_FILE);
     let cao_path = dir.join(MODEL_CAO_FILE);
     let obj_path = dir.join(MODEL_OBJ_FILE);
+    // A model file beside the one read is named, lest an edit to it be
+    // thought to count.
+    let unread = |read: &Path, others: &[&PathBuf]| -> Vec<String> {
+        let name = read.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        others
+            .iter()
+            .filter(|p| p.exists())
+            .map(|p| {
+                format!("{}: not read: the model is {name} (model.json before model.cao before model.obj)", p.display())
+            })
+            .collect()
+    };
     if !json_path.exists() && cao_path.exists() {
-        return Ok((cao::read_cao(&cao_path)?, cao_path, Vec::new()));
+        return Ok((cao::read_cao(&cao_path)?, cao_path.clone(), unread(&cao_path, &[&obj_path])));
     }
     if !json_path.exists() && obj_path.exists() {
         return Ok((obj::read_obj(&obj_path)?, obj_path, Vec::new()));
@@ -291,7 +303,8 @@ fn read_model(dir: &Path) -> Result<(Model, PathBuf, Vec<String>)> {
         model_json_line(&text, part).map(|line| (json_path.clone(), line))
     });
     noting_ignored(checked, &json_path, &keys)?;
-    let ignored = ignored_line(&json_path, &keys).into_iter().collect();
+    let mut ignored: Vec<String> = ignored_line(&json_path, &keys).into_iter().collect();
+    ignored.extend(unread(&json_path, &[&cao_path, &obj_path]));
     Ok((model, json_path, ignored))
 }
 

@@ -150,7 +150,7 @@ fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> Error {
 /// A parameter error blamed on the config file when there is one.
 fn config_error(config: Option<&Path>, e: Error) -> Error {
     match config {
-        Some(path) => Error::input(path, e.to_string()),
+        Some(path) => Error::input(path, e.message()),
         None => e,
     }
 }
@@ -170,15 +170,15 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             }
             check_simple_polygon(&seq.init.corners, &seq.model.edges).map_err(|msg| seq.init_error(msg))?;
             let tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), params)
-                .map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
+                .map_err(|e| Error::input(seq.model_path(), e.message()))?;
             Ok(Box::new(tracker))
         }
         "blue" => {
             let params: BlueParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
-            BlueTracker::check_model(&seq.model).map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
+            BlueTracker::check_model(&seq.model).map_err(|e| Error::input(seq.model_path(), e.message()))?;
             let tracker = BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), params)
-                .map_err(|e| seq.init_error(e.to_string()))?;
+                .map_err(|e| seq.init_error(e.message()))?;
             Ok(Box::new(tracker))
         }
         "condensation" => {
@@ -194,16 +194,16 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
                 ));
             }
             let tracker = CondensationTracker::new(seq.camera, &seq.model, &seq.init, params)
-                .map_err(|e| seq.init_error(e.to_string()))?;
+                .map_err(|e| seq.init_error(e.message()))?;
             Ok(Box::new(tracker))
         }
         "lowe" => {
             let params: LoweParams = read_config(config, name)?;
             params.validate().map_err(|e| config_error(config, e))?;
             // What the model alone decides is the model file's error.
-            LoweTracker::check_model(&seq.model).map_err(|e| Error::input(seq.model_path(), e.to_string()))?;
-            let tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, params)
-                .map_err(|e| seq.init_error(e.to_string()))?;
+            LoweTracker::check_model(&seq.model).map_err(|e| Error::input(seq.model_path(), e.message()))?;
+            let tracker =
+                LoweTracker::new(seq.camera, &seq.model, &seq.init, params).map_err(|e| seq.init_error(e.message()))?;
             Ok(Box::new(tracker))
         }
         other => Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", ")))),
@@ -717,10 +717,18 @@ pub fn check_output(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Res
         return Err(Error::input(out_path, "is also the overlay folder: give --out and --overlay different names"));
     }
     if let Some(input) = Sequence::same_file_among(out_path, &seq.input_files()) {
-        return Err(Error::input(
-            out_path,
-            format!("is the sequence's input file {}: write the output elsewhere", input.display()),
-        ));
+        let message = if input == out_path {
+            "is one of the sequence's input files: write the output elsewhere".to_string()
+        } else {
+            format!("is the sequence's input file {}: write the output elsewhere", input.display())
+        };
+        return Err(Error::input(out_path, message));
+    }
+    // A file among the frames would be read as one the next time.
+    let frames = std::fs::canonicalize(seq.dir().join(crate::io::sequence::FRAMES_DIR));
+    let parent = out_path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
+    if frames.is_ok_and(|frames| parent.and_then(|p| std::fs::canonicalize(p).ok()) == Some(frames)) {
+        return Err(Error::input(out_path, "lies in the sequence's frames folder: write the output elsewhere"));
     }
     if let Some(config) = &opts.config {
         if Sequence::same_file_among(out_path, std::slice::from_ref(config)).is_some() {

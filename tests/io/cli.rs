@@ -468,6 +468,15 @@ fn out_over_an_input_file_or_a_folder_is_refused_before_tracking() {
         assert!(lines[0].contains("input file") && lines[0].contains(input), "{}", lines[0]);
         assert_eq!(std::fs::read(&target).unwrap(), before, "{input} untouched");
     }
+    // A new file among the frames would be read as a frame next time.
+    for name in ["000006.png", "out.jsonl"] {
+        let target = seq.join("frames").join(name);
+        let out = track_motion_edge_cpu(&seq, &["--out", target.to_str().unwrap()]);
+        let lines = error_lines(&out);
+        assert_eq!(out.status.code(), Some(2), "{lines:?}");
+        assert!(lines[0].contains("frames folder"), "{}", lines[0]);
+        assert!(!target.exists());
+    }
     let dir = root.join("a-folder");
     std::fs::create_dir(&dir).unwrap();
     let out = track_motion_edge_cpu(&seq, &["--out", dir.to_str().unwrap()]);
@@ -731,6 +740,13 @@ fn keys_no_reader_reads_are_noted_after_the_run() {
     assert!(lines[0].contains("frames/s"), "the run's summary first: {stderr}");
     assert!(lines[1].contains("camera.json: ignored, not read by pipetrack: \"k1\""), "{stderr}");
     assert!(lines[2].contains("init.json: ignored, not read by pipetrack: \"corner\""), "{stderr}");
+
+    // A model file beside model.json is named as not read.
+    std::fs::write(seq.join("model.cao"), "not a model").unwrap();
+    let out = track_motion_edge_cpu(&seq, &["--out", root.join("c.jsonl").to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("model.cao: not read: the model is model.json"), "{stderr}");
 }
 
 /// An error in a file that has keys pipetrack does not read names them: the
@@ -818,4 +834,46 @@ fn one_frame_is_counted_in_the_singular() {
     let out = track_motion_edge_cpu(&seq, &["--out", root.join("p.jsonl").to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success() && stderr.contains("pipetrack: 1 frame, "), "{stderr}");
+}
+
+/// A mistake on the command line is one line on stderr with exit status 2,
+/// as every other bad input; help still prints in full, with exit status 0.
+#[test]
+fn command_line_mistakes_are_one_line() {
+    let root = scratch("usage");
+    let seq = good_sequence(&root);
+    let seq = seq.to_str().unwrap();
+    let cases: [(&[&str], &str); 5] = [
+        (&["batch", "manifest.txt", "--out", "o", "--jobs", "0"], "--jobs"),
+        (&["track", seq], "--tracker"),
+        (&["track", seq, "--tracker", "lowe", "--bogus"], "--bogus"),
+        (&["nope"], "nope"),
+        (&["score", seq, "p.jsonl", "--plot-size", "640x360"], "--plot"),
+    ];
+    for (args, needle) in cases {
+        let out = pipetrack(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: one line: {stderr}");
+        assert!(stderr.starts_with("pipetrack: ") && stderr.contains(needle), "{args:?}: {stderr}");
+        assert!(out.stdout.is_empty(), "{args:?}");
+    }
+    let help = pipetrack(&["track", "--help"]);
+    assert_eq!(help.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&help.stdout).contains("Usage:"));
+}
+
+/// `--out -` is stdout, as `--frames -` is stdin: no file named `-`.
+#[test]
+fn out_dash_writes_to_stdout() {
+    let root = scratch("out-dash");
+    let seq = good_sequence(&root);
+    let out = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .current_dir(root.path())
+        .args(["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--out", "-"])
+        .output()
+        .expect("binary runs");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 6);
+    assert!(!root.join("-").exists());
 }

@@ -413,6 +413,36 @@ fn a_tracking_sequence_without_its_first_pose_or_frames_is_refused_by_name() {
     expect_refused(&root, &src, &["neither a ViSP data set", "image0000.png"]);
 }
 
+/// An overlay folder that is the output folder, or lies in it, is refused
+/// before anything is written.
+#[test]
+fn an_overlay_in_the_output_folder_is_refused() {
+    let root = crate::common::scratch("import-visp", "overlay-in-out");
+    let src = visp_data_set(&root);
+    let seq = root.join("seq");
+    for overlay in [seq.clone(), seq.join("overlay")] {
+        let overlay = overlay.to_str().unwrap();
+        expect_refused_with(&root, &src, &["--overlay", overlay], &["give --overlay a folder of its own"]);
+    }
+}
+
+/// Intrinsics that put the model beside the frames: the import says that no
+/// image edge was found, not a mean distance over no points.
+#[test]
+fn an_import_that_finds_no_image_edge_says_so() {
+    let root = crate::common::scratch("import-visp", "no-edges");
+    let src = visp_data_set(&root);
+    let far = settings().replace(&format!("<u0>{CX}</u0>"), &format!("<u0>{}</u0>", 5.0 * f64::from(WIDTH)));
+    assert_ne!(far, settings());
+    std::fs::write(src.join("Config/tetra.xml"), far).unwrap();
+    let seq = root.join("seq");
+    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("no image edge found near the visible edges"), "{stderr}");
+    assert!(!stderr.contains("px mean"), "{stderr}");
+}
+
 /// An error names a folder as the command line gave it, not its full path.
 #[test]
 fn a_tracking_sequence_given_by_a_relative_path_is_named_so() {

@@ -341,6 +341,17 @@ fn lowe_refuses_a_start_pose_behind_the_camera() {
         edit_json(&seq.join("init.json"), |init| init["pose"]["translation"] = serde_json::json!([0.0, 0.0, z]));
         expect_lowe_refused(&seq, "init.json", "in front of the camera", &format!("z = {z}"));
     }
+    // In front, but the whole model beside the image: a wrong pose, or a
+    // principal point far off (cx within its range, five widths out).
+    edit_json(&seq.join("init.json"), |init| init["pose"]["translation"] = serde_json::json!([3.0, 0.0, 1.0]));
+    expect_lowe_refused(&seq, "init.json", "every model vertex outside the 640x480 image", "x = 3 m");
+    std::fs::remove_dir_all(&seq).unwrap();
+    synth("box", &seq, "2");
+    edit_json(&seq.join("camera.json"), |camera| camera["cx"] = serde_json::json!(3190.5));
+    expect_lowe_refused(&seq, "init.json", "every model vertex outside", "cx = 3190.5");
+    // A message about init.json does not lead with "invalid parameter".
+    let out = track_cpu(&seq, "lowe", &seq.with_extension("jsonl"));
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("invalid parameter"));
 }
 
 /// What the model alone decides (pixel units, too many joints) names the

@@ -74,4 +74,16 @@ fn score_plot_refuses_to_overwrite_its_inputs() {
     let out = pipetrack(&["score", &seq, &pred, "--plot", &seq]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("is a folder"));
+    // A plot named as another image format is refused, not written as PNG.
+    let jpg = root.join("score.jpg");
+    let out = pipetrack(&["score", &seq, &pred, "--plot", jpg.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("name it .png"));
+    assert!(!jpg.exists());
+    // --plot-size without --plot would be ignored.
+    let out = pipetrack(&["score", &seq, &pred, "--plot-size", "640x360"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
+    assert!(stderr.contains("--plot"), "{stderr}");
 }

@@ -408,9 +408,9 @@ impl LoweTracker {
         let joint_values = if init.params.is_empty() { vec![0.0; geometry.joint_count()] } else { init.params.clone() };
         if joint_values.len() != geometry.joint_count() {
             return Err(Error::Parameter(format!(
-                "\"params\" has {} values; the model has {} joints",
-                joint_values.len(),
-                geometry.joint_count()
+                "\"params\" has {}; the model has {}",
+                crate::bounds::counted(joint_values.len(), "value", "values"),
+                crate::bounds::counted(geometry.joint_count(), "joint", "joints")
             )));
         }
         for (k, (&value, [min, max])) in joint_values.iter().zip(geometry.joint_limits()).enumerate() {
@@ -438,6 +438,18 @@ impl LoweTracker {
             return Err(Error::Parameter(format!(
                 "the pose puts model vertex {k} at depth {}: the whole model must lie in front of the camera",
                 crate::bounds::short_number(p.z)
+            )));
+        }
+        // With no vertex in the image there is nothing to start from: the
+        // pose, or the camera's intrinsics, are wrong.
+        let (w, h) = (f64::from(camera.width), f64::from(camera.height));
+        let in_image = |p: &DVec3| {
+            camera.project_in_front(*p).is_some_and(|[x, y]| (0.0..w).contains(&x) && (0.0..h).contains(&y))
+        };
+        if !points.iter().any(in_image) {
+            return Err(Error::Parameter(format!(
+                "the pose puts every model vertex outside the {}x{} image (with the intrinsics of camera.json)",
+                camera.width, camera.height
             )));
         }
         let segment_params = params.segments.clone();
