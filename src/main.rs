@@ -194,6 +194,11 @@ enum Command {
         #[arg(long)]
         list: bool,
     },
+    /// Print a tracker's default parameters as a `--config` file (TOML, every key with its default).
+    Config {
+        /// Tracker: motion-edge, lowe, blue or condensation.
+        tracker: String,
+    },
     /// Synthesise a short sequence, track it, write overlays to a temp folder, print the score.
     Demo,
     /// Regenerate a paper's result tables on synthetic sequences (markdown on stdout).
@@ -588,6 +593,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     opts.out_dir.join(batch::SUMMARY_FILE).display()
                 ))),
             }
+        }
+        Command::Config { tracker } => {
+            let text = run::default_config(&tracker)?;
+            say(format_args!("{}", text.trim_end()))
         }
         Command::Demo => {
             pipetrack::cli::demo::run_demo(&pipetrack::cli::demo::default_root(), &mut std::io::stdout().lock())?;

@@ -81,8 +81,7 @@ impl AtomicFile {
         name.push(".partial");
         let partial = path.with_file_name(name);
         let mut list = unfinished();
-        let file = File::create(&partial)
-            .map_err(|e| Error::input(&path, format!("cannot create (as {}): {e}", partial.display())))?;
+        let file = File::create(&partial).map_err(|e| Error::input(&path, format!("cannot create: {e}")))?;
         list.push(partial.clone());
         Ok(Self { path, partial, writer: Some(BufWriter::new(file)) })
     }
@@ -195,13 +194,7 @@ impl StagedDir {
         }
         let mut list = unfinished();
         fs::create_dir_all(&staging).map_err(|e| {
-            Error::input(
-                dir,
-                format!(
-                    "cannot create its staging folder in {} ({e}): the folder is written beside its final place, then renamed",
-                    parent.display()
-                ),
-            )
+            Error::input(dir, format!("cannot create: {e} (it is written in {}, then renamed)", parent.display()))
         })?;
         list.push(staging.clone());
         Ok(Self { dir: dir.to_path_buf(), staging, finished: false })

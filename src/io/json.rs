@@ -309,7 +309,24 @@ fn describe_json_error(text: &str, e: &serde_json::Error, line: Option<usize>) -
         .and_then(|rest| rest.split('`').next())
         .and_then(|field| key_like(text, field))
         .map_or_else(String::new, |key| format!(" (the file's {key:?} is not read: misspelt?)"));
-    format!("{kind} at {}: {message}{misspelt}", position(e.line(), e.column()))
+    format!("{kind} at {}: {}{misspelt}", position(e.line(), e.column()), plain_type_names(message))
+}
+
+/// serde's type names in `message` in words: `expected f32` → `expected a number`.
+pub(crate) fn plain_type_names(message: &str) -> String {
+    [
+        ("expected f32", "expected a number"),
+        ("expected f64", "expected a number"),
+        ("expected usize", "expected a whole number"),
+        ("expected u64", "expected a whole number"),
+        ("expected u32", "expected a whole number"),
+        ("expected u16", "expected a whole number"),
+        ("expected u8", "expected a whole number"),
+        ("expected i64", "expected an integer"),
+        ("expected i32", "expected an integer"),
+    ]
+    .iter()
+    .fold(message.to_string(), |m, (rust, plain)| m.replace(rust, plain))
 }
 
 /// A key of an object in JSON `text`, other than `field`, spelt within two
@@ -456,5 +473,22 @@ mod tests {
         let text = "{\"vertices\": []} x";
         let e = serde_json::from_str::<Model>(text).unwrap_err();
         assert!(describe_json_error(text, &e, None).contains("trailing characters"));
+    }
+
+    #[test]
+    fn a_value_of_the_wrong_type_is_described_in_words() {
+        #[derive(Debug, serde::Deserialize)]
+        #[allow(dead_code)]
+        struct Camera {
+            width: u32,
+            fx: f64,
+        }
+        for (text, expected) in
+            [(r#"{"width": "x", "fx": 1}"#, "a whole number"), (r#"{"width": 1, "fx": "y"}"#, "a number")]
+        {
+            let e = serde_json::from_str::<Camera>(text).unwrap_err();
+            let msg = describe_json_error(text, &e, None);
+            assert!(msg.ends_with(&format!("expected {expected}")), "{msg}");
+        }
     }
 }

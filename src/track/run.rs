@@ -71,10 +71,11 @@ pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>
     };
     let tables = table_keys(section.as_ref());
     P::deserialize(Deserializer::from(section)).map_err(|e| {
-        let params = std::any::type_name::<P>().rsplit("::").next().unwrap_or(tracker);
         let at = e.span().and_then(|span| text_position(&text, span.start)).map(|(line, _)| line);
-        unknown_key_error(path, tracker, params, e.message(), at, &tables)
-            .unwrap_or_else(|| input_error(path, one_line(&e.to_string())))
+        unknown_key_error(path, tracker, e.message(), at, &tables).unwrap_or_else(|| {
+            let message = crate::io::json::plain_type_names(&one_line(&e.to_string()));
+            input_error(path, at.map_or(message.clone(), |line| format!("line {line}: {message}")))
+        })
     })
 }
 
@@ -93,16 +94,8 @@ fn table_keys(table: &toml::de::DeTable<'_>) -> Vec<String> {
 /// serde's `unknown field `K`, expected one of `A`, `B`, …` as one line
 /// naming its line (`at`) and the known key closest to K (a table named
 /// like a tracker, `[motion_edge]`, as that tracker's: `tables` are the
-/// keys that open tables), or else the type `params` that documents the
-/// keys.
-fn unknown_key_error(
-    path: &Path,
-    tracker: &str,
-    params: &str,
-    message: &str,
-    at: Option<usize>,
-    tables: &[String],
-) -> Option<Error> {
+/// keys that open tables), or else the command that lists the keys.
+fn unknown_key_error(path: &Path, tracker: &str, message: &str, at: Option<usize>, tables: &[String]) -> Option<Error> {
     let rest = message.strip_prefix("unknown field `")?;
     let (key, expected) = rest.rsplit_once("`, expected").unwrap_or((rest.strip_suffix('`')?, ""));
     let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
@@ -117,13 +110,12 @@ fn unknown_key_error(
     };
     let message = match closest(TRACKERS).filter(|_| tables.iter().any(|t| t == key)) {
         Some(name) => format!("{at}[{key}] is no tracker's table: did you mean [{name}]?"),
-        None => {
-            let hint = closest(&known).map_or_else(
-                || format!(" (its parameters are documented on {params}: `cargo doc --open`)"),
-                |name| format!(": did you mean {name}?"),
-            );
-            format!("{at}unknown key {key:?} for {tracker}{hint}")
-        }
+        None => match closest(&known) {
+            Some(name) => format!("{at}unknown key {key:?} for {tracker}: did you mean {name}?"),
+            // The whole list of keys, not shortened as quoted user text is:
+            // cut short, it would hide the one wanted.
+            None => format!("{at}unknown key {key:?} for {tracker} (`pipetrack config {tracker}` lists every key)"),
+        },
     };
     Some(input_error(path, message))
 }
@@ -208,6 +200,45 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
         }
         other => Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", ")))),
     }
+}
+
+/// The default parameters of tracker `name` as a `--config` file: its
+/// table (`[lowe]`, with `[lowe.segments]`) holding every key with its
+/// default value. Read back, it gives the defaults.
+pub fn default_config(name: &str) -> Result<String> {
+    /// An f32 parameter (`log_sigma = 1.2`) is written as its f32 reads,
+    /// not as the f64 it widens to (`1.2000000476837158`).
+    fn shortest_floats(value: &mut toml::Value) {
+        match value {
+            toml::Value::Float(v) => {
+                let narrow = *v as f32;
+                if f64::from(narrow) == *v {
+                    *v = format!("{narrow}").parse().unwrap_or(*v);
+                }
+            }
+            toml::Value::Table(t) => t.iter_mut().for_each(|(_, v)| shortest_floats(v)),
+            toml::Value::Array(a) => a.iter_mut().for_each(shortest_floats),
+            _ => {}
+        }
+    }
+    fn table<P: serde::Serialize + Default>(name: &str) -> Result<String> {
+        let mut document = toml::Table::new();
+        let mut params = toml::Value::try_from(P::default())
+            .map_err(|e| Error::Parameter(format!("{name}'s defaults as TOML: {e}")))?;
+        shortest_floats(&mut params);
+        document.insert(name.to_string(), params);
+        toml::to_string(&document).map_err(|e| Error::Parameter(format!("{name}'s defaults as TOML: {e}")))
+    }
+    let body = match name {
+        "motion-edge" => table::<MotionEdgeParams>(name)?,
+        "blue" => table::<BlueParams>(name)?,
+        "condensation" => table::<CondensationParams>(name)?,
+        "lowe" => table::<LoweParams>(name)?,
+        other => {
+            return Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", "))));
+        }
+    };
+    Ok(format!("# The default parameters of {name}: edit and give with `track --config FILE`.\n{body}"))
 }
 
 /// Options of one tracking run.
@@ -744,6 +775,27 @@ mod tests {
     use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
     use super::*;
+
+    /// `pipetrack config T`'s file reads back as T's defaults, every key
+    /// known (a key it wrote that no reader took would be an error).
+    #[test]
+    fn each_default_config_reads_back_as_the_defaults() {
+        fn reads_back<P: serde::de::DeserializeOwned + Default + PartialEq + std::fmt::Debug>(name: &str) {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("defaults.toml");
+            let text = default_config(name).unwrap();
+            assert!(text.contains(&format!("[{name}]")), "{text}");
+            std::fs::write(&path, &text).unwrap();
+            assert_eq!(read_config::<P>(Some(&path), name).unwrap(), P::default(), "{text}");
+        }
+        reads_back::<MotionEdgeParams>("motion-edge");
+        reads_back::<BlueParams>("blue");
+        reads_back::<CondensationParams>("condensation");
+        reads_back::<LoweParams>("lowe");
+        assert!(default_config("lowee").is_err());
+        // An f32 parameter as it reads, not widened.
+        assert!(default_config("lowe").unwrap().contains("log_sigma = 1.2\n"));
+    }
 
     /// Counts the frames pulled from it and flags when it is dropped (the
     /// reader thread has ended).

@@ -282,8 +282,11 @@ fn unknown_tracker_and_bad_config() {
             "epsilon = 20.0\n\n[motion_edge]\nzeta = 3.0\n",
             "typo.toml: line 3: [motion_edge] is no tracker's table: did you mean [motion-edge]?",
         ),
-        ("qqqqqq = 1\n", "unknown key \"qqqqqq\" for motion-edge (its parameters are documented on MotionEdgeParams"),
-        ("delta = 2.0\nlowe = 1\n", "typo.toml: line 2: unknown key \"lowe\" for motion-edge (its parameters"),
+        // No key near it: where the keys are listed.
+        ("qqqqqq = 1\n", "unknown key \"qqqqqq\" for motion-edge (`pipetrack config motion-edge` lists every key)"),
+        ("delta = 2.0\nlowe = 1\n", "typo.toml: line 2: unknown key \"lowe\" for motion-edge (`pipetrack config"),
+        // A value of the wrong type: its line, the type in words, the key.
+        ("zeta = \"big\"\n", "typo.toml: line 1: invalid type: string \"big\", expected a number; in `zeta`"),
         // The line in the tracker's own table, not in another tracker's.
         (
             "[lowe]\nwindow_margin_px = 8.0\n[motion-edge]\nwindow_margin_px = 8.0\n",
@@ -876,4 +879,34 @@ fn out_dash_writes_to_stdout() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 6);
     assert!(!root.join("-").exists());
+}
+
+/// `pipetrack config T` prints T's defaults as a config file that `track
+/// --config` takes, and whose edit changes the run.
+#[test]
+fn config_prints_the_defaults_as_a_config_file() {
+    let root = scratch("config");
+    let seq = good_sequence(&root);
+    let out = pipetrack(&["config", "motion-edge"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("[motion-edge]") && text.contains("\nzeta = "), "{text}");
+    let cfg = root.join("defaults.toml");
+    std::fs::write(&cfg, &text).unwrap();
+    // Each frame's line without its time.
+    let run = |args: &[&str]| -> Vec<serde_json::Value> {
+        let out = track_motion_edge_cpu(&seq, args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let lines = String::from_utf8(out.stdout).unwrap();
+        let parse = |l: &str| {
+            let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
+            v.as_object_mut().unwrap().remove("ms");
+            v
+        };
+        lines.lines().map(parse).collect()
+    };
+    assert_eq!(run(&["--config", cfg.to_str().unwrap()]), run(&[]), "the defaults give the default run");
+    let bad = pipetrack(&["config", "nope"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown tracker \"nope\""));
 }

@@ -1262,7 +1262,7 @@ fn messages_quoting_the_file_stay_one_short_line() {
     put(&f.path, format!("missing = \"last-measureme{}\"", "[".repeat(2000)).as_bytes()).expect("write");
     let message = input_message("a long variant", &f.path, || make_tracker("motion-edge", &f.seq, Some(&f.path)));
     assert!(
-        message.starts_with("unknown variant `last-measureme[[[") && message.ends_with("in `missing`"),
+        message.starts_with("line 1: unknown variant `last-measureme[[[") && message.ends_with("in `missing`"),
         "{message}"
     );
 
