@@ -87,18 +87,18 @@ enum Command {
         scene: String,
         /// Output folder (must be absent or empty).
         out_dir: PathBuf,
-        /// Number of frames [default: 200 for pendulum and textured-plane, 300 for the others].
+        /// Number of frames, 1 to 20000 [default: 200 for pendulum and textured-plane, 300 for the others].
         #[arg(long, allow_negative_numbers = true)]
         frames: Option<usize>,
         /// Seed of textures and noise.
         #[arg(long, default_value_t = 0)]
         seed: u64,
-        /// Peak speed: px/frame for pendulum [default: 3.9], box and hinged-box [default: 4]; rad/s of angular
-        /// speed for target3dof [default: 0.3]; the scale of the motion's amplitudes for textured-plane
-        /// [default: 1].
+        /// Peak speed: px/frame for pendulum, 0 to 32 [default: 3.9], box and hinged-box, 0 to 50 [default: 4];
+        /// rad/s of angular speed for target3dof, 0 to 5 [default: 0.3]; the scale of the motion's amplitudes
+        /// for textured-plane, 0 to 10 [default: 1].
         #[arg(long, allow_negative_numbers = true)]
         speed: Option<String>,
-        /// Gaussian noise σ in grey levels [default: 2; 1.5 for textured-plane].
+        /// Gaussian noise σ in grey levels, 0 to 64 [default: 2; 1.5 for textured-plane].
         #[arg(long, allow_negative_numbers = true)]
         noise: Option<String>,
         /// Fraction of the target hidden by an occluding bar: of its area, 0–0.3 (target3dof); of its visible edge
@@ -135,7 +135,8 @@ enum Command {
         /// Convert only the first N frames.
         #[arg(long)]
         frames: Option<usize>,
-        /// Also draw the true projection of the model over every frame with a known pose into this folder.
+        /// Also draw the true projection of the model over every frame with a known pose into this folder
+        /// (must be absent or empty, and not in OUT_DIR).
         #[arg(long)]
         overlay: Option<PathBuf>,
         /// A further part of the object, as ViSP's load() arguments: FILE.cao (relative as --model)
@@ -184,7 +185,7 @@ enum Command {
         /// Early-vision backend.
         #[arg(long, value_enum, default_value_t = Backend::Gpu)]
         backend: Backend,
-        /// Sequences in flight: GPU lanes sharing one submission per step, or CPU threads.
+        /// Sequences in flight, 1 to 64: GPU lanes sharing one submission per step, or CPU threads.
         #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u16).range(1..=pipetrack::backend::MAX_LANES as i64))]
         jobs: u16,
         /// Take only the sequences at positions I, I+N, I+2N, … of the manifest (0 ≤ I < N).
@@ -231,14 +232,14 @@ enum Command {
         /// zero_crossing, cpf, edge_pyramid and chain; default all.
         #[arg(long, value_delimiter = ',')]
         stages: Vec<String>,
-        /// Seconds of timing per stage, size and backend.
+        /// Seconds of timing per stage, size and backend, more than 0 and less than 60.
         #[arg(long, default_value_t = 0.5)]
         seconds: f64,
         /// Time the CPU twins only, without opening a GPU adapter.
         #[arg(long)]
         cpu_only: bool,
         /// Instead of the stages: the window energy with these numbers of
-        /// sample windows (comma-separated), e.g. 200,1000,5000.
+        /// sample windows (comma-separated, 1 to 65535), e.g. 200,1000,5000.
         #[arg(long, value_delimiter = ',', conflicts_with_all = ["stages", "sizes"])]
         windows: Vec<usize>,
         /// Instead of the stages: the whole chain with these numbers of
@@ -247,8 +248,8 @@ enum Command {
         #[arg(long, value_delimiter = ',', conflicts_with_all = ["windows", "stages"],
               value_parser = clap::value_parser!(u16).range(1..=pipetrack::backend::MAX_LANES as i64))]
         lanes: Vec<u16>,
-        /// With --lanes: cap every list of the chain at this many features
-        /// (a stratified subsample, as the blue tracker caps its list at
+        /// With --lanes: cap every list of the chain at this many features, 1 to
+        /// 65535 (a stratified subsample, as the blue tracker caps its list at
         /// 1500); default: every listed pixel comes back.
         #[arg(long, requires = "lanes",
               value_parser = clap::value_parser!(u32).range(1..=i64::from(pipetrack::early::compaction::MAX_CAP)))]

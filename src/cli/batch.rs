@@ -122,6 +122,8 @@ pub fn read_manifest(path: &Path, default_tracker: Option<&str>, out_dir: &Path)
     let default = |place: &str| -> Result<String> {
         match default_tracker {
             Some(t) => check_tracker(t, place),
+            // A folder of sequences has no line to name one in.
+            None if place.is_empty() => Err(Error::input(path, "no tracker: give --tracker")),
             None => Err(Error::input(path, format!("{place}no tracker: name one there or give --tracker"))),
         }
     };

@@ -236,7 +236,7 @@ pub fn render_scene(
             }
             render_box(&opts)
         }
-        _ => Err(Error::Parameter(format!("unknown scene '{scene}' (known scenes: {})", scene_names().join(", ")))),
+        _ => Err(Error::Parameter(format!("unknown scene {scene:?} (known scenes: {})", scene_names().join(", ")))),
     }
 }
 
