@@ -99,7 +99,7 @@ pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
 }
 
 /// [`read_json`] of `text`, the contents of `path`.
-fn parse_json<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
+pub(crate) fn parse_json<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
     if text.trim().is_empty() {
         return Err(Error::input(path, "empty file"));
     }

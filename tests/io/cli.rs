@@ -727,14 +727,21 @@ fn keys_no_reader_reads_are_noted_after_the_run() {
     assert!(out.status.success());
     assert!(!String::from_utf8_lossy(&out.stderr).contains("note:"), "{}", String::from_utf8_lossy(&out.stderr));
 
-    let edit = |file: &str, key: &str| {
+    let edit = |file: &str, key: &str, to: f64| {
         let path = seq.join(file);
         let mut value: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-        value[key] = serde_json::json!(1);
+        value[key] = serde_json::json!(to);
         std::fs::write(&path, value.to_string()).unwrap();
     };
-    edit("camera.json", "k1");
-    edit("init.json", "corner");
+    // A distortion coefficient other than 0 is refused: the camera is a
+    // pinhole; at 0 it is only noted.
+    edit("camera.json", "k1", 0.1);
+    let out = track_motion_edge_cpu(&seq, &["--out", root.join("d.jsonl").to_str().unwrap()]);
+    let lines = error_lines(&out);
+    assert_eq!(out.status.code(), Some(2), "{lines:?}");
+    assert!(lines[0].contains("camera.json: \"k1\" gives lens distortion"), "{lines:?}");
+    edit("camera.json", "k1", 0.0);
+    edit("init.json", "corner", 1.0);
     let out = track_motion_edge_cpu(&seq, &["--out", root.join("b.jsonl").to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
