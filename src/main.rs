@@ -176,9 +176,10 @@ enum Command {
         /// A file listing `SEQ_DIR [TRACKER [CONFIG]]` per line (paths relative to the file's folder), or a
         /// folder of sequence folders.
         manifest: PathBuf,
-        /// Output folder: <name>.jsonl per sequence and summary.jsonl (not needed with --list).
-        #[arg(long, required_unless_present = "list")]
-        out: Option<PathBuf>,
+        /// Output folder: <name>.jsonl per sequence and summary.jsonl (with --list too: a folder manifest
+        /// leaves it out).
+        #[arg(long)]
+        out: PathBuf,
         /// Tracker for sequences whose manifest line names none.
         #[arg(long)]
         tracker: Option<String>,
@@ -559,7 +560,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Batch { manifest, out, tracker, backend, jobs, shard, list } => {
             use pipetrack::cli::batch::{self, BatchOptions, Shard};
             let opts = BatchOptions {
-                out_dir: out.unwrap_or_default(),
+                out_dir: out,
                 tracker,
                 backend: backend.into(),
                 jobs: usize::from(jobs),

@@ -482,8 +482,9 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
 /// summary `line`, led by the sequence's folder unless it names that already.
 fn report_failure(entry: &ManifestEntry, line: &SummaryLine) {
     let error = line.error.as_deref().unwrap_or_default();
-    let dir = entry.dir.display().to_string();
-    let names_dir = error.strip_prefix(&dir).is_some_and(|rest| rest.starts_with([':', std::path::MAIN_SEPARATOR]));
+    let shown = entry.dir.display().to_string();
+    let dir = shown.trim_end_matches(std::path::MAIN_SEPARATOR);
+    let names_dir = error.strip_prefix(dir).is_some_and(|rest| rest.starts_with([':', std::path::MAIN_SEPARATOR]));
     if names_dir {
         eprintln!("pipetrack: {error}");
     } else {

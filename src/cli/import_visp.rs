@@ -254,7 +254,7 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
             e => source_error(e, dir, &model_copies),
         }
     })?;
-    let geometry = ModelGeometry::new(&model).map_err(|e| Error::input(&model_path, e.to_string()))?;
+    let geometry = ModelGeometry::new(&model).map_err(|e| Error::input(&model_path, e.message()))?;
 
     let truth = poses
         .iter()
@@ -393,7 +393,9 @@ impl Sources {
     fn tracking_sequence(src: &Path, opts: &ImportOptions) -> Result<Self> {
         // Errors name the folder as given; a path ending in `.` or `..` has
         // no name of its own, so its full path stands for it.
-        let src = if src.file_name().is_some() {
+        // A link is followed: ViSP's files lie beside the folder it points to.
+        let link = fs::symlink_metadata(src).is_ok_and(|m| m.file_type().is_symlink());
+        let src = if src.file_name().is_some() && !link {
             src.to_path_buf()
         } else {
             fs::canonicalize(src).map_err(|e| Error::input(src, format!("cannot resolve the folder: {e}")))?
@@ -446,12 +448,24 @@ fn given_file(base: &Path, given: &Path, what: &str) -> Result<PathBuf> {
 /// Whether folders `a` and `b` are one, or one lies inside the other (as
 /// written, from the current folder; links are not followed).
 fn nested(a: &Path, b: &Path) -> bool {
-    match (std::path::absolute(a), std::path::absolute(b)) {
-        (Ok(a), Ok(b)) => {
-            let normal = |p: &Path| -> PathBuf { p.components().collect() };
-            let (a, b) = (normal(&a), normal(&b));
-            a.starts_with(&b) || b.starts_with(&a)
-        }
+    // `..` taken back lexically: `out/../ov` is beside `out`.
+    let normal = |p: &Path| {
+        std::path::absolute(p).map(|p| {
+            let mut normal = PathBuf::new();
+            for part in p.components() {
+                match part {
+                    std::path::Component::ParentDir => {
+                        normal.pop();
+                    }
+                    std::path::Component::CurDir => {}
+                    other => normal.push(other),
+                }
+            }
+            normal
+        })
+    };
+    match (normal(a), normal(b)) {
+        (Ok(a), Ok(b)) => a.starts_with(&b) || b.starts_with(&a),
         _ => false,
     }
 }

@@ -312,7 +312,8 @@ fn describe_json_error(text: &str, e: &serde_json::Error, line: Option<usize>) -
     format!("{kind} at {}: {}{misspelt}", position(e.line(), e.column()), plain_type_names(message))
 }
 
-/// serde's type names in `message` in words: `expected f32` → `expected a number`.
+/// serde's type names in `message` in words: `expected f32` → `expected a
+/// number`, `expected struct SegmentParams` → `expected a table`.
 pub(crate) fn plain_type_names(message: &str) -> String {
     [
         ("expected f32", "expected a number"),
@@ -327,6 +328,14 @@ pub(crate) fn plain_type_names(message: &str) -> String {
     ]
     .iter()
     .fold(message.to_string(), |m, (rust, plain)| m.replace(rust, plain))
+    .split("expected struct ")
+    .enumerate()
+    .map(|(i, part)| match i {
+        0 => part.to_string(),
+        // The struct's name, up to the end of its word, is a table.
+        _ => format!("expected a table{}", part.trim_start_matches(|c: char| c.is_alphanumeric() || c == '_')),
+    })
+    .collect()
 }
 
 /// A key of an object in JSON `text`, other than `field`, spelt within two
@@ -490,5 +499,9 @@ mod tests {
             let msg = describe_json_error(text, &e, None);
             assert!(msg.ends_with(&format!("expected {expected}")), "{msg}");
         }
+        assert_eq!(
+            plain_type_names("invalid type: integer `3`, expected struct SegmentParams; in `segments`"),
+            "invalid type: integer `3`, expected a table; in `segments`"
+        );
     }
 }

@@ -112,8 +112,7 @@ fn unknown_key_error(path: &Path, tracker: &str, message: &str, at: Option<usize
         Some(name) => format!("{at}[{key}] is no tracker's table: did you mean [{name}]?"),
         None => match closest(&known) {
             Some(name) => format!("{at}unknown key {key:?} for {tracker}: did you mean {name}?"),
-            // The whole list of keys, not shortened as quoted user text is:
-            // cut short, it would hide the one wanted.
+            // The keys are too many for one short line: the command lists them.
             None => format!("{at}unknown key {key:?} for {tracker} (`pipetrack config {tracker}` lists every key)"),
         },
     };
@@ -202,6 +201,13 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
     }
 }
 
+/// Every key of parameters `P`, as serde names them when refusing another.
+fn parameter_keys<P: serde::de::DeserializeOwned>() -> Vec<String> {
+    let refusal = toml::from_str::<P>("not_a_parameter = 0").err().map(|e| e.message().to_string());
+    let expected = refusal.as_deref().and_then(|m| m.split_once("expected")).map_or("", |(_, rest)| rest);
+    expected.split('`').skip(1).step_by(2).map(str::to_string).collect()
+}
+
 /// The default parameters of tracker `name` as a `--config` file: its
 /// table (`[lowe]`, with `[lowe.segments]`) holding every key with its
 /// default value. Read back, it gives the defaults.
@@ -221,13 +227,25 @@ pub fn default_config(name: &str) -> Result<String> {
             _ => {}
         }
     }
-    fn table<P: serde::Serialize + Default>(name: &str) -> Result<String> {
+    fn table<P: serde::Serialize + serde::de::DeserializeOwned + Default>(name: &str) -> Result<String> {
         let mut document = toml::Table::new();
         let mut params = toml::Value::try_from(P::default())
             .map_err(|e| Error::Parameter(format!("{name}'s defaults as TOML: {e}")))?;
         shortest_floats(&mut params);
+        // Keys unset by default (an option) have no value to write: named.
+        let unset: Vec<String> =
+            parameter_keys::<P>().into_iter().filter(|k| params.get(k.as_str()).is_none()).collect();
         document.insert(name.to_string(), params);
-        toml::to_string(&document).map_err(|e| Error::Parameter(format!("{name}'s defaults as TOML: {e}")))
+        let text =
+            toml::to_string(&document).map_err(|e| Error::Parameter(format!("{name}'s defaults as TOML: {e}")))?;
+        Ok(match unset.as_slice() {
+            [] => text,
+            keys => text.replacen(
+                &format!("[{name}]\n"),
+                &format!("[{name}]\n# Unset by default: {}\n", keys.join(", ")),
+                1,
+            ),
+        })
     }
     let body = match name {
         "motion-edge" => table::<MotionEdgeParams>(name)?,
@@ -785,6 +803,15 @@ mod tests {
             let path = dir.path().join("defaults.toml");
             let text = default_config(name).unwrap();
             assert!(text.contains(&format!("[{name}]")), "{text}");
+            // Every key is written, or named as unset.
+            let keys = parameter_keys::<P>();
+            assert!(keys.len() > 5, "{keys:?}");
+            for key in keys {
+                let written =
+                    text.lines().any(|l| l.starts_with(&format!("{key} = ")) || l == format!("[{name}.{key}]"));
+                let unset = text.lines().any(|l| l.starts_with("# Unset by default:") && l.contains(&key));
+                assert!(written || unset, "{key} missing from {text}");
+            }
             std::fs::write(&path, &text).unwrap();
             assert_eq!(read_config::<P>(Some(&path), name).unwrap(), P::default(), "{text}");
         }
@@ -795,6 +822,12 @@ mod tests {
         assert!(default_config("lowee").is_err());
         // An f32 parameter as it reads, not widened.
         assert!(default_config("lowe").unwrap().contains("log_sigma = 1.2\n"));
+        // An option unset by default is named.
+        assert!(
+            default_config("blue").unwrap().contains("# Unset by default: nominal_range\n"),
+            "{}",
+            default_config("blue").unwrap()
+        );
     }
 
     /// Counts the frames pulled from it and flags when it is dropped (the

@@ -858,7 +858,7 @@ fn command_line_mistakes_are_one_line() {
         (&["track", seq], "--tracker"),
         (&["track", seq, "--tracker", "lowe", "--bogus"], "--bogus"),
         (&["nope"], "nope"),
-        (&["score", seq, "p.jsonl", "--plot-size", "640x360"], "--plot"),
+        (&["score", seq, "p.jsonl", "--plot-size", "640x360"], "--plot <PLOT>"),
     ];
     for (args, needle) in cases {
         let out = pipetrack(args);

@@ -420,10 +420,24 @@ fn an_overlay_in_the_output_folder_is_refused() {
     let root = crate::common::scratch("import-visp", "overlay-in-out");
     let src = visp_data_set(&root);
     let seq = root.join("seq");
-    for overlay in [seq.clone(), seq.join("overlay")] {
+    // The output folder itself, a folder in it (also through `..`), and a
+    // folder holding it.
+    let through = root.join("src").join("..").join("seq").join("overlay");
+    for overlay in [seq.clone(), seq.join("overlay"), through, root.to_path_buf()] {
         let overlay = overlay.to_str().unwrap();
         expect_refused_with(&root, &src, &["--overlay", overlay], &["give --overlay a folder of its own"]);
     }
+    // Beside it through `..`: written.
+    let beside = seq.join("..").join("overlay");
+    let out = pipetrack(&[
+        "import-visp",
+        src.to_str().unwrap(),
+        seq.to_str().unwrap(),
+        "--overlay",
+        beside.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(root.join("overlay").is_dir() && seq.join("init.json").is_file());
 }
 
 /// Intrinsics that put the model beside the frames: the import says that no

@@ -344,14 +344,24 @@ fn lowe_refuses_a_start_pose_behind_the_camera() {
     // In front, but the whole model beside the image: a wrong pose, or a
     // principal point far off (cx within its range, five widths out).
     edit_json(&seq.join("init.json"), |init| init["pose"]["translation"] = serde_json::json!([3.0, 0.0, 1.0]));
-    expect_lowe_refused(&seq, "init.json", "every model vertex outside the 640x480 image", "x = 3 m");
+    expect_lowe_refused(&seq, "init.json", "the whole model beside the 640x480 image", "x = 3 m");
     std::fs::remove_dir_all(&seq).unwrap();
     synth("box", &seq, "2");
     edit_json(&seq.join("camera.json"), |camera| camera["cx"] = serde_json::json!(3190.5));
-    expect_lowe_refused(&seq, "init.json", "every model vertex outside", "cx = 3190.5");
+    expect_lowe_refused(&seq, "init.json", "the whole model beside", "cx = 3190.5");
     // A message about init.json does not lead with "invalid parameter".
     let out = track_cpu(&seq, "lowe", &seq.with_extension("jsonl"));
     assert!(!String::from_utf8_lossy(&out.stderr).contains("invalid parameter"));
+    // A close-up with every vertex outside the image, its edges across it,
+    // is a start pose like any other.
+    std::fs::remove_dir_all(&seq).unwrap();
+    synth("box", &seq, "2");
+    edit_json(&seq.join("init.json"), |init| {
+        init["pose"]["rotation"] = serde_json::json!([0.0, 0.0, 0.0]);
+        init["pose"]["translation"] = serde_json::json!([0.0, 0.0, 0.15]);
+    });
+    let out = track_cpu(&seq, "lowe", &seq.with_extension("jsonl"));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }
 
 /// What the model alone decides (pixel units, too many joints) names the

@@ -85,5 +85,5 @@ fn score_plot_refuses_to_overwrite_its_inputs() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
-    assert!(stderr.contains("--plot"), "{stderr}");
+    assert!(stderr.contains("--plot <PLOT>"), "{stderr}");
 }

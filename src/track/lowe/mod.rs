@@ -440,15 +440,19 @@ impl LoweTracker {
                 crate::bounds::short_number(p.z)
             )));
         }
-        // With no vertex in the image there is nothing to start from: the
-        // pose, or the camera's intrinsics, are wrong.
+        // A model whose image lies wholly beside the frame leaves nothing to
+        // start from: the pose, or the camera's intrinsics, are wrong. (A
+        // close-up whose vertices all lie outside still crosses the frame:
+        // the vertices' bounding box is what must meet it.)
+        let pixels: Vec<[f64; 2]> = points.iter().filter_map(|p| camera.project_in_front(*p)).collect();
         let (w, h) = (f64::from(camera.width), f64::from(camera.height));
-        let in_image = |p: &DVec3| {
-            camera.project_in_front(*p).is_some_and(|[x, y]| (0.0..w).contains(&x) && (0.0..h).contains(&y))
+        let span = |axis: usize| {
+            pixels.iter().fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], p| [lo.min(p[axis]), hi.max(p[axis])])
         };
-        if !points.iter().any(in_image) {
+        let ([x0, x1], [y0, y1]) = (span(0), span(1));
+        if x1 < -0.5 || x0 > w - 0.5 || y1 < -0.5 || y0 > h - 0.5 {
             return Err(Error::Parameter(format!(
-                "the pose puts every model vertex outside the {}x{} image (with the intrinsics of camera.json)",
+                "the pose puts the whole model beside the {}x{} image (with the intrinsics of camera.json)",
                 camera.width, camera.height
             )));
         }
