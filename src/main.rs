@@ -108,7 +108,8 @@ enum Command {
         /// Shake the target with abrupt reversals (target3dof; same as --set shake=true).
         #[arg(long)]
         shake: bool,
-        /// Scene option KEY=VALUE (repeatable), e.g. --set background=cluttered.
+        /// Scene option KEY=VALUE (repeatable), e.g. --set background=cluttered; an option the scene lacks is
+        /// refused with the scene's list.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },

@@ -156,7 +156,7 @@ pub(crate) fn parse_option<T: std::str::FromStr>(scene: &str, key: &str, value: 
 /// The error for a `--set` key that `scene` does not have; `keys` are its
 /// options.
 pub(crate) fn no_such_option(scene: &str, key: &str, keys: &[&str]) -> Error {
-    Error::Parameter(format!("{scene} has no option '{key}' (its options: {})", keys.join(", ")))
+    Error::Parameter(format!("{scene} has no option {key:?} (its options: {})", keys.join(", ")))
 }
 
 /// Error unless `value` (named `name`, in `unit`) is finite and in `0..=max`.

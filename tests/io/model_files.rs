@@ -339,7 +339,10 @@ fn lowe_refuses_a_start_pose_behind_the_camera() {
     // camera inside the box (its nearest vertices behind).
     for z in [-1.0, -0.3, 0.0, 0.05] {
         edit_json(&seq.join("init.json"), |init| init["pose"]["translation"] = serde_json::json!([0.0, 0.0, z]));
-        expect_lowe_refused(&seq, "init.json", "in front of the camera", &format!("z = {z}"));
+        // At the camera's plane, the depth is 0, not rounding's 1e-18.
+        let needle =
+            if z == 0.0 { "centre at depth 0: it must lie in front of the camera" } else { "in front of the camera" };
+        expect_lowe_refused(&seq, "init.json", needle, &format!("z = {z}"));
     }
     // In front, but the whole model beside the image: a wrong pose, or a
     // principal point far off (cx within its range, five widths out).

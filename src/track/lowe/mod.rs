@@ -424,7 +424,11 @@ impl LoweTracker {
             }
         }
         let state = State { pose: Pose::from(pose), params: joint_values };
-        let depth = state.pose.apply(geometry.centroid()).z;
+        let mut depth = state.pose.apply(geometry.centroid()).z;
+        // Rounding leaves a centre in the camera's plane a few 1e-18 m off it.
+        if depth.abs() < 1e-12 {
+            depth = 0.0;
+        }
         if !(depth > 0.0) {
             return Err(Error::Parameter(format!(
                 "the pose puts the model's centre at depth {}: it must lie in front of the camera (depth > 0)",
