@@ -67,27 +67,22 @@ fn main() -> pipetrack::Result<()> {
 /// one thread: means over its 300 frames.
 fn time_lowe_split() -> pipetrack::Result<()> {
     use pipetrack::synth::boxes::{BoxOptions, render_box};
-    use pipetrack::track::run::track_once;
-    use pipetrack::track::{LoweParams, LoweTracker, Observations, Tracked, Tracker};
+    use pipetrack::track::run::{track_once, until_tracked};
+    use pipetrack::track::{LoweParams, LoweTracker, Observations, Tracked};
     let seq = render_box(&BoxOptions::default())?;
     let mut tracker = LoweTracker::new(seq.camera, &seq.model, &seq.init, LoweParams::default())?;
     let mut backend = CpuBackend::new();
     let (mut early, mut segments, mut matching, mut estimation, mut branches) = (0.0, 0.0, 0.0, 0.0, 0usize);
     for (i, frame) in seq.frames.iter().enumerate() {
-        let (w, h) = frame.size();
         // A frame whose window the tracker widens is processed twice; the
         // diagnostics hold both searches' times.
-        let mut may_widen = true;
-        loop {
-            let request = tracker.request(w, h);
+        until_tracked(&mut tracker, frame.size(), |tracker, request, may_widen| {
             let start = Instant::now();
             let features = backend.process(frame, &request)?;
             early += start.elapsed().as_secs_f64() * 1e3;
-            if let Tracked::Outcome(_) = track_once(&mut tracker, i, &Observations::from(&features), may_widen) {
-                break;
-            }
-            may_widen = false;
-        }
+            let look = track_once(tracker, i, &Observations::from(&features), may_widen);
+            Ok(matches!(look, Tracked::Outcome(_)).then_some(()))
+        })?;
         let d = tracker.diagnostics();
         segments += d.segments_ms;
         matching += d.matching_ms;

@@ -106,9 +106,7 @@ impl Error {
             other => other.to_string(),
         }
     }
-}
 
-impl Error {
     /// An input error for `path` with a one-line message.
     pub fn input(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         Error::Input { path: path.into(), message: message.into() }

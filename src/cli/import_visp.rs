@@ -446,26 +446,21 @@ fn given_file(base: &Path, given: &Path, what: &str) -> Result<PathBuf> {
 }
 
 /// Whether folders `a` and `b` are one, or one lies inside the other (as
-/// written, from the current folder; links are not followed).
+/// written, from the current folder, `..` taken back lexically: `out/../ov`
+/// is beside `out`; links are not followed).
 fn nested(a: &Path, b: &Path) -> bool {
-    // `..` taken back lexically: `out/../ov` is beside `out`.
+    // From the root down, so that `normalise` takes the path.
     let normal = |p: &Path| {
-        std::path::absolute(p).map(|p| {
-            let mut normal = PathBuf::new();
-            for part in p.components() {
-                match part {
-                    std::path::Component::ParentDir => {
-                        normal.pop();
-                    }
-                    std::path::Component::CurDir => {}
-                    other => normal.push(other),
-                }
-            }
-            normal
-        })
+        let absolute = std::path::absolute(p).ok()?;
+        normalise(
+            &absolute
+                .components()
+                .filter(|c| matches!(c, Component::Normal(_) | Component::ParentDir))
+                .collect::<PathBuf>(),
+        )
     };
     match (normal(a), normal(b)) {
-        (Ok(a), Ok(b)) => a.starts_with(&b) || b.starts_with(&a),
+        (Some(a), Some(b)) => a.starts_with(&b) || b.starts_with(&a),
         _ => false,
     }
 }

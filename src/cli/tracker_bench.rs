@@ -16,7 +16,7 @@ use serde::Serialize;
 use crate::backend::{CpuBackend, EarlyVision, FrameFeatures, FrameRequest};
 use crate::io::formats::Status;
 use crate::synth::{SyntheticSequence, render_scene};
-use crate::track::run::track_once;
+use crate::track::run::{track_once, until_tracked};
 use crate::track::{
     BlueParams, BlueTracker, LoweParams, LoweTracker, MotionEdgeParams, MotionEdgeTracker, Observations, Tracked,
     Tracker,
@@ -77,18 +77,13 @@ pub fn record_features(name: &str, seq: &SyntheticSequence) -> Result<Vec<FrameR
     backend.reset();
     let mut recorded = Vec::with_capacity(seq.frames.len());
     for (i, frame) in seq.frames.iter().enumerate() {
-        let (w, h) = frame.size();
         let mut attempts = Vec::new();
-        loop {
-            let request = tracker.request(w, h);
+        until_tracked(tracker.as_mut(), frame.size(), |tracker, request, may_widen| {
             let features = backend.process(frame, &request)?;
-            let look = track_once(tracker.as_mut(), i, &Observations::from(&features), attempts.is_empty());
-            let done = matches!(look, Tracked::Outcome(_));
+            let look = track_once(tracker, i, &Observations::from(&features), may_widen);
             attempts.push((request, features));
-            if done {
-                break;
-            }
-        }
+            Ok(matches!(look, Tracked::Outcome(_)).then_some(()))
+        })?;
         recorded.push(attempts);
     }
     Ok(recorded)

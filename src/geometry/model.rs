@@ -71,6 +71,15 @@ pub struct ModelGeometry {
     vertex_edges: Vec<Vec<usize>>,
 }
 
+/// The error for `values` joint values given a model of `joints` joints.
+fn joint_count_error(values: usize, joints: usize) -> Error {
+    Error::Parameter(format!(
+        "{} for a model with {}",
+        crate::bounds::counted(values, "joint value", "joint values"),
+        crate::bounds::counted(joints, "joint", "joints")
+    ))
+}
+
 impl ModelGeometry {
     /// The geometry of `model`. Errors (`Error::Parameter`) when its
     /// indices are unsafe to follow ([`Model::check_indices`]: an edge not a
@@ -184,11 +193,7 @@ impl ModelGeometry {
             return Ok(vertices);
         }
         if params.len() != self.joints.len() {
-            return Err(Error::Parameter(format!(
-                "{} for a model with {}",
-                crate::bounds::counted(params.len(), "joint value", "joint values"),
-                crate::bounds::counted(self.joints.len(), "joint", "joints")
-            )));
+            return Err(joint_count_error(params.len(), self.joints.len()));
         }
         for (joint, &q) in self.joints.iter().zip(params).rev() {
             let rotation = DMat3::from_axis_angle(joint.axis, q);
@@ -209,11 +214,7 @@ impl ModelGeometry {
     pub fn posed_vertices_with_joint_derivatives(&self, params: &[f64]) -> Result<(Vec<DVec3>, Vec<DVec3>)> {
         let joints = self.joints.len();
         if params.len() != joints {
-            return Err(Error::Parameter(format!(
-                "{} for a model with {}",
-                crate::bounds::counted(params.len(), "joint value", "joint values"),
-                crate::bounds::counted(joints, "joint", "joints")
-            )));
+            return Err(joint_count_error(params.len(), joints));
         }
         let mut vertices = self.vertices.clone();
         let mut derivatives = vec![DVec3::ZERO; vertices.len() * joints];

@@ -99,7 +99,7 @@ pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
 }
 
 /// [`read_json`] of `text`, the contents of `path`.
-pub(crate) fn parse_json<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
+fn parse_json<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
     if text.trim().is_empty() {
         return Err(Error::input(path, "empty file"));
     }
@@ -113,14 +113,22 @@ pub(crate) fn parse_json<T: DeserializeOwned>(path: &Path, text: &str) -> Result
 /// ([`ignored_keys`]): a misspelt optional key (`"joint"` for `"joints"`)
 /// is otherwise silently left out.
 pub fn read_json_noting_ignored<T: DeserializeOwned + serde::Serialize>(path: &Path) -> Result<(T, Vec<String>)> {
+    read_json_with_original(path).map(|(value, ignored, _)| (value, ignored))
+}
+
+/// [`read_json_noting_ignored`], and the file's JSON as written (`Null` if
+/// only `T` reads it), for a reader that looks at the keys `T` leaves out.
+pub(crate) fn read_json_with_original<T: DeserializeOwned + serde::Serialize>(
+    path: &Path,
+) -> Result<(T, Vec<String>, serde_json::Value)> {
     let text = read_text(path)?;
     let value: T = parse_json(path, &text)?;
-    let original: Option<serde_json::Value> = serde_json::from_str(&text).ok();
-    let ignored = match (original, serde_json::to_value(&value)) {
-        (Some(original), Ok(parsed)) => ignored_keys(&original, &parsed),
+    let original: serde_json::Value = serde_json::from_str(&text).unwrap_or_default();
+    let ignored = match serde_json::to_value(&value) {
+        Ok(parsed) if !original.is_null() => ignored_keys(&original, &parsed),
         _ => Vec::new(),
     };
-    Ok((value, ignored))
+    Ok((value, ignored, original))
 }
 
 /// The keys of `original` (a JSON object, and the objects and arrays in

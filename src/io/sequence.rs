@@ -77,8 +77,8 @@ impl Sequence {
     pub fn open(dir: &Path, frames_from_stdin: bool) -> Result<Self> {
         check_folder(dir)?;
         let camera_path = dir.join(CAMERA_FILE);
-        let (camera, camera_keys) = read_json_noting_ignored::<Camera>(&camera_path)?;
-        refuse_distortion(&camera_path, &camera_keys)?;
+        let (camera, camera_keys, written) = read_json_with_original::<Camera>(&camera_path)?;
+        refuse_distortion(&camera_path, &camera_keys, &written)?;
         let mut ignored_keys: Vec<String> = ignored_line(&camera_path, &camera_keys).into_iter().collect();
         // A size no frame may have is named as such before the intrinsics
         // are judged against it.
@@ -271,21 +271,16 @@ fn noting_unread(error: Error, file: &Path, keys: &[String]) -> Error {
 /// intrinsics.
 const DISTORTION_KEYS: &[&str] = &["k1", "k2", "k3", "k4", "k5", "k6", "p1", "p2", "kud", "kdu", "distortion"];
 
-/// Error when `camera.json` at `path`, whose unread keys are `unread`,
-/// gives lens distortion: pipetrack's camera is a pinhole, so the frames
-/// must be undistorted. A coefficient of 0 (or a list of zeros) is no
-/// distortion, only noted as unread.
-fn refuse_distortion(path: &Path, unread: &[String]) -> Result<()> {
-    let distortion: Vec<&String> = unread.iter().filter(|k| DISTORTION_KEYS.contains(&k.as_str())).collect();
-    if distortion.is_empty() {
-        return Ok(());
-    }
-    let camera: serde_json::Value = parse_json(path, &read_text(path)?)?;
+/// Error when `camera.json` at `path`, written as `camera`, whose unread
+/// keys are `unread`, gives lens distortion: pipetrack's camera is a
+/// pinhole, so the frames must be undistorted. A coefficient of 0 (or a
+/// list of zeros) is no distortion, only noted as unread.
+fn refuse_distortion(path: &Path, unread: &[String], camera: &serde_json::Value) -> Result<()> {
     let nonzero = |v: &serde_json::Value| match v {
         serde_json::Value::Array(values) => values.iter().any(|x| x.as_f64() != Some(0.0)),
         other => other.as_f64() != Some(0.0),
     };
-    match distortion.into_iter().find(|k| nonzero(&camera[k.as_str()])) {
+    match unread.iter().find(|k| DISTORTION_KEYS.contains(&k.as_str()) && nonzero(&camera[k.as_str()])) {
         Some(key) => Err(input_error(
             path,
             format!(

@@ -10,7 +10,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::backend::{BackendKind, EarlyVision, FrameFeatures, make_backend};
+use crate::backend::{BackendKind, EarlyVision, FrameFeatures, FrameRequest, make_backend};
 use crate::geometry::{ModelGeometry, check_simple_polygon};
 use crate::image::{GrayImage, RgbImage};
 use crate::io::formats::{FrameResult, Status};
@@ -74,7 +74,13 @@ pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>
         let at = e.span().and_then(|span| text_position(&text, span.start)).map(|(line, _)| line);
         unknown_key_error(path, tracker, e.message(), at, &tables).unwrap_or_else(|| {
             let message = crate::io::json::plain_type_names(&one_line(&e.to_string()));
-            input_error(path, at.map_or(message.clone(), |line| format!("line {line}: {message}")))
+            input_error(
+                path,
+                match at {
+                    Some(line) => format!("line {line}: {message}"),
+                    None => message,
+                },
+            )
         })
     })
 }
@@ -98,7 +104,7 @@ fn table_keys(table: &toml::de::DeTable<'_>) -> Vec<String> {
 fn unknown_key_error(path: &Path, tracker: &str, message: &str, at: Option<usize>, tables: &[String]) -> Option<Error> {
     let rest = message.strip_prefix("unknown field `")?;
     let (key, expected) = rest.rsplit_once("`, expected").unwrap_or((rest.strip_suffix('`')?, ""));
-    let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
+    let known = quoted_names(expected);
     let at = at.map_or_else(String::new, |line| format!("line {line}: "));
     let closest = |names: &[&str]| {
         names
@@ -197,15 +203,25 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
                 LoweTracker::new(seq.camera, &seq.model, &seq.init, params).map_err(|e| seq.init_error(e.message()))?;
             Ok(Box::new(tracker))
         }
-        other => Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", ")))),
+        other => Err(unknown_tracker(other)),
     }
+}
+
+/// The names serde quotes in `expected` (`` `a`, `b` or `c` ``).
+fn quoted_names(expected: &str) -> Vec<&str> {
+    expected.split('`').skip(1).step_by(2).collect()
 }
 
 /// Every key of parameters `P`, as serde names them when refusing another.
 fn parameter_keys<P: serde::de::DeserializeOwned>() -> Vec<String> {
     let refusal = toml::from_str::<P>("not_a_parameter = 0").err().map(|e| e.message().to_string());
     let expected = refusal.as_deref().and_then(|m| m.split_once("expected")).map_or("", |(_, rest)| rest);
-    expected.split('`').skip(1).step_by(2).map(str::to_string).collect()
+    quoted_names(expected).into_iter().map(str::to_string).collect()
+}
+
+/// The error for a tracker name pipetrack does not know.
+fn unknown_tracker(name: &str) -> Error {
+    Error::Parameter(format!("unknown tracker {name:?}; known: {}", TRACKERS.join(", ")))
 }
 
 /// The default parameters of tracker `name` as a `--config` file: its
@@ -252,9 +268,7 @@ pub fn default_config(name: &str) -> Result<String> {
         "blue" => table::<BlueParams>(name)?,
         "condensation" => table::<CondensationParams>(name)?,
         "lowe" => table::<LoweParams>(name)?,
-        other => {
-            return Err(Error::Parameter(format!("unknown tracker {other:?}; known: {}", TRACKERS.join(", "))));
-        }
+        other => return Err(unknown_tracker(other)),
     };
     Ok(format!("# The default parameters of {name}: edit and give with `track --config FILE`.\n{body}"))
 }
@@ -492,10 +506,7 @@ pub fn track_step(
     frame: Frame<'_>,
 ) -> Result<(FrameOutcome, FrameResult)> {
     let t0 = Instant::now();
-    let (w, h) = frame.size();
-    let mut may_widen = true;
-    loop {
-        let request = tracker.request(w, h);
+    until_tracked(tracker, frame.size(), |tracker, request, may_widen| {
         let features = match frame {
             Frame::Gray(g) => backend.process(g, &request)?,
             Frame::Rgb(c) => backend.process_rgb(c, &request)?,
@@ -503,8 +514,25 @@ pub fn track_step(
         };
         let step = track_features(tracker, index, &features, t0, may_widen);
         backend.recycle(features);
-        if let Some(step) = step {
-            return Ok(step);
+        Ok(step)
+    })
+}
+
+/// The looks at one frame of size `(w, h)` until `tracker` answers: `look`
+/// gets the tracker, its request for the frame and whether it may still
+/// widen its window (the first look only, [`Tracker::track_or_widen`]),
+/// and returns `None` when the tracker widened it. A second look cannot
+/// widen, so there are at most two.
+pub fn until_tracked<T>(
+    tracker: &mut dyn Tracker,
+    (w, h): (usize, usize),
+    mut look: impl FnMut(&mut dyn Tracker, FrameRequest, bool) -> Result<Option<T>>,
+) -> Result<T> {
+    let mut may_widen = true;
+    loop {
+        let request = tracker.request(w, h);
+        if let Some(answer) = look(tracker, request, may_widen)? {
+            return Ok(answer);
         }
         may_widen = false;
     }

@@ -229,6 +229,15 @@ pub fn pipetrack(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
 }
 
+/// [`pipetrack`] run in the folder `dir` (for relative paths).
+pub fn pipetrack_in(dir: &Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
 /// A fresh, empty scratch folder for one test, `pipetrack-<prefix>-<name>-XXXXXX`
 /// under the system temp folder: removed with everything in it when the
 /// value is dropped, so a passing test leaves nothing behind, and kept (its

@@ -878,11 +878,8 @@ fn command_line_mistakes_are_one_line() {
 fn out_dash_writes_to_stdout() {
     let root = scratch("out-dash");
     let seq = good_sequence(&root);
-    let out = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
-        .current_dir(root.path())
-        .args(["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--out", "-"])
-        .output()
-        .expect("binary runs");
+    let args = ["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu", "--out", "-"];
+    let out = crate::common::pipetrack_in(root.path(), &args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 6);
     assert!(!root.join("-").exists());

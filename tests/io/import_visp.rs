@@ -5,11 +5,10 @@
 
 use std::f64::consts::FRAC_PI_2;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use pipetrack::io::formats::{Camera, InitState, TruthFrame};
 
-use crate::common::pipetrack;
+use crate::common::{pipetrack, pipetrack_in};
 
 const WIDTH: u32 = 64;
 const HEIGHT: u32 = 48;
@@ -463,22 +462,14 @@ fn a_tracking_sequence_given_by_a_relative_path_is_named_so() {
     let root = crate::common::scratch("import-visp", "tracking-sequence-relative");
     let src = visp_tracking_sequence(&root);
     std::fs::remove_file(root.join("src/tetra.0.pos")).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
-        .current_dir(root.path())
-        .args(["import-visp", "src/tetra", "seq"])
-        .output()
-        .expect("binary runs");
+    let out = pipetrack_in(root.path(), &["import-visp", "src/tetra", "seq"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.starts_with("pipetrack: src/tetra.0.pos: missing"), "{stderr}");
     for k in 0..3 {
         std::fs::remove_file(src.join(format!("image{k:04}.png"))).unwrap();
     }
-    let out = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
-        .current_dir(src.parent().unwrap())
-        .args(["import-visp", "tetra", "seq"])
-        .output()
-        .expect("binary runs");
+    let out = pipetrack_in(src.parent().unwrap(), &["import-visp", "tetra", "seq"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.starts_with("pipetrack: tetra: neither a ViSP data set"), "{stderr}");
     assert!(!root.join("seq").exists() && !root.join("src/seq").exists(), "nothing written");
@@ -521,11 +512,7 @@ fn a_tracking_sequence_given_as_dot_and_init_with_a_data_set() {
     let root = crate::common::scratch("import-visp", "dot");
     let src = visp_tracking_sequence(&root);
     let seq = root.join("seq");
-    let out = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
-        .args(["import-visp", ".", seq.to_str().unwrap()])
-        .current_dir(&src)
-        .output()
-        .expect("binary runs");
+    let out = pipetrack_in(&src, &["import-visp", ".", seq.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(pipetrack::io::Sequence::open(&seq, false).unwrap().frame_count(), Some(3));
 

@@ -424,37 +424,34 @@ impl LoweTracker {
             }
         }
         let state = State { pose: Pose::from(pose), params: joint_values };
-        let mut depth = state.pose.apply(geometry.centroid()).z;
-        // Rounding leaves a centre in the camera's plane a few 1e-18 m off it.
-        if depth.abs() < 1e-12 {
-            depth = 0.0;
-        }
+        let depth = state.pose.apply(geometry.centroid()).z;
         if !(depth > 0.0) {
+            // Rounding leaves a centre in the camera's plane a few 1e-18 m off it.
+            let shown = if depth.abs() < 1e-12 { 0.0 } else { depth };
             return Err(Error::Parameter(format!(
                 "the pose puts the model's centre at depth {}: it must lie in front of the camera (depth > 0)",
-                crate::bounds::short_number(depth)
+                crate::bounds::short_number(shown)
             )));
         }
         // Every vertex must project: a vertex at or behind the camera has no
         // image, and the model no outline to match.
         let points = geometry.camera_vertices(&state.pose, &state.params)?;
-        if let Some((k, p)) = points.iter().enumerate().find(|(_, p)| camera.project_in_front(**p).is_none()) {
-            return Err(Error::Parameter(format!(
-                "the pose puts model vertex {k} at depth {}: the whole model must lie in front of the camera",
-                crate::bounds::short_number(p.z)
-            )));
+        let mut pixels = Vec::with_capacity(points.len());
+        for (k, p) in points.iter().enumerate() {
+            let Some(pixel) = camera.project_in_front(*p) else {
+                return Err(Error::Parameter(format!(
+                    "the pose puts model vertex {k} at depth {}: the whole model must lie in front of the camera",
+                    crate::bounds::short_number(p.z)
+                )));
+            };
+            pixels.push(pixel);
         }
         // A model whose image lies wholly beside the frame leaves nothing to
         // start from: the pose, or the camera's intrinsics, are wrong. (A
         // close-up whose vertices all lie outside still crosses the frame:
         // the vertices' bounding box is what must meet it.)
-        let pixels: Vec<[f64; 2]> = points.iter().filter_map(|p| camera.project_in_front(*p)).collect();
-        let (w, h) = (f64::from(camera.width), f64::from(camera.height));
-        let span = |axis: usize| {
-            pixels.iter().fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], p| [lo.min(p[axis]), hi.max(p[axis])])
-        };
-        let ([x0, x1], [y0, y1]) = (span(0), span(1));
-        if x1 < -0.5 || x0 > w - 0.5 || y1 < -0.5 || y0 > h - 0.5 {
+        let (w, h) = (camera.width as usize, camera.height as usize);
+        if Window::around(&pixels, 0.0, w, h).is_none_or(|window| window.is_empty()) {
             return Err(Error::Parameter(format!(
                 "the pose puts the whole model beside the {}x{} image (with the intrinsics of camera.json)",
                 camera.width, camera.height
