@@ -203,7 +203,11 @@ enum Command {
         tracker: String,
     },
     /// Synthesise a short sequence, track it, write overlays to a temp folder, print the score.
-    Demo,
+    Demo {
+        /// Early-vision backend.
+        #[arg(long, value_enum, default_value_t = Backend::Gpu)]
+        backend: Backend,
+    },
     /// Regenerate a paper's result tables on synthetic sequences (markdown on stdout).
     Reproduce {
         /// Tracker whose paper to reproduce: motion-edge (Tables 1–3 of 000)
@@ -601,8 +605,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let text = run::default_config(&tracker)?;
             say(format_args!("{}", text.trim_end()))
         }
-        Command::Demo => {
-            pipetrack::cli::demo::run_demo(&pipetrack::cli::demo::default_root(), &mut std::io::stdout().lock())?;
+        Command::Demo { backend } => {
+            let root = pipetrack::cli::demo::default_root();
+            pipetrack::cli::demo::run_demo(&root, backend.into(), &mut std::io::stdout().lock())?;
             Ok(())
         }
         Command::Reproduce { tracker, config, seeds, out } => {

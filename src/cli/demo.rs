@@ -1,6 +1,6 @@
 //! `pipetrack demo`: a 120-frame pendulum at 3.9 px/frame, synthesised into a
-//! temporary folder, tracked by motion-edge on the default backend with
-//! overlays, and scored against its truth.
+//! temporary folder, tracked by motion-edge with overlays (on the GPU
+//! backend unless told otherwise), and scored against its truth.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -15,8 +15,9 @@ const DEMO_FRAMES: usize = 120;
 /// Peak speed of the demo pendulum, px/frame (one of paper 000's speeds).
 const DEMO_SPEED: &str = "3.9";
 
-/// Run the demo under `root` (created if absent) and write its report to `out`.
-pub fn run_demo(root: &std::path::Path, out: &mut dyn Write) -> Result<()> {
+/// Run the demo under `root` (created if absent) on `backend` and write its
+/// report to `out`.
+pub fn run_demo(root: &std::path::Path, backend: BackendKind, out: &mut dyn Write) -> Result<()> {
     let seq_dir = root.join("sequence");
     let overlay = root.join("overlay");
     std::fs::create_dir_all(root).map_err(|e| Error::input(root, format!("cannot create folder: {e}")))?;
@@ -25,7 +26,7 @@ pub fn run_demo(root: &std::path::Path, out: &mut dyn Write) -> Result<()> {
     let seq = Sequence::open(&seq_dir, false)?;
     let opts = TrackOptions {
         tracker: "motion-edge".into(),
-        backend: BackendKind::Gpu,
+        backend,
         config: None,
         overlay: Some(overlay.clone()),
         progress: true,

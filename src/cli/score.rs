@@ -91,6 +91,9 @@ pub struct Score {
     /// `false_tracking_px`, or whose truth shows no vertex (module doc), in
     /// frame order.
     pub false_tracking: Vec<usize>,
+    /// Frames with a visible corner farther than [`MAX_CORNER_ERROR_PX`]
+    /// from the truth, counted as that far off, in frame order.
+    pub capped_frames: Vec<usize>,
     /// Pose errors over the scored frames where both the prediction and the
     /// truth have a pose; `None` without any.
     pub pose_errors: Option<PoseErrors>,
@@ -225,6 +228,7 @@ fn score_impl(
     let mut frame_errors = Vec::new();
     let mut posed = Vec::new();
     let mut false_tracking = Vec::new();
+    let mut capped_frames = Vec::new();
     let mut corner_sums: Vec<(f64, usize)> = Vec::new();
     for (p, t) in predictions.iter().zip(truth) {
         if p.frame != t.frame {
@@ -278,15 +282,20 @@ fn score_impl(
                 t.corners.len()
             ));
         }
-        let (mut sum, mut visible) = (0.0, 0);
+        let (mut sum, mut visible, mut capped) = (0.0, 0, false);
         for (i, ((pc, tc), acc)) in p.corners.iter().zip(&t.corners).zip(&mut corner_sums).enumerate() {
             if t.visible.vertex(i) {
-                let d = (pc[0] - tc[0]).hypot(pc[1] - tc[1]).min(MAX_CORNER_ERROR_PX);
+                let distance = (pc[0] - tc[0]).hypot(pc[1] - tc[1]);
+                capped |= distance > MAX_CORNER_ERROR_PX;
+                let d = distance.min(MAX_CORNER_ERROR_PX);
                 acc.0 += d;
                 acc.1 += 1;
                 sum += d;
                 visible += 1;
             }
+        }
+        if capped {
+            capped_frames.push(p.frame);
         }
         let error = sum / visible as f64;
         if !(error <= false_tracking_px) {
@@ -305,6 +314,7 @@ fn score_impl(
         frame_errors,
         false_tracking_px,
         false_tracking,
+        capped_frames,
         pose_errors: PoseErrors::of(&posed),
     })
 }
@@ -362,6 +372,13 @@ impl fmt::Display for Score {
         )?;
         if !self.false_tracking.is_empty() {
             writeln!(f, "false tracking at:   {}", frame_ranges(&self.false_tracking, MAX_LISTED_RANGES))?;
+        }
+        if !self.capped_frames.is_empty() {
+            writeln!(
+                f,
+                "corners too far:     a corner over {MAX_CORNER_ERROR_PX:e} px off counted as {MAX_CORNER_ERROR_PX:e} px at {}",
+                frame_ranges(&self.capped_frames, MAX_LISTED_RANGES)
+            )?;
         }
         if let Some(e) = &self.pose_errors {
             writeln!(

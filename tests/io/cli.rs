@@ -914,3 +914,33 @@ fn config_prints_the_defaults_as_a_config_file() {
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown tracker \"nope\""));
 }
+
+/// `demo` (the README's first command) synthesises, tracks and scores its
+/// pendulum on the backend asked for, in a fresh folder of the temp folder,
+/// and names that folder's files.
+#[test]
+fn demo_tracks_its_pendulum_and_names_its_files() {
+    let tmp = scratch("demo");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .args(["demo", "--backend", "cpu"])
+        .env("TMPDIR", tmp.path())
+        .output()
+        .expect("binary runs");
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        text.starts_with("pipetrack demo: pendulum, 120 frames at 3.9 px/frame, tracker motion-edge on CPU"),
+        "{text}"
+    );
+    assert!(text.contains("frames tracked:      120 of 120") && text.contains("false tracking:      0 "), "{text}");
+    let named = |key: &str| {
+        let line = text.lines().find(|l| l.starts_with(key)).unwrap_or_else(|| panic!("no {key} line: {text}"));
+        std::path::PathBuf::from(line[key.len()..].trim())
+    };
+    let overlays = named("overlays:");
+    assert!(overlays.starts_with(tmp.path()), "{}", overlays.display());
+    assert_eq!(std::fs::read_dir(&overlays).unwrap().count(), 120);
+    let lines = std::fs::read_to_string(named("output:")).unwrap();
+    assert_eq!(lines.lines().count(), 120);
+    assert!(named("sequence:").join("truth.jsonl").is_file());
+}

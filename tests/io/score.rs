@@ -265,4 +265,13 @@ fn a_corner_too_far_to_measure_counts_as_the_largest_error() {
     assert_eq!(s.frame_errors, vec![(0, 0.0), (1, MAX_CORNER_ERROR_PX / 4.0)]);
     assert_eq!(s.false_tracking, vec![1]);
     assert!(s.stats.is_some_and(|st| st.mean.is_finite() && st.max == MAX_CORNER_ERROR_PX / 4.0));
+    // The summary says which frames were counted so, and only those.
+    assert_eq!(s.capped_frames, vec![1]);
+    let text = s.to_string();
+    assert!(text.contains("corners too far:     a corner over 1e9 px off counted as 1e9 px at 1\n"), "{text}");
+    let near = score(
+        &truth,
+        &preds[..1].iter().cloned().chain([pred(1, Status::Tracking, 0.0, 0.0, 0.0)]).collect::<Vec<_>>(),
+    );
+    assert!(!near.unwrap().to_string().contains("too far"));
 }
