@@ -675,13 +675,13 @@ fn bench_windows(counts: &[usize], json: bool, seconds: f64, gpu: bool) -> anyho
         .into());
     }
     if !json {
-        say(format_args!("{:<22} {:>8} {:>12} {:>12} {:>9}", "stage", "windows", "cpu ms", "gpu ms", "cpu/gpu"))?;
+        say(format_args!("{:<22} {:>8} {:>12} {:>12} {:>9}", "stage", "windows", "cpu ms", "gpu ms", "gpu/cpu"))?;
     }
     let mut write_error = None;
-    let rows = pipetrack::cli::bench_windows::bench_windows(counts, Duration::from_secs_f64(seconds), gpu, |r| {
+    let report = pipetrack::cli::bench_windows::bench_windows(counts, Duration::from_secs_f64(seconds), gpu, |r| {
         if !json && write_error.is_none() {
             let gpu = r.gpu_ms.map_or("-".to_string(), |g| format!("{g:.2}"));
-            let ratio = r.cpu_over_gpu.map_or("-".to_string(), |x| format!("{x:.2}"));
+            let ratio = r.gpu_over_cpu.map_or("-".to_string(), |x| format!("{x:.2}"));
             write_error = say(format_args!(
                 "{:<22} {:>8} {:>12.2} {:>12} {:>9}",
                 "window_energy 64/16", r.windows, r.cpu_ms, gpu, ratio
@@ -694,10 +694,15 @@ fn bench_windows(counts: &[usize], json: bool, seconds: f64, gpu: bool) -> anyho
         return Err(e);
     }
     if json {
-        say(format_args!("{}", serde_json::to_string_pretty(&rows)?))?;
+        say(format_args!("{}", serde_json::to_string_pretty(&report)?))?;
+    } else {
+        say(format_args!("{GPU_OVER_CPU}\nadapter: {}\ncpu threads: {}", report.adapter, report.cpu_threads))?;
     }
     Ok(())
 }
+
+/// The footnote of `bench`'s tables.
+const GPU_OVER_CPU: &str = "gpu/cpu: the GPU's frames per second over the CPU's (above 1: the GPU is faster)";
 
 fn bench(
     sizes: &[(usize, usize)],
@@ -779,7 +784,7 @@ fn bench(
                 c.host_ms
             ))?;
         }
-        say(format_args!("adapter: {}\ncpu threads: {}", report.adapter, report.cpu_threads))?;
+        say(format_args!("{GPU_OVER_CPU}\nadapter: {}\ncpu threads: {}", report.adapter, report.cpu_threads))?;
     }
     Ok(())
 }

@@ -547,7 +547,7 @@ pub struct LanesCost {
 
 /// The GPU context for a comparison (`gpu` asks for one) and the adapter's
 /// name, or why there is none.
-fn open_gpu(gpu: bool) -> (String, Option<GpuContext>) {
+pub(crate) fn open_gpu(gpu: bool) -> (String, Option<GpuContext>) {
     match gpu.then(GpuContext::new) {
         None => ("not used (CPU only)".to_string(), None),
         Some(Ok(ctx)) => (ctx.adapter_name().to_string(), Some(ctx)),

@@ -13,13 +13,13 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
+use crate::Result;
 use crate::backend::{CpuBackend, EarlyVision, FrameRequest, GpuBackend, WindowRequest};
 use crate::early::window_energy::{WindowEnergyParams, window_features_cpu};
 use crate::geometry::pose::Pose;
 use crate::image::RgbImage;
 use crate::synth::textured_plane::{DEPTH_M, camera, model, render_view};
 use crate::track::condensation::steps;
-use crate::{GpuContext, Result};
 
 /// One row: N windows on both backends.
 #[derive(Clone, Debug, Serialize)]
@@ -30,10 +30,20 @@ pub struct WindowBenchRow {
     pub cpu_ms: f64,
     /// Milliseconds per frame on the GPU backend (none without an adapter).
     pub gpu_ms: Option<f64>,
-    /// CPU time over GPU time.
-    pub cpu_over_gpu: Option<f64>,
-    /// The GPU adapter.
-    pub adapter: Option<String>,
+    /// The GPU's frames per second over the CPU's (CPU time over GPU time),
+    /// as the stage rows of `bench` give it: above 1, the GPU is faster.
+    pub gpu_over_cpu: Option<f64>,
+}
+
+/// What `bench --windows` measured, in the shape of `bench`'s own report.
+#[derive(Clone, Debug, Serialize)]
+pub struct WindowBenchReport {
+    /// The GPU adapter, or why there is none.
+    pub adapter: String,
+    /// CPU threads used by the CPU backend.
+    pub cpu_threads: usize,
+    /// One row per number of windows, in the order asked.
+    pub rows: Vec<WindowBenchRow>,
 }
 
 /// Mean time of `body` over at least three calls and at least `budget`.
@@ -74,24 +84,23 @@ pub fn bench_windows(
     budget: Duration,
     gpu: bool,
     mut row: impl FnMut(&WindowBenchRow),
-) -> Result<Vec<WindowBenchRow>> {
-    let gpu = if gpu { GpuContext::new().ok() } else { None };
+) -> Result<WindowBenchReport> {
+    let (adapter, gpu) = super::bench::open_gpu(gpu);
     let mut rows = Vec::new();
     for &n in counts {
         let (frame, request) = setup(n)?;
         let mut cpu = CpuBackend::new();
         let cpu_ms = time(budget, || cpu.process_rgb(&frame, &request).map(|_| ()))?;
-        let (gpu_ms, adapter) = match &gpu {
+        let gpu_ms = match &gpu {
             Some(ctx) => {
                 let mut backend = GpuBackend::new(ctx.clone());
-                let ms = time(budget, || backend.process_rgb(&frame, &request).map(|_| ()))?;
-                (Some(ms), Some(ctx.adapter_name().to_string()))
+                Some(time(budget, || backend.process_rgb(&frame, &request).map(|_| ()))?)
             }
-            None => (None, None),
+            None => None,
         };
-        let r = WindowBenchRow { windows: n, cpu_ms, gpu_ms, cpu_over_gpu: gpu_ms.map(|g| cpu_ms / g), adapter };
+        let r = WindowBenchRow { windows: n, cpu_ms, gpu_ms, gpu_over_cpu: gpu_ms.map(|g| cpu_ms / g) };
         row(&r);
         rows.push(r);
     }
-    Ok(rows)
+    Ok(WindowBenchReport { adapter, cpu_threads: rayon::current_num_threads(), rows })
 }

@@ -682,17 +682,24 @@ fn condensation_round_trip_and_bad_input() {
 }
 
 /// `bench --windows` with `--cpu-only` times the CPU backend alone: no GPU
-/// row values, no adapter.
+/// row values, no adapter; its JSON has the shape of the stages' report
+/// (adapter, CPU threads, rows), the same as `bench --stages`.
 #[test]
 fn bench_windows_cpu_only_opens_no_adapter() {
     let out = pipetrack(&["bench", "--windows", "7,20", "--seconds", "0.01", "--json", "--cpu-only"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let rows: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).expect("JSON rows");
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON report");
+    let stages =
+        pipetrack(&["bench", "--stages", "gaussian", "--sizes", "9x5", "--seconds", "0.01", "--json", "--cpu-only"]);
+    let stages: serde_json::Value = serde_json::from_slice(&stages.stdout).expect("JSON report");
+    assert_eq!(report["adapter"], "not used (CPU only)");
+    assert_eq!((&report["adapter"], &report["cpu_threads"]), (&stages["adapter"], &stages["cpu_threads"]));
+    let rows = report["rows"].as_array().expect("rows");
     assert_eq!(rows.len(), 2);
     for (row, n) in rows.iter().zip([7, 20]) {
         assert_eq!(row["windows"], n);
         assert!(row["cpu_ms"].as_f64().is_some_and(|ms| ms > 0.0), "{row}");
-        assert!(row["gpu_ms"].is_null() && row["adapter"].is_null(), "{row}");
+        assert!(row["gpu_ms"].is_null() && row["gpu_over_cpu"].is_null(), "{row}");
     }
 }
 
