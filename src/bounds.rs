@@ -20,6 +20,14 @@ const SCIENTIFIC_BELOW: f64 = 1e-4;
 /// Digit runs longer than this are shortened by [`shorten_digit_runs`].
 const MAX_DIGIT_RUN: usize = 12;
 
+/// A message on one line: its lines trimmed, the empty ones dropped, the
+/// rest joined with `; ` (an error of a library that spans lines, for a
+/// one-line error or a summary line).
+#[must_use]
+pub fn one_line(message: &str) -> String {
+    message.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join("; ")
+}
+
 /// `n` and the noun for it: `1 joint`, `2 joints`.
 #[must_use]
 pub fn counted(n: usize, one: &str, many: &str) -> String {

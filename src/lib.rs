@@ -42,11 +42,24 @@
 //! # Ok(()) }
 //! ```
 //!
-//! Frames may also be grey bytes ([`GrayImage`]) on either backend
-//! ([`GpuBackend`], [`CpuBackend`]); [`track_step`] runs one frame at a time.
-//! Texture formats and what their grey level is:
+//! Frames may also be grey or colour bytes ([`GrayImage`], [`RgbImage`]) on
+//! either backend ([`GpuBackend`], [`CpuBackend`]); [`track_step`] runs one
+//! frame at a time. Texture formats and what their grey level is:
 //! [`early::ingest`]. `examples/embed.rs` renders a scene with wgpu and
 //! tracks it this way.
+//!
+//! What each tracker takes:
+//! - Every frame of a run has one size: a tracker with a camera
+//!   ([`BlueTracker`], [`LoweTracker`], [`CondensationTracker`]) takes its
+//!   camera's image size, [`MotionEdgeTracker`] its first frame's; another
+//!   size is [`Error::Size`] ([`Tracker::accept_frame_size`]).
+//! - [`CondensationTracker`] compares the hue of its sample windows
+//!   ([`Tracker::wants_colour`]): give it colour frames ([`RgbImage`]) as
+//!   bytes, not textures (a texture is refused with an error). Grey frames
+//!   are accepted and tracked without hue, less well.
+//! - A texture must belong to the backend's device: wgpu panics on a
+//!   texture of another device, which pipetrack cannot detect first. A
+//!   destroyed texture is [`Error::Texture`].
 #![deny(missing_docs)]
 
 pub mod backend;
@@ -69,8 +82,9 @@ pub use error::{Error, Result};
 pub use gpu::{GpuContext, GpuImage, required_features, required_limits};
 pub use image::{FloatImage, GrayImage, Image, RgbImage};
 pub use io::Sequence;
-pub use io::formats::{FrameResult, Pose, Status};
+pub use io::formats::{Camera, FrameResult, InitState, Model, Pose, Status};
 pub use track::run::{AsFrame, Frame, track_frames, track_step};
 pub use track::{
-    BlueParams, BlueTracker, FrameOutcome, MotionEdgeParams, MotionEdgeTracker, Observations, Phase, Tracked, Tracker,
+    BlueParams, BlueTracker, CondensationParams, CondensationTracker, FrameOutcome, LoweParams, LoweTracker,
+    MotionEdgeParams, MotionEdgeTracker, Observations, Phase, Tracked, Tracker,
 };

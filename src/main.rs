@@ -113,8 +113,10 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
-    /// Convert a ViSP model-based-tracking data set (Images/, CameraPose/, Config/, Models/), or a folder of
-    /// frames imageNNNN.png with NAME.cao, NAME.xml and NAME.0.pos beside it, to a sequence folder.
+    /// Convert a ViSP model-based-tracking data set (Images/, CameraPose/, Config/, Models/), a folder of
+    /// frames imageNNNN.png with NAME.cao, NAME.xml and NAME.0.pos beside it, or a folder of frames
+    /// color_image_NNNN.png filmed beside a tag grid (apriltag_data.json, init/NAME.json, camera.xml,
+    /// ../models/NAME/NAME.obj) to a sequence folder.
     ImportVisp {
         /// The ViSP data set folder, e.g. mbt-depth/Castle-simu of ViSP's test images, or a folder of frames
         /// such as mbt/cube.
@@ -130,7 +132,7 @@ enum Command {
         #[arg(long)]
         camera: Option<PathBuf>,
         /// For a folder of frames: the first frame's pose, relative as --model (default: <model>.0.pos beside
-        /// the model).
+        /// the model); beside a tag grid: the object's init/NAME.json (default: the only one).
         #[arg(long)]
         init: Option<PathBuf>,
         /// Convert only the first N frames.

@@ -218,11 +218,6 @@ fn name_of(dir: &Path) -> String {
     }
 }
 
-/// An error message on one line (its lines joined with `; `), for a summary line.
-fn one_line(message: &str) -> String {
-    message.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join("; ")
-}
-
 /// What happened to a sequence in a run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -307,14 +302,14 @@ impl SummaryLine {
     }
 
     fn failed(entry: &ManifestEntry, error: &Error) -> Self {
-        Self { error: Some(one_line(&error.to_string())), ..Self::new(entry, SequenceStatus::Failed) }
+        Self { error: Some(crate::bounds::one_line(&error.to_string())), ..Self::new(entry, SequenceStatus::Failed) }
     }
 
     /// Fill frames, tracked and the score from the complete output of `seq`.
     fn describe_output(&mut self, seq: &Sequence, out_path: &Path) {
         match read_predictions(out_path) {
             Ok(predictions) => self.describe_predictions(seq, &predictions),
-            Err(e) => self.score_error = Some(one_line(&e.to_string())),
+            Err(e) => self.score_error = Some(crate::bounds::one_line(&e.to_string())),
         }
     }
 
@@ -334,7 +329,7 @@ impl SummaryLine {
                 self.false_tracking = Some(s.false_tracking.len());
                 self.first_lost = s.first_lost;
             }
-            Err(e) => self.score_error = Some(one_line(&e.to_string())),
+            Err(e) => self.score_error = Some(crate::bounds::one_line(&e.to_string())),
         }
     }
 }

@@ -36,6 +36,28 @@
 //! Such a sequence has no `truth.jsonl`: its `init.json` holds the pose of
 //! the first frame, and the alignment check below measures that frame only.
 //!
+//! A sequence filmed by a camera moving around objects at rest beside a grid
+//! of AprilTags (`rbt/sequence` in the same data set, the video of ViSP's
+//! render-based tracker, with several objects) is converted with its truth:
+//!
+//! ```text
+//! SRC/color_image_0000.png ...    the frames, numbered without gaps
+//! SRC/apriltag_data.json          "grid": per frame, the tag grid's pose cMg
+//!                                 (4×4 matrices, row-major, as nested lists)
+//! SRC/init/NAME.json              the first frame's pose cMo of the object NAME (4×4)
+//! SRC/camera.xml                  the <camera> intrinsics (the first <camera>)
+//! SRC/../models/NAME/NAME.obj     the object's model (Wavefront OBJ, metres)
+//! ```
+//!
+//! The object is the one of `--init` (`init/NAME.json`), or the only one in
+//! `init/`. Frame k's true pose is cMo(k) = cMg(k)·cMg(0)⁻¹·cMo(0): the object
+//! and the grid do not move, so the object keeps its place in the grid's
+//! frame. That truth is only as good as the grid's pose from its tags,
+//! which a moving hand-held camera blurs and, with a rolling shutter, bends
+//! (the grid and the object are read out at different moments): on ViSP's
+//! `rbt/sequence` a tracker's fit that lies on the cube's edges is up to
+//! 20 px from it on frames of fast motion. The model is `model.obj`.
+//!
 //! ViSP's conventions are pipetrack's: cMo maps object points to the camera
 //! frame (X_c = R·X_o + t), the camera frame has x right, y down, z forward,
 //! u = u0 + px·X/Z with pixel (0, 0) the centre of the top-left pixel, θu is
@@ -73,7 +95,7 @@ use crate::geometry::{ModelGeometry, Pose};
 use crate::image::{FloatImage, GrayImage};
 use crate::io::formats::{Camera, InitState, Status, TruthFrame, Visibility};
 use crate::io::json::{input_error, one_short_line};
-use crate::io::sequence::{CAMERA_FILE, FRAMES_DIR, INIT_FILE, MODEL_CAO_FILE, TRUTH_FILE};
+use crate::io::sequence::{CAMERA_FILE, FRAMES_DIR, INIT_FILE, MODEL_CAO_FILE, MODEL_OBJ_FILE, TRUTH_FILE};
 use crate::io::{Sequence, StagedDir, decode_gray};
 use crate::{Error, Result};
 
@@ -92,6 +114,16 @@ pub const SEQUENCE_IMAGE_PREFIX: &str = "image";
 /// Extension, after the model's name, of a tracking sequence's first pose
 /// (`cube.0.pos` beside `cube.cao`).
 pub const SEQUENCE_POSE_EXTENSION: &str = "0.pos";
+/// The tag grid's poses of a sequence filmed beside AprilTags.
+pub const TAG_GRID_FILE: &str = "apriltag_data.json";
+/// Name prefix of its frame files (`color_image_0000.png`).
+pub const TAG_IMAGE_PREFIX: &str = "color_image";
+/// Its folder of the objects' first poses (`init/NAME.json`).
+pub const TAG_INIT_DIR: &str = "init";
+/// Its camera settings (`camera.xml`).
+pub const TAG_CAMERA_FILE: &str = "camera.xml";
+/// Its models' folder, beside the sequence (`../models/NAME/NAME.obj`).
+pub const TAG_MODELS_DIR: &str = "models";
 /// Extensions of frame files.
 pub const IMAGE_EXTENSIONS: [&str; 5] = ["png", "pgm", "ppm", "jpg", "jpeg"];
 /// Largest departure of a pose matrix from a rotation (|RᵀR − I| per entry,
@@ -150,7 +182,8 @@ pub struct ImportReport {
     pub camera: Camera,
     /// Number of model vertices (corners per frame).
     pub vertices: usize,
-    /// The model files copied, relative to the output folder (`model.cao` first).
+    /// The model files copied, relative to the output folder (`model.cao`
+    /// or `model.obj` first).
     pub model_files: Vec<PathBuf>,
     /// Whether the source had every frame's pose (a data set) and
     /// `truth.jsonl` was written, or only the first frame's (a tracking
@@ -210,12 +243,20 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
             ),
         ));
     }
-    let Sources { images, poses, truth: has_truth, model: model_path, camera: camera_path, base } =
+    let Sources { images, poses, truth: has_truth, model: model_path, camera: camera_path, base, source } =
         Sources::of(src, opts)?;
     let first = decode_gray(&images[0].1)?;
     let camera = read_camera(&camera_path, first.width(), first.height())?;
     let parts = opts.include.iter().map(|arg| Part::parse(&base, arg)).collect::<Result<Vec<_>>>()?;
-    let model_copies = model_copies(&model_path, &parts)?;
+    let obj = model_path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    if obj && !parts.is_empty() {
+        return Err(Error::Parameter("--include adds parts to a .cao model; this model is a .obj file".into()));
+    }
+    let model_copies = if obj {
+        vec![(model_path.clone(), PathBuf::from(MODEL_OBJ_FILE))]
+    } else {
+        model_copies(&model_path, &parts)?
+    };
     let model_files: Vec<PathBuf> = model_copies.iter().map(|(_, to)| to.clone()).collect();
 
     let staged = StagedDir::create(out_dir)?;
@@ -232,28 +273,32 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
         let path = dir.join(MODEL_CAO_FILE);
         fs::write(&path, loading_model(&model_path, &parts)).map_err(|e| Error::io(&path, e))?;
     }
-    let model = crate::io::cao::read_cao(&dir.join(MODEL_CAO_FILE)).map_err(|e| {
-        match e {
-            // An error in the written model.cao is one in the --include
-            // arguments: its line 4 + k loads part k (`loading_model`).
-            Error::Input { path, message } if !parts.is_empty() && path == dir.join(MODEL_CAO_FILE) => {
-                let part = message
-                    .strip_prefix("line ")
-                    .and_then(|rest| rest.split_once(": "))
-                    .and_then(|(line, rest)| Some((line.parse::<usize>().ok()?.checked_sub(4)?, rest)))
-                    .and_then(|(k, rest)| Some((parts.get(k)?, rest)));
-                match part {
-                    Some((part, rest)) => {
-                        let placement =
-                            if part.placement.is_empty() { String::new() } else { format!(", {}", part.placement) };
-                        Error::Parameter(format!("--include \"{}{placement}\": {rest}", part.file.display()))
+    let model = if obj {
+        crate::io::obj::read_obj(&dir.join(MODEL_OBJ_FILE)).map_err(|e| source_error(e, dir, &model_copies))?
+    } else {
+        crate::io::cao::read_cao(&dir.join(MODEL_CAO_FILE)).map_err(|e| {
+            match e {
+                // An error in the written model.cao is one in the --include
+                // arguments: its line 4 + k loads part k (`loading_model`).
+                Error::Input { path, message } if !parts.is_empty() && path == dir.join(MODEL_CAO_FILE) => {
+                    let part = message
+                        .strip_prefix("line ")
+                        .and_then(|rest| rest.split_once(": "))
+                        .and_then(|(line, rest)| Some((line.parse::<usize>().ok()?.checked_sub(4)?, rest)))
+                        .and_then(|(k, rest)| Some((parts.get(k)?, rest)));
+                    match part {
+                        Some((part, rest)) => {
+                            let placement =
+                                if part.placement.is_empty() { String::new() } else { format!(", {}", part.placement) };
+                            Error::Parameter(format!("--include \"{}{placement}\": {rest}", part.file.display()))
+                        }
+                        None => Error::Parameter(format!("--include: {message}")),
                     }
-                    None => Error::Parameter(format!("--include: {message}")),
                 }
+                e => source_error(e, dir, &model_copies),
             }
-            e => source_error(e, dir, &model_copies),
-        }
-    })?;
+        })?
+    };
     let geometry = ModelGeometry::new(&model).map_err(|e| Error::input(&model_path, e.message()))?;
 
     let truth = poses
@@ -314,11 +359,7 @@ pub fn import_visp(src: &Path, out_dir: &Path, opts: &ImportOptions) -> Result<I
         fs::write(&truth_path, lines).map_err(|e| Error::io(&truth_path, e))?;
     }
     let meta = serde_json::json!({
-        "source": if has_truth {
-            "ViSP model-based-tracking data set"
-        } else {
-            "ViSP model-based-tracking sequence (no ground truth; init.json from the first frame's pose)"
-        },
+        "source": source,
         "images": images.iter().map(|(_, p)| file_name(p)).collect::<Vec<_>>(),
         "poses": poses.iter().map(|(_, p)| file_name(p)).collect::<Vec<_>>(),
         "camera": file_name(&camera_path),
@@ -364,16 +405,76 @@ struct Sources {
     /// The settings file with the intrinsics.
     camera: PathBuf,
     /// The folder that `--model`, `--camera`, `--init` and `--include`
-    /// paths are relative to: the data set, or the folder holding a
-    /// tracking sequence.
+    /// paths are relative to: the data set (or a sequence filmed beside a
+    /// tag grid), or the folder holding a tracking sequence.
     base: PathBuf,
+    /// What the source is, for `meta.json`.
+    source: &'static str,
 }
 
 impl Sources {
     /// The files of `src`: a data set when it has `Images/`, else a
     /// tracking sequence when it holds `imageNNNN` frames.
     fn of(src: &Path, opts: &ImportOptions) -> Result<Self> {
-        if src.join(IMAGES_DIR).exists() { Self::data_set(src, opts) } else { Self::tracking_sequence(src, opts) }
+        if src.join(IMAGES_DIR).exists() {
+            Self::data_set(src, opts)
+        } else if src.join(TAG_GRID_FILE).exists() {
+            Self::tag_grid_sequence(src, opts)
+        } else {
+            Self::tracking_sequence(src, opts)
+        }
+    }
+
+    /// A sequence filmed beside a tag grid (module doc): the truth from the
+    /// grid's poses and the object's first pose.
+    fn tag_grid_sequence(src: &Path, opts: &ImportOptions) -> Result<Self> {
+        let found = frame_files(src, TAG_IMAGE_PREFIX)?;
+        let mut images = check_numbering(src, found, TAG_IMAGE_PREFIX)?;
+        images.truncate(opts.frames.unwrap_or(usize::MAX));
+        let init = match opts.init.as_deref() {
+            Some(given) => given_file(src, given, "the object's first pose given with --init")?,
+            None => {
+                let dir = src.join(TAG_INIT_DIR);
+                match files_with_extension(&dir, "json")?.as_slice() {
+                    [one] => one.clone(),
+                    [] => return Err(Error::input(&dir, "no NAME.json: the first pose of the object to convert")),
+                    several => {
+                        let names: Vec<String> = several.iter().map(|p| file_name(p)).collect();
+                        return Err(Error::input(
+                            &dir,
+                            format!("holds {}: choose the object with --init init/NAME.json", names.join(", ")),
+                        ));
+                    }
+                }
+            }
+        };
+        let name = init.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let model = match opts.model.as_deref() {
+            Some(given) => given_file(src, given, "the model given with --model")?,
+            None => existing(
+                src.join("..").join(TAG_MODELS_DIR).join(&name).join(format!("{name}.obj")),
+                "the object's model (or give it with --model)",
+            )?,
+        };
+        let camera = match opts.camera.as_deref() {
+            Some(given) => given_file(src, given, "the settings given with --camera")?,
+            None => existing(src.join(TAG_CAMERA_FILE), "the <camera> intrinsics (or give them with --camera)")?,
+        };
+        let first = read_matrix_file(&init)?;
+        let grid_path = src.join(TAG_GRID_FILE);
+        let grid = read_tag_grid(&grid_path)?;
+        if grid.len() < images.len() {
+            return Err(Error::input(
+                &grid_path,
+                format!("\"grid\" has {} poses for {} frames: one per frame is needed", grid.len(), images.len()),
+            ));
+        }
+        // The object at rest in the grid's frame: gMo = cMg(0)⁻¹·cMo(0).
+        let in_grid = grid[0].inverse().compose(&first);
+        let poses = grid[..images.len()].iter().map(|cmg| (cmg.compose(&in_grid), grid_path.clone())).collect();
+        let source =
+            "ViSP sequence filmed beside a tag grid (truth: the grid's pose from its tags, the object at rest)";
+        Ok(Self { images, poses, truth: true, model, camera, base: src.to_path_buf(), source })
     }
 
     fn data_set(src: &Path, opts: &ImportOptions) -> Result<Self> {
@@ -387,7 +488,8 @@ impl Sources {
         let poses = images.iter().map(|(number, image)| read_pose(src, *number, image)).collect::<Result<Vec<_>>>()?;
         let model = choose_model(src, opts.model.as_deref())?;
         let camera = choose_camera(src, opts.camera.as_deref(), &model)?;
-        Ok(Self { images, poses, truth: true, model, camera, base: src.to_path_buf() })
+        let source = "ViSP model-based-tracking data set";
+        Ok(Self { images, poses, truth: true, model, camera, base: src.to_path_buf(), source })
     }
 
     fn tracking_sequence(src: &Path, opts: &ImportOptions) -> Result<Self> {
@@ -435,7 +537,8 @@ impl Sources {
             )?,
         };
         let pose = read_pose_file(&pose_path)?;
-        Ok(Self { images, poses: vec![(pose, pose_path)], truth: false, model, camera, base })
+        let source = "ViSP model-based-tracking sequence (no ground truth; init.json from the first frame's pose)";
+        Ok(Self { images, poses: vec![(pose, pose_path)], truth: false, model, camera, base, source })
     }
 }
 
@@ -621,6 +724,39 @@ fn pose_from_matrix(m: &[f64]) -> std::result::Result<Pose, String> {
         return Err(format!("the upper-left 3×3 block is not a rotation (|RᵀR − I| up to {off:.2e}, det {det:.6})"));
     }
     Ok(Pose::new(rotation, DVec3::new(at(0, 3), at(1, 3), at(2, 3))))
+}
+
+/// A 4×4 pose matrix written as JSON, a list of four rows.
+fn matrix_of(value: &serde_json::Value) -> std::result::Result<Pose, String> {
+    let numbers: Option<Vec<f64>> = value
+        .as_array()
+        .filter(|rows| rows.len() == 4)
+        .and_then(|rows| rows.iter().map(|r| r.as_array().filter(|r| r.len() == 4)).collect::<Option<Vec<_>>>())
+        .and_then(|rows| rows.into_iter().flatten().map(serde_json::Value::as_f64).collect());
+    let numbers = numbers.ok_or("not a 4×4 matrix (a list of four rows of four numbers)")?;
+    if !numbers.iter().all(|v| v.is_finite()) {
+        return Err("a number of the matrix is not finite".into());
+    }
+    pose_from_matrix(&numbers)
+}
+
+/// The pose in `path`: a JSON 4×4 matrix cMo.
+fn read_matrix_file(path: &Path) -> Result<Pose> {
+    let value = crate::io::json::read_json_value(path)?;
+    matrix_of(&value).map_err(|msg| Error::input(path, msg))
+}
+
+/// The grid's poses cMg of `path` (`{"grid": [matrix, …]}`), one per frame.
+fn read_tag_grid(path: &Path) -> Result<Vec<Pose>> {
+    let value = crate::io::json::read_json_value(path)?;
+    let grid = value
+        .get("grid")
+        .and_then(serde_json::Value::as_array)
+        .ok_or_else(|| Error::input(path, "no \"grid\": a list of the tag grid's poses, one 4×4 matrix per frame"))?;
+    grid.iter()
+        .enumerate()
+        .map(|(k, m)| matrix_of(m).map_err(|msg| Error::input(path, format!("\"grid\" pose {k}: {msg}"))))
+        .collect()
 }
 
 /// The `.cao` model to convert: `given` (relative to `src`), or the only one

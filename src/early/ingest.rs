@@ -221,6 +221,10 @@ pub(crate) fn encode_texture(rec: &mut Recorder<'_>, texture: &wgpu::Texture, ds
     if (texture.width() as usize, texture.height() as usize) != (w, h) {
         return Err(Error::Size(format!("texture {}x{} for a {w}x{h} frame", texture.width(), texture.height())));
     }
+    // A texture wgpu refuses to view (one destroyed already) is an error
+    // here, caught in a scope of its own, not a panic of wgpu's default
+    // handler or an invalid submission later.
+    let scope = rec.context().device.push_error_scope(wgpu::ErrorFilter::Validation);
     let view = texture.create_view(&wgpu::TextureViewDescriptor {
         label: Some("pipetrack.ingest_texture.frame"),
         dimension: Some(wgpu::TextureViewDimension::D2),
@@ -230,6 +234,9 @@ pub(crate) fn encode_texture(rec: &mut Recorder<'_>, texture: &wgpu::Texture, ds
         array_layer_count: Some(1),
         ..Default::default()
     });
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        return Err(Error::Texture(format!("wgpu cannot view it: {}", crate::bounds::one_line(&e.to_string()))));
+    }
     let u = IngestUniform { width: w as u32, height: h as u32, kind: kind as u32, _pad: 0 };
     rec.dispatch_with(
         &TEXTURE_SHADER,

@@ -98,6 +98,16 @@ pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
     parse_json(path, &read_text(path)?)
 }
 
+/// Any JSON value of `path` (an array at the top too), with the errors of
+/// [`read_json`] otherwise.
+pub(crate) fn read_json_value(path: &Path) -> Result<serde_json::Value> {
+    let text = read_text(path)?;
+    if text.trim().is_empty() {
+        return Err(Error::input(path, "empty file"));
+    }
+    serde_json::from_str(&text).map_err(|e| input_error(path, describe_json_error(&text, &e, None)))
+}
+
 /// [`read_json`] of `text`, the contents of `path`.
 fn parse_json<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
     if text.trim().is_empty() {

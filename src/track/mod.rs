@@ -60,6 +60,20 @@ impl<'a> From<&'a FrameFeatures> for Observations<'a> {
     }
 }
 
+/// [`Tracker::accept_frame_size`] of a tracker whose camera is `camera`.
+pub(crate) fn camera_takes(
+    camera: &crate::geometry::Camera,
+    width: usize,
+    height: usize,
+) -> std::result::Result<(), String> {
+    let (cw, ch) = (camera.width as usize, camera.height as usize);
+    if (width, height) == (cw, ch) {
+        Ok(())
+    } else {
+        Err(format!("{width}x{height}, but the camera's image is {cw}x{ch}"))
+    }
+}
+
 /// Hold reported corners finite (SPEC §4): each corner of `corners` that is
 /// not finite is replaced by its `last` reported position, and each finite
 /// one becomes the new `last`. Returns the index of the first corner that
@@ -240,6 +254,17 @@ pub trait Tracker {
     /// the frame against itself). The default never widens.
     fn track_or_widen(&mut self, frame: usize, observations: &Observations<'_>) -> Tracked {
         Tracked::Outcome(self.track(frame, observations))
+    }
+
+    /// `Err` with the reason in words when this tracker cannot take frames
+    /// of `width`×`height`: a tracker with a camera takes the camera's image
+    /// size (the intrinsics hold for that size only), one without takes the
+    /// size of the first frame it was given (its corners and motion are in
+    /// that frame's pixels). [`run::track_step`] asks before each frame and
+    /// refuses the frame with [`crate::Error::Size`]. The default takes any.
+    fn accept_frame_size(&mut self, width: usize, height: usize) -> std::result::Result<(), String> {
+        let _ = (width, height);
+        Ok(())
     }
 
     /// Whether the tracker reads colour (its requests have sample windows

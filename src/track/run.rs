@@ -73,7 +73,7 @@ pub fn read_config<P: serde::de::DeserializeOwned + Default>(path: Option<&Path>
     P::deserialize(Deserializer::from(section)).map_err(|e| {
         let at = e.span().and_then(|span| text_position(&text, span.start)).map(|(line, _)| line);
         unknown_key_error(path, tracker, e.message(), at, &tables).unwrap_or_else(|| {
-            let message = crate::io::json::plain_type_names(&one_line(&e.to_string()));
+            let message = crate::io::json::plain_type_names(&crate::bounds::one_line(&e.to_string()));
             input_error(
                 path,
                 match at {
@@ -138,8 +138,8 @@ fn text_position(text: &str, offset: usize) -> Option<(usize, usize)> {
 /// ([`crate::io::json::one_short_line`]).
 fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> Error {
     let message = match e.span().and_then(|span| text_position(text, span.start)) {
-        Some((line, column)) => format!("line {line}, column {column}: {}", one_line(e.message())),
-        None => one_line(&e.to_string()),
+        Some((line, column)) => format!("line {line}, column {column}: {}", crate::bounds::one_line(e.message())),
+        None => crate::bounds::one_line(&e.to_string()),
     };
     input_error(path, message)
 }
@@ -150,10 +150,6 @@ fn config_error(config: Option<&Path>, e: Error) -> Error {
         Some(path) => Error::input(path, e.message()),
         None => e,
     }
-}
-
-fn one_line(s: &str) -> String {
-    s.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join("; ")
 }
 
 /// Make the tracker `name` for `seq`, with parameters from `config`.
@@ -452,8 +448,8 @@ impl Frame<'_> {
     }
 }
 
-/// Anything [`track_frames`] takes as a frame: a [`GrayImage`] (owned or
-/// borrowed), a `&wgpu::Texture`, or a [`Frame`].
+/// Anything [`track_frames`] takes as a frame: a [`GrayImage`] or an
+/// [`RgbImage`] (owned or borrowed), a `&wgpu::Texture`, or a [`Frame`].
 pub trait AsFrame {
     /// This frame as a [`Frame`].
     fn as_frame(&self) -> Frame<'_>;
@@ -472,6 +468,12 @@ impl AsFrame for &GrayImage {
 }
 
 impl AsFrame for RgbImage {
+    fn as_frame(&self) -> Frame<'_> {
+        Frame::Rgb(self)
+    }
+}
+
+impl AsFrame for &RgbImage {
     fn as_frame(&self) -> Frame<'_> {
         Frame::Rgb(self)
     }
@@ -498,7 +500,9 @@ impl AsFrame for Frame<'_> {
 ///
 /// The backend differences each frame against the one before (motion), so
 /// successive calls must be successive frames of one sequence; call
-/// [`EarlyVision::reset`] before the first.
+/// [`EarlyVision::reset`] before the first. A frame with no pixel, or of a
+/// size the tracker does not take ([`Tracker::accept_frame_size`]: its
+/// camera's, or its first frame's), is [`Error::Size`] and changes nothing.
 pub fn track_step(
     tracker: &mut dyn Tracker,
     backend: &mut dyn EarlyVision,
@@ -506,6 +510,11 @@ pub fn track_step(
     frame: Frame<'_>,
 ) -> Result<(FrameOutcome, FrameResult)> {
     let t0 = Instant::now();
+    let (w, h) = frame.size();
+    if w == 0 || h == 0 {
+        return Err(Error::Size(format!("frame {index} is {w}x{h}: a frame needs at least one pixel")));
+    }
+    tracker.accept_frame_size(w, h).map_err(|why| Error::Size(format!("frame {index} is {why}")))?;
     until_tracked(tracker, frame.size(), |tracker, request, may_widen| {
         let features = match frame {
             Frame::Gray(g) => backend.process(g, &request)?,

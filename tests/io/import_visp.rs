@@ -520,3 +520,109 @@ fn a_tracking_sequence_given_as_dot_and_init_with_a_data_set() {
     let src = visp_data_set(&root);
     expect_refused_with(&root, &src, &["--init", "x.pos"], &["--init is for a folder of frames"]);
 }
+
+/// The tetrahedron as a Wavefront OBJ (the faces of `TETRAHEDRON`, 1-based).
+const TETRAHEDRON_OBJ: &str = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+/// 4×4 row-major matrix of `(R, t)`.
+fn matrix((r, t): &([[f64; 3]; 3], [f64; 3])) -> [[f64; 4]; 4] {
+    [
+        [r[0][0], r[0][1], r[0][2], t[0]],
+        [r[1][0], r[1][1], r[1][2], t[1]],
+        [r[2][0], r[2][1], r[2][2], t[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+}
+
+fn product(a: &[[f64; 4]; 4], b: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..4).map(|k| a[i][k] * b[k][j]).sum()))
+}
+
+/// A sequence filmed beside a tag grid, in the layout of ViSP's
+/// `rbt/sequence`, under `root/data`: the three frames, the object
+/// `tetra`'s first pose, and per frame the grid's pose cMg = cMo·oMg for a
+/// grid placed at oMg (a quarter turn about y, 0.3 m away) in the object's
+/// frame, so that cMg(k)·cMg(0)⁻¹·cMo(0) is the true pose of frame k.
+fn tag_grid_sequence(root: &Path) -> PathBuf {
+    let src = root.join("data/sequence");
+    std::fs::create_dir_all(src.join("init")).unwrap();
+    std::fs::create_dir_all(root.join("data/models/tetra")).unwrap();
+    for k in 0..3u32 {
+        let img = image::RgbImage::from_fn(WIDTH, HEIGHT, |x, y| image::Rgb(colour(k + 1, x, y)));
+        img.save(src.join(format!("color_image_{k:04}.png"))).unwrap();
+    }
+    let o_m_g = matrix(&([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]], [0.3, -0.1, 0.05]));
+    let grid: Vec<[[f64; 4]; 4]> = true_poses().iter().map(|pose| product(&matrix(pose), &o_m_g)).collect();
+    let json = serde_json::json!({ "tag_size": 0.1, "grid": grid, "detections": [] });
+    std::fs::write(src.join("apriltag_data.json"), json.to_string()).unwrap();
+    std::fs::write(src.join("init/tetra.json"), serde_json::json!(matrix(&true_poses()[0])).to_string()).unwrap();
+    std::fs::write(src.join("camera.xml"), settings()).unwrap();
+    std::fs::write(root.join("data/models/tetra/tetra.obj"), TETRAHEDRON_OBJ).unwrap();
+    src
+}
+
+#[test]
+fn a_sequence_filmed_beside_a_tag_grid_gets_its_truth_from_the_grid() {
+    let root = crate::common::scratch("import-visp", "tag-grid");
+    let src = tag_grid_sequence(&root);
+    let seq = root.join("seq");
+    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("wrote 3 frames of 64x48"), "{stderr}");
+    assert_eq!(std::fs::read_to_string(seq.join("model.obj")).unwrap(), TETRAHEDRON_OBJ);
+    let camera: Camera = serde_json::from_str(&std::fs::read_to_string(seq.join("camera.json")).unwrap()).unwrap();
+    assert_eq!(camera, Camera { width: WIDTH, height: HEIGHT, fx: FX, fy: FY, cx: CX, cy: CY });
+    let truth: Vec<TruthFrame> = std::fs::read_to_string(seq.join("truth.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(truth.len(), 3);
+    for (k, ((r, t), line)) in true_poses().iter().zip(&truth).enumerate() {
+        let pose = line.pose.expect("a pose per frame");
+        for a in 0..3 {
+            assert!(close(pose.rotation[a], TRUE_AXIS_ANGLES[k][a]), "frame {k}: rotation {:?}", pose.rotation);
+            assert!(close(pose.translation[a], t[a]), "frame {k}: translation {:?}", pose.translation);
+        }
+        for (i, p) in vertices().iter().enumerate() {
+            let (pixel, seen) = project(r, t, p);
+            let got = line.corners[i];
+            assert!(close(got[0], pixel[0]) && close(got[1], pixel[1]), "frame {k} vertex {i}: {got:?} vs {pixel:?}");
+            assert_eq!(line.visible.vertex(i), seen, "frame {k} vertex {i}");
+        }
+    }
+    let meta = std::fs::read_to_string(seq.join("meta.json")).unwrap();
+    assert!(meta.contains("tag grid"), "{meta}");
+}
+
+#[test]
+fn a_tag_grid_sequence_with_two_objects_or_too_few_grid_poses_is_refused() {
+    let root = crate::common::scratch("import-visp", "tag-grid-bad");
+    let src = tag_grid_sequence(&root);
+    let dragon = src.join("init/dragon.json");
+    std::fs::copy(src.join("init/tetra.json"), &dragon).unwrap();
+    let refused = |extra: &[&str], needles: &[&str]| {
+        let seq = root.join("seq");
+        let out = pipetrack(&[&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()], extra].concat());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        for n in needles {
+            assert!(stderr.contains(n), "{n:?} missing from {stderr}");
+        }
+        assert!(!seq.exists());
+    };
+    refused(&[], &["init", "dragon.json, tetra.json", "--init init/NAME.json"]);
+    // --init chooses the object; the dragon has no model.
+    refused(&["--init", "init/dragon.json"], &["models/dragon/dragon.obj", "missing"]);
+    std::fs::remove_file(&dragon).unwrap();
+    let grid = src.join("apriltag_data.json");
+    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&grid).unwrap()).unwrap();
+    json["grid"].as_array_mut().unwrap().truncate(2);
+    std::fs::write(&grid, json.to_string()).unwrap();
+    refused(&[], &["apriltag_data.json", "\"grid\" has 2 poses for 3 frames"]);
+    json["grid"] = serde_json::json!([[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1]]]);
+    std::fs::write(&grid, json.to_string()).unwrap();
+    refused(&[], &["apriltag_data.json", "\"grid\" pose 0: not a 4×4 matrix"]);
+}

@@ -887,6 +887,10 @@ impl Tracker for BlueTracker {
         "blue"
     }
 
+    fn accept_frame_size(&mut self, width: usize, height: usize) -> std::result::Result<(), String> {
+        super::camera_takes(&self.camera, width, height)
+    }
+
     fn window_of_interest(&self, width: usize, height: usize) -> Window {
         BlueTracker::window_of_interest(self, width, height)
     }

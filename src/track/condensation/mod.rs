@@ -187,11 +187,20 @@ impl CondensationTracker {
                 model.vertices.len()
             )));
         };
+        if let Some(problem) = camera.intrinsics_problem() {
+            return Err(Error::Parameter(format!("camera: {problem}")));
+        }
+        if !model.vertices.iter().flatten().all(|v| v.is_finite()) {
+            return Err(Error::Parameter("the window's vertices must be finite numbers".into()));
+        }
         let vertices = [a, b, c, d].map(DVec3::from_array);
-        let pose: Pose = init
+        let init_pose = init
             .pose
-            .ok_or_else(|| Error::Parameter("condensation needs \"pose\" (the window's depth comes from it)".into()))?
-            .into();
+            .ok_or_else(|| Error::Parameter("condensation needs \"pose\" (the window's depth comes from it)".into()))?;
+        if !init_pose.is_finite() {
+            return Err(Error::Parameter("the initial \"pose\" must be finite numbers".into()));
+        }
+        let pose: Pose = init_pose.into();
         if vertices.iter().any(|v| !(pose.apply(*v).z > 0.0)) {
             return Err(Error::Parameter("a window vertex is not in front of the camera at the initial pose".into()));
         }
@@ -454,6 +463,10 @@ fn screw_covariance(samples: &[Screw], weights: &[f64]) -> Vec<f64> {
 impl Tracker for CondensationTracker {
     fn name(&self) -> &'static str {
         "condensation"
+    }
+
+    fn accept_frame_size(&mut self, width: usize, height: usize) -> std::result::Result<(), String> {
+        super::camera_takes(&self.camera, width, height)
     }
 
     fn window_of_interest(&self, width: usize, height: usize) -> Window {

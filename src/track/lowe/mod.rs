@@ -402,9 +402,15 @@ impl LoweTracker {
     /// camera.
     pub fn new(camera: Camera, model: &Model, init: &InitState, params: LoweParams) -> Result<Self> {
         params.validate()?;
+        if let Some(problem) = camera.intrinsics_problem() {
+            return Err(Error::Parameter(format!("camera: {problem}")));
+        }
         Self::check_model(model)?;
         let geometry = ModelGeometry::new(model)?;
         let pose = init.pose.as_ref().ok_or_else(|| Error::Parameter("lowe needs \"pose\" in init.json".into()))?;
+        if !pose.is_finite() || !init.params.iter().all(|v| v.is_finite()) {
+            return Err(Error::Parameter("the initial \"pose\" and \"params\" must be finite numbers".into()));
+        }
         let joint_values = if init.params.is_empty() { vec![0.0; geometry.joint_count()] } else { init.params.clone() };
         if joint_values.len() != geometry.joint_count() {
             return Err(Error::Parameter(format!(
@@ -1485,6 +1491,10 @@ fn covered_length(segs: &[ModelSegment], matches: &[estimation::Match]) -> f64 {
 impl Tracker for LoweTracker {
     fn name(&self) -> &'static str {
         "lowe"
+    }
+
+    fn accept_frame_size(&mut self, width: usize, height: usize) -> std::result::Result<(), String> {
+        super::camera_takes(&self.camera, width, height)
     }
 
     fn window_of_interest(&self, width: usize, height: usize) -> Window {

@@ -367,6 +367,8 @@ const MAX_SIDE_CHANGE: f64 = 1.25;
 #[derive(Clone, Debug)]
 pub struct MotionEdgeTracker {
     params: MotionEdgeParams,
+    /// The size of the first frame given, which every later one must have.
+    frame_size: Option<(usize, usize)>,
     edges: Vec<[usize; 2]>,
     /// The two model lines (edge indices) meeting at each corner.
     corner_lines: Vec<[usize; 2]>,
@@ -461,8 +463,11 @@ impl MotionEdgeTracker {
         if corners.iter().flatten().any(|v| !v.is_finite()) {
             return Err(Error::Parameter("motion-edge: the initial corners must be finite".into()));
         }
+        crate::geometry::check_simple_polygon(&corners, &edges)
+            .map_err(|msg| Error::Parameter(format!("motion-edge: {msg}")))?;
         Ok(Self {
             params,
+            frame_size: None,
             edges,
             corner_lines,
             phase: Phase::Acquiring,
@@ -1319,6 +1324,13 @@ impl MotionEdgeTracker {
 impl Tracker for MotionEdgeTracker {
     fn name(&self) -> &'static str {
         "motion-edge"
+    }
+
+    fn accept_frame_size(&mut self, width: usize, height: usize) -> std::result::Result<(), String> {
+        match *self.frame_size.get_or_insert((width, height)) {
+            (w, h) if (w, h) == (width, height) => Ok(()),
+            (w, h) => Err(format!("{width}x{height}, but the sequence's first frame was {w}x{h}")),
+        }
     }
 
     fn window_of_interest(&self, width: usize, height: usize) -> Window {
