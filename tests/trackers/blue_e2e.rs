@@ -20,7 +20,9 @@
 //! error), and at most 1 % are reported tracking more than 5 px off; on the
 //! CPU backend, and at 1.2 rad/s, seed 0 on the GPU backend too. Without
 //! the reversal hypotheses (the paper's motion model alone) the 1.2 rad/s
-//! case holds fewer than 95 % of the frames.
+//! case holds fewer than 95 % of the frames. On a held-out shaken sequence
+//! (seed 32 at 0.6 rad/s) no frame at all is reported tracking more than
+//! 5 px off.
 
 use crate::common;
 
@@ -134,8 +136,10 @@ const SHAKE_CASES: [ShakeCase; 5] = [
 /// Least fraction of the frames reported tracking within the false-tracking distance.
 const MIN_SHAKEN_HELD: f64 = 0.95;
 
-/// Track the shaken case on `backend`; assert its acceptance criteria.
-fn check_shaken(case: &ShakeCase, backend: &mut dyn EarlyVision, backend_name: &str) {
+/// Track the shaken case on `backend`; assert its acceptance criteria and
+/// return the frames reported tracking more than the false-tracking
+/// distance off.
+fn check_shaken(case: &ShakeCase, backend: &mut dyn EarlyVision, backend_name: &str) -> Vec<usize> {
     let opts = Target3dofOptions {
         frames: 300,
         seed: case.seed,
@@ -173,6 +177,7 @@ fn check_shaken(case: &ShakeCase, backend: &mut dyn EarlyVision, backend_name: &
         s.false_tracking_px,
         s.false_tracking
     );
+    s.false_tracking
 }
 
 #[test]
@@ -188,6 +193,26 @@ fn blue_holds_shaken_target3dof_gpu() {
         return;
     };
     check_shaken(&SHAKE_CASES[2], &mut GpuBackend::new(ctx.clone()), "gpu");
+}
+
+/// A reversal after which the tracker once went wrong, on a seed the cases
+/// above do not use: seed 32 at 0.6 rad/s turns at frame 259; frame 260
+/// found the turned target around the prediction, 20 px off it, but the
+/// motion models went on with the motion before the turn, and frames
+/// 261–263 fitted the model one face to the right of the target.
+const REVERSAL_CASES: [ShakeCase; 1] = [ShakeCase { speed: 0.6, seed: 32 }];
+
+#[test]
+fn blue_reports_no_false_frame_after_a_reversal_cpu() {
+    for case in &REVERSAL_CASES {
+        let false_frames = check_shaken(case, &mut CpuBackend::new(), "cpu");
+        assert!(
+            false_frames.is_empty(),
+            "shaken at {} rad/s, seed {}: frames reported tracking off the target: {false_frames:?}",
+            case.speed,
+            case.seed
+        );
+    }
 }
 
 /// The paper's motion model alone (no reversal hypotheses) does not hold

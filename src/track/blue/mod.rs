@@ -182,10 +182,21 @@
 //! replaces one around the prediction that passed only when it lies farther
 //! than [`BlueParams::refine_distance`] from it (elsewhere: the same target
 //! found twice is kept as the prediction found it) and its excess is larger
-//! by `REVERSAL_MARGIN` (0.05). When the kept estimate lies farther than
-//! `distance_tolerance` from the prediction, the motion models restart from
-//! the last tracked frame at rest before taking it, so the next prediction
-//! does not carry the motion before the reversal.
+//! by `REVERSAL_MARGIN` (0.05). When the kept estimate, the prediction's
+//! own or a hypothesis's, lies farther than `distance_tolerance` from the
+//! prediction after a tracked frame, the motion models restart from the
+//! last tracked frame at rest before taking it, so the next prediction does
+//! not carry the motion before the reversal: the association distance
+//! bounds the prediction error of eq. 15 on the motion eq. 13 models (see
+//! [`BlueParams::lambda`]), so an estimate beyond it means that motion
+//! changed, and eq. 14 would still weigh the samples before the change by
+//! λ, λ², …. This holds also for a target found by the coarse alignment
+//! around the prediction itself (within its reach): target3dof shaken at
+//! 0.6 rad/s, seed 32, turns at frame 259 from 10 px/frame to 10 px/frame
+//! back; frame 260 found it 20 px from the prediction, the models, fed it,
+//! still moved 5.7 px/frame forward, the next prediction lay 24 px off,
+//! beyond the alignment's reach, and three frames fitted the model one face
+//! to the right of the target.
 //!
 //! Reported per frame: the projection of every model vertex (model-vertex
 //! order, hidden ones too) at the frame's BLUE (the prediction when lost),
@@ -783,7 +794,7 @@ impl BlueTracker {
         // leaves the association window, the frame is measured again around
         // the target turned back and at rest; the estimate whose outline
         // stands out most is kept.
-        let mut reversed = false;
+        let apart = |a: &TargetLocation, b: &TargetLocation| (a.cx - b.cx).hypot(a.cy - b.cy);
         let fast = |v: &[f64; 2]| v[0].hypot(v[1]) >= 0.5 * self.params.distance_tolerance;
         if self.params.reversal_hypotheses
             && !searched
@@ -805,7 +816,6 @@ impl BlueTracker {
             // The target is within a frame's displacement of either: turned
             // back by 180° ± 50° or stopped anywhere along the way.
             let reach = vx.hypot(vy).min(self.params.acquire_distance).max(self.params.distance_tolerance);
-            let apart = |a: &TargetLocation, b: &TargetLocation| (a.cx - b.cx).hypot(a.cy - b.cy);
             for hypothesis in &hypotheses {
                 let candidate = self.measure_around(edges, hypothesis, reach);
                 if main.is_some_and(|m| apart(&m, &candidate.location) <= self.params.refine_distance) {
@@ -815,8 +825,6 @@ impl BlueTracker {
                     && on - off > best
                 {
                     best = on - off;
-                    // Restart the motion models when the target is not where they predicted.
-                    reversed = apart(&candidate.location, &predicted) > self.params.distance_tolerance;
                     pass = candidate;
                     failure = None;
                     support = Some((on, off));
@@ -824,6 +832,12 @@ impl BlueTracker {
             }
         }
         let tracked = failure.is_none();
+        // Restart the motion models when the kept estimate, the prediction's
+        // or a hypothesis's, is not where they predicted.
+        let reversed = self.params.reversal_hypotheses
+            && follows_tracked
+            && !searched
+            && apart(&pass.location, &predicted) > self.params.distance_tolerance;
         let (location, covariance) = if tracked {
             if reversed {
                 // The polynomials extrapolate the motion before the reversal:

@@ -176,7 +176,8 @@ pub struct BlueParams {
     /// [`BlueParams::acquire_distance`]),
     /// keep the estimate whose outline stands out most among those passing
     /// the checks, and restart the motion models from the last tracked frame
-    /// when it lies off the prediction. Off: only the prediction.
+    /// when it (or the prediction's own estimate) lies off the prediction.
+    /// Off: only the prediction.
     /// Range: either.
     pub reversal_hypotheses: bool,
 }
