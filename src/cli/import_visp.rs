@@ -52,11 +52,11 @@
 //! The object is the one of `--init` (`init/NAME.json`), or the only one in
 //! `init/`. Frame k's true pose is cMo(k) = cMg(k)·cMg(0)⁻¹·cMo(0): the object
 //! and the grid do not move, so the object keeps its place in the grid's
-//! frame. That truth is only as good as the grid's pose from its tags,
-//! which a moving hand-held camera blurs and, with a rolling shutter, bends
-//! (the grid and the object are read out at different moments): on ViSP's
-//! `rbt/sequence` a tracker's fit that lies on the cube's edges is up to
-//! 20 px from it on frames of fast motion. The model is `model.obj`.
+//! frame. That truth is only as good as the grid's pose from its tags: on
+//! ViSP's `rbt/sequence` a tracker's fit that lies on the cube's edges is
+//! up to 20 px from it on frames where the camera moves fast (the tags
+//! blurred; a shutter that rolls would also read the grid and the object
+//! at different moments). The model is `model.obj`.
 //!
 //! ViSP's conventions are pipetrack's: cMo maps object points to the camera
 //! frame (X_c = R·X_o + t), the camera frame has x right, y down, z forward,
