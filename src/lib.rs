@@ -48,6 +48,11 @@
 //! [`early::ingest`]. `examples/embed.rs` renders a scene with wgpu and
 //! tracks it this way.
 //!
+//! A program with frames of its own (a live camera) can read the camera,
+//! model and start from a sequence folder without frames
+//! ([`Sequence::open_without_frames`]) and make the tracker the command line
+//! would ([`track::run::make_tracker`]).
+//!
 //! What each tracker takes:
 //! - Every frame of a run has one size: a tracker with a camera
 //!   ([`BlueTracker`], [`LoweTracker`], [`CondensationTracker`]) takes its

@@ -62,6 +62,17 @@ pub struct Sequence {
     init_keys: Vec<String>,
 }
 
+/// Where [`Sequence::read`] takes the frames from.
+#[derive(Clone, Copy, Debug)]
+enum FramesFrom {
+    /// `frames/`.
+    Folder,
+    /// A Y4M stream on stdin.
+    Stdin,
+    /// Nowhere: the caller has its own.
+    Caller,
+}
+
 #[derive(Clone, Debug)]
 enum FrameList {
     Files(Vec<PathBuf>),
@@ -75,6 +86,20 @@ impl Sequence {
     /// one PNG, PGM or JPEG file. Files in the folder other than those of
     /// SPEC §4 are ignored.
     pub fn open(dir: &Path, frames_from_stdin: bool) -> Result<Self> {
+        Self::read(dir, if frames_from_stdin { FramesFrom::Stdin } else { FramesFrom::Folder })
+    }
+
+    /// Read and validate the camera, model and start of the sequence folder
+    /// `dir` as [`Sequence::open`] does, without frames: for a program that
+    /// brings its own (a live camera) and makes its tracker from the
+    /// folder's files ([`crate::track::run::make_tracker`]), then runs it
+    /// with [`crate::track_step`]. A `frames/` folder is ignored; the
+    /// sequence has no frames ([`Sequence::frames`] yields none).
+    pub fn open_without_frames(dir: &Path) -> Result<Self> {
+        Self::read(dir, FramesFrom::Caller)
+    }
+
+    fn read(dir: &Path, frames_from: FramesFrom) -> Result<Self> {
         check_folder(dir)?;
         let camera_path = dir.join(CAMERA_FILE);
         let (camera, camera_keys, written) = read_json_with_original::<Camera>(&camera_path)?;
@@ -93,12 +118,14 @@ impl Sequence {
         ignored_keys.extend(ignored_line(&init_path, &init_keys));
         noting_ignored(init.validate(&init_path, &model, &model_path), &init_path, &init_keys)?;
 
-        let frames = if frames_from_stdin {
-            FrameList::Stdin
-        } else {
-            let paths = list_frames(&dir.join(FRAMES_DIR))?;
-            check_frame_header(&paths[0], &camera, &camera_path)?;
-            FrameList::Files(paths)
+        let frames = match frames_from {
+            FramesFrom::Stdin => FrameList::Stdin,
+            FramesFrom::Caller => FrameList::Files(Vec::new()),
+            FramesFrom::Folder => {
+                let paths = list_frames(&dir.join(FRAMES_DIR))?;
+                check_frame_header(&paths[0], &camera, &camera_path)?;
+                FrameList::Files(paths)
+            }
         };
 
         Ok(Self { camera, model, init, dir: dir.to_path_buf(), model_path, frames, ignored_keys, init_keys })

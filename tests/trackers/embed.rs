@@ -133,3 +133,27 @@ fn trackers_refuse_frames_of_the_wrong_size_and_bad_starts() {
     let err = CondensationTracker::new(camera, &plane.model, &plane.init, CondensationParams::default()).err().unwrap();
     assert!(err.to_string().contains("camera: image size 0x"), "{err}");
 }
+
+/// A program with its own frames (a live camera) reads the camera, model
+/// and start from a sequence folder without frames, makes the tracker the
+/// command line would, and tracks its frames one at a time; `open` still
+/// asks for the frames.
+#[test]
+fn a_sequence_folder_without_frames_makes_a_tracker_for_a_live_camera() {
+    use pipetrack::io::Sequence;
+    use pipetrack::synth::boxes::{BoxOptions, render_box};
+    let root = common::scratch("embed", "live");
+    let seq = render_box(&BoxOptions { frames: 3, ..BoxOptions::default() }).expect("render");
+    seq.write(root.path()).expect("written");
+    std::fs::remove_dir_all(root.join("frames")).unwrap();
+    let err = Sequence::open(root.path(), false).err().expect("open needs frames/");
+    assert!(err.to_string().contains("frames"), "{err}");
+    let files = Sequence::open_without_frames(root.path()).expect("camera, model and init");
+    assert_eq!((files.frame_count(), files.frames().count()), (Some(0), 0));
+    let mut tracker = pipetrack::track::run::make_tracker("lowe", &files, None).expect("lowe from the folder's files");
+    let mut backend = CpuBackend::new();
+    for (k, frame) in seq.frames.iter().enumerate() {
+        let (_, line) = track_step(tracker.as_mut(), &mut backend, k, Frame::Gray(frame)).expect("a frame");
+        assert_eq!(line.status, Status::Tracking, "frame {k}");
+    }
+}
