@@ -146,7 +146,7 @@ fn a_sequence_folder_without_frames_makes_a_tracker_for_a_live_camera() {
     let seq = render_box(&BoxOptions { frames: 3, ..BoxOptions::default() }).expect("render");
     seq.write(root.path()).expect("written");
     std::fs::remove_dir_all(root.join("frames")).unwrap();
-    let err = Sequence::open(root.path(), false).err().expect("open needs frames/");
+    let err = Sequence::open(root.path(), false).expect_err("open needs frames/");
     assert!(err.to_string().contains("frames"), "{err}");
     let files = Sequence::open_without_frames(root.path()).expect("camera, model and init");
     assert_eq!((files.frame_count(), files.frames().count()), (Some(0), 0));
