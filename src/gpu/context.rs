@@ -14,8 +14,9 @@ const NEEDED_STORAGE_BUFFERS: u32 = 8;
 ///
 /// Create your device with these (or higher) limits before handing it to
 /// [`GpuContext::from_device`], which checks every one of them. wgpu's
-/// `Limits::default()` is higher in each, so a device made with it serves
-/// too; `Limits::downlevel_defaults()` has 4 storage buffers and does not.
+/// `Limits::default()` meets them all (a unit test checks it), so a device
+/// made with it serves too; `Limits::downlevel_defaults()` has 4 storage
+/// buffers and does not.
 /// Larger frames may need `max_storage_buffer_binding_size` and
 /// `max_buffer_size` raised further: a frame's f32 image takes `4·w·h` bytes.
 #[must_use]
