@@ -5,7 +5,8 @@
 # it (`pipetrack score`), runs under 95 % on target or over 1 % false
 # marked `!`, then the totals.
 #
-#   benches/held_out.sh [--jobs N] [--scratch DIR] BINARY
+#   benches/held_out.sh [--jobs N] [--scratch DIR] [--motion-edge-seeds "S …"]
+#                       [--blue-seeds "S …"] [--condensation-seeds "S …"] BINARY
 #
 # motion-edge (pendulum, 200 frames, seeds 1–9): rotating at 16 and
 # 20 px/frame, a second object crossing behind the target at 3.9 and
@@ -14,17 +15,24 @@
 # frames, seeds 1–6): translation and translation + roll, sampling the
 # screw components the motion has. --jobs runs that many at a time
 # (default: the number of cores); --scratch keeps the sequences and
-# outputs there (default: a temporary folder, removed at the end).
+# outputs there (default: a temporary folder, removed at the end). The
+# --*-seeds options run other seeds ("" leaves that tracker out).
 set -euo pipefail
 
 jobs=$(nproc)
 scratch=""
 binary=""
+motion_edge_seeds="1 2 3 4 5 6 7 8 9"
+blue_seeds="8 9 10 11 12"
+condensation_seeds="1 2 3 4 5 6"
 while [ $# -gt 0 ]; do
     case "$1" in
         --jobs) jobs="$2"; shift 2 ;;
         --scratch) scratch="$2"; shift 2 ;;
-        -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+        --motion-edge-seeds) motion_edge_seeds="$2"; shift 2 ;;
+        --blue-seeds) blue_seeds="$2"; shift 2 ;;
+        --condensation-seeds) condensation_seeds="$2"; shift 2 ;;
+        -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
         *) [ -z "$binary" ] || { echo "held_out.sh: name one pipetrack binary" >&2; exit 2; }; binary="$1"; shift ;;
     esac
 done
@@ -41,18 +49,18 @@ printf 'component_weights = [1.0, 1.0, 0.0, 0.0, 0.0, 1.0]\n' > "$scratch/roll.t
 
 # name|tracker|config (or -)|synth arguments, one run per line
 runs=()
-for s in 1 2 3 4 5 6 7 8 9; do
+for s in $motion_edge_seeds; do
     runs+=("motion-edge rotating 16 px/frame, seed $s|motion-edge|-|pendulum --frames 200 --speed 16 --seed $s")
     runs+=("motion-edge rotating 20 px/frame, seed $s|motion-edge|-|pendulum --frames 200 --speed 20 --seed $s")
     runs+=("motion-edge second object 3.9 px/frame, seed $s|motion-edge|-|pendulum --frames 200 --speed 3.9 --seed $s --set distractor=true --set distractor_y=120")
     runs+=("motion-edge second object 16 px/frame, seed $s|motion-edge|-|pendulum --frames 200 --speed 16 --seed $s --set distractor=true --set distractor_y=120")
 done
-for s in 8 9 10 11 12; do
+for s in $blue_seeds; do
     runs+=("blue shaken 0.6 rad/s, seed $s|blue|-|target3dof --frames 300 --speed 0.6 --shake --seed $s")
     runs+=("blue shaken 1.2 rad/s, seed $s|blue|-|target3dof --frames 300 --speed 1.2 --shake --seed $s")
     runs+=("blue smooth 1.2 rad/s, seed $s|blue|-|target3dof --frames 300 --speed 1.2 --seed $s")
 done
-for s in 1 2 3 4 5 6; do
+for s in $condensation_seeds; do
     runs+=("condensation translation, seed $s|condensation|translation.toml|textured-plane --set motion=translation --seed $s")
     runs+=("condensation translation + roll, seed $s|condensation|roll.toml|textured-plane --set motion=roll --seed $s")
 done

@@ -428,8 +428,7 @@ impl Sources {
     /// A sequence filmed beside a tag grid (module doc): the truth from the
     /// grid's poses and the object's first pose.
     fn tag_grid_sequence(src: &Path, opts: &ImportOptions) -> Result<Self> {
-        let found = frame_files(src, TAG_IMAGE_PREFIX)?;
-        let mut images = check_numbering(src, found, TAG_IMAGE_PREFIX)?;
+        let mut images = list_images(src, TAG_IMAGE_PREFIX)?;
         images.truncate(opts.frames.unwrap_or(usize::MAX));
         let init = match opts.init.as_deref() {
             Some(given) => given_file(src, given, "the object's first pose given with --init")?,
@@ -733,11 +732,8 @@ fn matrix_of(value: &serde_json::Value) -> std::result::Result<Pose, String> {
         .filter(|rows| rows.len() == 4)
         .and_then(|rows| rows.iter().map(|r| r.as_array().filter(|r| r.len() == 4)).collect::<Option<Vec<_>>>())
         .and_then(|rows| rows.into_iter().flatten().map(serde_json::Value::as_f64).collect());
-    let numbers = numbers.ok_or("not a 4×4 matrix (a list of four rows of four numbers)")?;
-    if !numbers.iter().all(|v| v.is_finite()) {
-        return Err("a number of the matrix is not finite".into());
-    }
-    pose_from_matrix(&numbers)
+    // JSON numbers are finite (the reader refuses NaN and overflow).
+    pose_from_matrix(&numbers.ok_or("not a 4×4 matrix (a list of four rows of four numbers)")?)
 }
 
 /// The pose in `path`: a JSON 4×4 matrix cMo.

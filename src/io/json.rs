@@ -101,20 +101,22 @@ pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
 /// Any JSON value of `path` (an array at the top too), with the errors of
 /// [`read_json`] otherwise.
 pub(crate) fn read_json_value(path: &Path) -> Result<serde_json::Value> {
-    let text = read_text(path)?;
-    if text.trim().is_empty() {
-        return Err(Error::input(path, "empty file"));
-    }
-    serde_json::from_str(&text).map_err(|e| input_error(path, describe_json_error(&text, &e, None)))
+    parse_any(path, &read_text(path)?)
 }
 
 /// [`read_json`] of `text`, the contents of `path`.
 fn parse_json<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
-    if text.trim().is_empty() {
-        return Err(Error::input(path, "empty file"));
-    }
     if let Some(msg) = not_an_object(text) {
         return Err(Error::input(path, msg));
+    }
+    parse_any(path, text)
+}
+
+/// `text`, the contents of `path`, as `T`, whatever JSON it holds: an
+/// empty file or malformed JSON is an input error naming `path`.
+fn parse_any<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
+    if text.trim().is_empty() {
+        return Err(Error::input(path, "empty file"));
     }
     serde_json::from_str(text).map_err(|e| input_error(path, describe_json_error(text, &e, None)))
 }

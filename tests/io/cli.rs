@@ -893,7 +893,7 @@ fn out_dash_writes_to_stdout() {
 }
 
 /// `pipetrack config T` prints T's defaults as a config file that `track
-/// --config` takes, and whose edit changes the run.
+/// --config` takes and that gives the run without it.
 #[test]
 fn config_prints_the_defaults_as_a_config_file() {
     let root = scratch("config");
