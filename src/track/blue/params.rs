@@ -177,6 +177,9 @@ pub struct BlueParams {
     /// keep the estimate whose outline stands out most among those passing
     /// the checks, and restart the motion models from the last tracked frame
     /// when it (or the prediction's own estimate) lies off the prediction.
+    /// A hypothesis whose outline reaches beyond the window of interest by
+    /// enough to change that choice gets a second look at the frame in a
+    /// window grown to hold it (through `Tracker::track_or_widen`).
     /// Off: only the prediction.
     /// Range: either.
     pub reversal_hypotheses: bool,
