@@ -219,6 +219,31 @@ fn blue_reports_no_false_frame_after_a_reversal_cpu() {
     }
 }
 
+/// Seed 38 at 1.2 rad/s, frame 257: the fit around a prediction within
+/// 1 px of the target put the model at 0.86 times its range, 5.3 px off,
+/// where its outline stood out by 0.36 against the prediction's 0.63. The
+/// frame is lost for that, and no frame is reported tracking off the target.
+#[test]
+fn blue_refuses_an_estimate_that_stands_out_less_than_its_prediction_cpu() {
+    let opts = Target3dofOptions { frames: 300, speed: 1.2, shake: true, seed: 38, ..Target3dofOptions::default() };
+    let seq = render_target3dof(&opts).expect("render target3dof");
+    let mut tracker =
+        BlueTracker::new(seq.camera, seq.model.clone(), seq.init.clone(), BlueParams::default()).expect("blue tracker");
+    let size = (seq.camera.width as usize, seq.camera.height as usize);
+    let (results, lost) = common::track_lost(&mut tracker, &mut CpuBackend::new(), seq.frames.iter().cloned(), size);
+    let s = score(&seq.truth, &results).expect("score");
+    eprintln!(
+        "cpu, shaken at 1.2 rad/s, seed 38: {} of {} tracked, false {:?}, lost {lost:?}",
+        s.tracked, s.frames, s.false_tracking
+    );
+    assert!(s.false_tracking.is_empty(), "frames reported tracking off the target: {:?}", s.false_tracking);
+    assert!(
+        lost.iter().any(|why| why.contains("max_excess_below_prediction")),
+        "no frame lost for standing out less than its prediction; lost: {lost:?}"
+    );
+    assert!(s.tracked >= 297, "{} of 300 frames tracked; lost: {lost:?}", s.tracked);
+}
+
 /// The paper's motion model alone (no reversal hypotheses) does not hold
 /// the shaken target: each reversal puts the target twice a frame's
 /// displacement from the prediction, and the criteria above fail.
