@@ -593,6 +593,14 @@ impl BlueTracker {
         Some((support::fraction(counts), shifted(shift).max(shifted(-shift))))
     }
 
+    /// How far across the outline the verification reads edge pixels:
+    /// the outline shifted ±(2·d + 1) px, with d =
+    /// [`BlueParams::support_distance`] on either side of it, and a pixel
+    /// of rounding.
+    fn verification_reach(&self) -> f64 {
+        3.0 * self.params.support_distance + 2.0
+    }
+
     /// The visible model edges at `location`, as image segments.
     fn visible_outline(&self, location: &TargetLocation) -> Vec<([f64; 2], [f64; 2])> {
         let vertices = self.vertices_at(location);
@@ -609,7 +617,7 @@ impl BlueTracker {
     /// pixel) whose verification reads edge pixels outside `window`: the
     /// most its support could gain were that part of the image listed.
     fn outline_unseen(&self, location: &TargetLocation, window: &Window) -> f64 {
-        let reach = 3.0 * self.params.support_distance + 2.0;
+        let reach = self.verification_reach();
         let inside = |[x, y]: [f64; 2]| {
             x - reach >= f64::from(window.x0)
                 && y - reach >= f64::from(window.y0)
@@ -923,7 +931,7 @@ impl BlueTracker {
             // Where a hypothesis's outline, and the outline shifted beside it
             // that the verification also reads, reach beyond this frame's
             // window: edge pixels there were not listed.
-            let verified_margin = 3.0 * self.params.support_distance + 2.0;
+            let verified_margin = self.verification_reach();
             let bar = if self.params.verify { self.params.min_support } else { f64::NEG_INFINITY };
             let mut unseen = Window { x0: 0, y0: 0, x1: 0, y1: 0 };
             for hypothesis in &hypotheses {
