@@ -60,6 +60,22 @@ fn colour(k: u32, x: u32, y: u32) -> [u8; 3] {
     [(x * 4) as u8, (y * 5) as u8, (k * 60 + (x + y) % 7) as u8]
 }
 
+/// Three frames of `colour(first + k, …)`, k = 0, 1, 2, as `dir/name(k)`.
+fn write_frames(dir: &Path, first: u32, name: impl Fn(u32) -> String) {
+    for k in 0..3u32 {
+        let img = image::RgbImage::from_fn(WIDTH, HEIGHT, |x, y| image::Rgb(colour(first + k, x, y)));
+        img.save(dir.join(name(k))).unwrap();
+    }
+}
+
+/// `pipetrack import-visp SRC SEQ`, which must succeed; its stderr.
+fn import_ok(src: &Path, seq: &Path) -> String {
+    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
+    stderr
+}
+
 /// A data set in ViSP's layout in `root/src`: three colour frames, the poses
 /// of frames 1 and 3 as 4×4 matrices and of frame 2 as a pose vector, a
 /// camera in a settings file and the tetrahedron model.
@@ -68,10 +84,7 @@ fn visp_data_set(root: &Path) -> PathBuf {
     for dir in ["Images", "CameraPose", "Config", "Models", "Depth"] {
         std::fs::create_dir_all(src.join(dir)).unwrap();
     }
-    for k in 1..=3u32 {
-        let img = image::RgbImage::from_fn(WIDTH, HEIGHT, |x, y| image::Rgb(colour(k, x, y)));
-        img.save(src.join(format!("Images/Image_{k:04}.png"))).unwrap();
-    }
+    write_frames(&src, 1, |k| format!("Images/Image_{:04}.png", k + 1));
     for (k, (r, t)) in true_poses().iter().enumerate() {
         let text = if k == 1 {
             // θu = 0 for the identity rotation.
@@ -148,9 +161,7 @@ fn a_visp_data_set_becomes_a_sequence_with_its_truth() {
     let root = crate::common::scratch("import-visp", "ok");
     let src = visp_data_set(&root);
     let seq = root.join("seq");
-    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+    let stderr = import_ok(&src, &seq);
     assert!(stderr.contains("wrote 3 frames of 64x48"), "{stderr}");
 
     let camera: Camera = serde_json::from_str(&std::fs::read_to_string(seq.join("camera.json")).unwrap()).unwrap();
@@ -290,8 +301,7 @@ fn loaded_files_are_copied_and_included_parts_placed() {
 
     // The model alone: model.cao and the file it loads, as they are.
     let seq = root.join("seq");
-    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    import_ok(&src, &seq);
     assert_eq!(std::fs::read_to_string(seq.join("model.cao")).unwrap(), TETRAHEDRON_BY_LOAD);
     assert_eq!(std::fs::read_to_string(seq.join("parts/tetra_body.cao")).unwrap(), TETRAHEDRON);
     let truth: TruthFrame =
@@ -356,10 +366,7 @@ fn loaded_files_are_copied_and_included_parts_placed() {
 fn visp_tracking_sequence(root: &Path) -> PathBuf {
     let frames = root.join("src").join("tetra");
     std::fs::create_dir_all(&frames).unwrap();
-    for k in 0..3u32 {
-        let img = image::RgbImage::from_fn(WIDTH, HEIGHT, |x, y| image::Rgb(colour(k, x, y)));
-        img.save(frames.join(format!("image{k:04}.png"))).unwrap();
-    }
+    write_frames(&frames, 0, |k| format!("image{k:04}.png"));
     let (r, t) = true_poses()[0];
     let row = |i: usize| format!("{} {} {} {}\n", r[i][0], r[i][1], r[i][2], t[i]);
     std::fs::write(root.join("src/tetra.0.pos"), format!("{}{}{}0 0 0 1\n", row(0), row(1), row(2))).unwrap();
@@ -373,9 +380,7 @@ fn a_tracking_sequence_without_truth_starts_from_its_first_pose() {
     let root = crate::common::scratch("import-visp", "tracking-sequence");
     let src = visp_tracking_sequence(&root);
     let seq = root.join("seq");
-    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+    let stderr = import_ok(&src, &seq);
     assert!(stderr.contains("wrote 3 frames of 64x48") && stderr.contains("no truth"), "{stderr}");
     assert!(!seq.join("truth.jsonl").exists(), "no truth to write");
     assert_eq!(std::fs::read_to_string(seq.join("model.cao")).unwrap(), TETRAHEDRON);
@@ -457,9 +462,7 @@ fn an_import_that_finds_no_image_edge_says_so() {
     assert_ne!(far, settings());
     std::fs::write(src.join("Config/tetra.xml"), far).unwrap();
     let seq = root.join("seq");
-    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+    let stderr = import_ok(&src, &seq);
     assert!(stderr.contains("no image edge found near the visible edges"), "{stderr}");
     assert!(!stderr.contains("px mean"), "{stderr}");
 }
@@ -496,8 +499,7 @@ fn a_tracking_sequence_named_unlike_its_model_and_an_init_option() {
         std::fs::rename(film.join(format!("image{k:04}.png")), film.join(format!("image_{k:04}.png"))).unwrap();
     }
     let seq = root.join("seq");
-    let out = pipetrack(&["import-visp", film.to_str().unwrap(), seq.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    import_ok(&film, &seq);
     let init: InitState = serde_json::from_str(&std::fs::read_to_string(seq.join("init.json")).unwrap()).unwrap();
     let pose = init.pose.expect("the first frame's pose");
     assert!(close(pose.rotation[0], TRUE_AXIS_ANGLES[0][0]), "rotation {:?}", pose.rotation);
@@ -555,10 +557,7 @@ fn tag_grid_sequence(root: &Path) -> PathBuf {
     let src = root.join("data/sequence");
     std::fs::create_dir_all(src.join("init")).unwrap();
     std::fs::create_dir_all(root.join("data/models/tetra")).unwrap();
-    for k in 0..3u32 {
-        let img = image::RgbImage::from_fn(WIDTH, HEIGHT, |x, y| image::Rgb(colour(k + 1, x, y)));
-        img.save(src.join(format!("color_image_{k:04}.png"))).unwrap();
-    }
+    write_frames(&src, 1, |k| format!("color_image_{k:04}.png"));
     let o_m_g = matrix(&([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]], [0.3, -0.1, 0.05]));
     let grid: Vec<[[f64; 4]; 4]> = true_poses().iter().map(|pose| product(&matrix(pose), &o_m_g)).collect();
     let json = serde_json::json!({ "tag_size": 0.1, "grid": grid, "detections": [] });
@@ -574,9 +573,7 @@ fn a_sequence_filmed_beside_a_tag_grid_gets_its_truth_from_the_grid() {
     let root = crate::common::scratch("import-visp", "tag-grid");
     let src = tag_grid_sequence(&root);
     let seq = root.join("seq");
-    let out = pipetrack(&["import-visp", src.to_str().unwrap(), seq.to_str().unwrap()]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+    let stderr = import_ok(&src, &seq);
     assert!(stderr.contains("wrote 3 frames of 64x48"), "{stderr}");
     assert_eq!(std::fs::read_to_string(seq.join("model.obj")).unwrap(), TETRAHEDRON_OBJ);
     let camera: Camera = serde_json::from_str(&std::fs::read_to_string(seq.join("camera.json")).unwrap()).unwrap();

@@ -920,7 +920,6 @@ impl BlueTracker {
             // found another place (farther than `refine_distance`) whose
             // outline stands out clearly more.
             let main = (failure.is_none() && support.is_some()).then_some(pass.location);
-            let first = may_widen.then(|| (frame, pass.clone()));
             let mut best = match (&failure, support) {
                 (None, Some((on, off))) => on - off + REVERSAL_MARGIN,
                 _ => f64::NEG_INFINITY,
@@ -931,20 +930,19 @@ impl BlueTracker {
             // Where a hypothesis's outline, and the outline shifted beside it
             // that the verification also reads, reach beyond this frame's
             // window: edge pixels there were not listed.
-            let verified_margin = self.verification_reach();
             let bar = if self.params.verify { self.params.min_support } else { f64::NEG_INFINITY };
-            let mut unseen = Window { x0: 0, y0: 0, x1: 0, y1: 0 };
+            let mut unseen = Window::default();
+            let mut winner: Option<(Pass, (f64, f64))> = None;
             for hypothesis in &hypotheses {
                 let candidate = self.measure_around(edges, hypothesis, reach);
                 if main.is_some_and(|m| apart(&m, &candidate.location) <= self.params.refine_distance) {
                     continue;
                 }
+                let kept = winner.as_ref().map_or(main, |(w, _)| Some(w.location));
                 match self.judge(&candidate, &map, None, true) {
                     (None, Some((on, off))) if on - off > best => {
                         best = on - off;
-                        pass = candidate;
-                        failure = None;
-                        support = Some((on, off));
+                        winner = Some((candidate, (on, off)));
                     }
                     // Elsewhere than the estimate kept so far, passed but
                     // did not win, or failed the verification alone, on an
@@ -952,22 +950,27 @@ impl BlueTracker {
                     // could give: the frame is looked at again with the
                     // hypothesis's edges listed.
                     (_, Some((on, off)))
-                        if !(best > f64::NEG_INFINITY
-                            && apart(&pass.location, &candidate.location) <= self.params.refine_distance)
+                        if may_widen
+                            && !kept.is_some_and(|k| apart(&k, &candidate.location) <= self.params.refine_distance)
                             && on - off + self.outline_unseen(&candidate.location, &window) > best.max(bar) =>
                     {
                         let outline = self.vertices_at(&candidate.location);
-                        if let Some(around) = Window::around(&outline, verified_margin, width, height) {
+                        if let Some(around) = Window::around(&outline, self.verification_reach(), width, height) {
                             unseen = unseen.union(&around);
                         }
                     }
                     _ => {}
                 }
             }
-            if may_widen && !unseen.is_empty() {
+            if !unseen.is_empty() {
                 self.second_look = Some(window.union(&unseen));
-                self.first_look = first;
+                self.first_look = Some((frame, pass));
                 return None;
+            }
+            if let Some((candidate, s)) = winner {
+                pass = candidate;
+                failure = None;
+                support = Some(s);
             }
         }
         self.next_frame = frame + 1;
