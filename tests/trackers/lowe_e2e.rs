@@ -432,9 +432,12 @@ fn lowe_does_not_claim_an_ambiguous_answer_cpu() {
 /// answer slid onto the band's long edges, verified on frames 128–134
 /// (7 false frames). At 20 px/frame, seed 7: at frame 239, under the band,
 /// a lid edge took a line 10 px from its own and the memory learnt that
-/// line's contrast (4 false frames). Both now have none.
+/// line's contrast (4 false frames). Both now have none. Seed 1 tracks
+/// 289 frames: frames 124–130, after the ambiguous frames 122–123, are not
+/// claimed (the tracker's module doc, step 11; 0.3–3.8 px off with 25–42 %
+/// of their outline supported where 53 % claims; 296 frames before).
 const HINGED_OCCLUDED_10_SEED_1: Case =
-    Case { speed: 10.0, occlude: 0.5, seed: 1, min_tracked: 290, max_false: 0, ..HINGED_25 };
+    Case { speed: 10.0, occlude: 0.5, seed: 1, min_tracked: 285, max_false: 0, ..HINGED_25 };
 const HINGED_OCCLUDED_FAST_SEED_7: Case = Case { seed: 7, min_tracked: 275, max_false: 0, ..HINGED_OCCLUDED_FAST };
 /// A rival carried in the answer's place (`ambiguous_carry_ratio` 1.2, off
 /// by default): the box half hidden at 20 px/frame, seed 1, had at frame

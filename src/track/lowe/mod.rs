@@ -211,6 +211,22 @@
 //!     on frames 191, 193 and 194 as it turned behind the band, while other
 //!     searches of the same frames gave verified solutions within 4 px of
 //!     it with more support and matches.
+//! 11. **Claims after an ambiguous answer** (our addition): an ambiguous
+//!     frame's answer may be the wrong one of the two, and carried on it
+//!     leads the next frames away from the object while each of them, on
+//!     its own, passes the verification. So after an ambiguous frame the
+//!     answers are carried on as before but reported `lost` until one has
+//!     at least `reclaim_support_ratio` of the outline support of the last
+//!     frame reported `tracking` (before the first ambiguous frame of the
+//!     run), or `reclaim_after_frames` unambiguous answers follow in a row;
+//!     a frame lost for want of a solution ends the wait (a re-acquisition
+//!     has its own bars, step 7). Only statuses change: poses, windows and
+//!     velocities are those of the answers. On ViSP's real `rbt/sequence`
+//!     video a hand-held camera turns a textured cube whose pictures'
+//!     borders run parallel to its edges; from frame 20, a run of
+//!     ambiguous frames carried the answer off the cube, and 12 answers
+//!     between them, 25–125 px off with 26–48 % of their outline supported,
+//!     were reported `tracking` where frame 19 had 59 % (RESULTS.md).
 //!
 //! Output per frame: status, `corners` (every model vertex projected),
 //! `pose`, `params` (joint values) and the covariance P of the correction
@@ -347,6 +363,55 @@ pub struct LoweTracker {
     /// Per model edge, the contrast its matches have shown (module doc of
     /// [`search`], step 4).
     contrast_memory: Vec<EdgeContrast>,
+    /// Whether answers are claimed again after an ambiguous one (module
+    /// doc, step 11).
+    reclaim: Reclaim,
+}
+
+/// Step 11 of the module doc: after an ambiguous answer, the answers that
+/// follow are claimed (reported `tracking`) again only once one has at
+/// least `reclaim_support_ratio` of the outline support of the last
+/// claimed frame, or `reclaim_after_frames` unambiguous answers in a row.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Reclaim {
+    /// Outline support of the last frame reported `tracking` (0 before one).
+    claimed_support: f64,
+    /// Since an ambiguous answer and until an answer is claimed again: the
+    /// support that claims, and the unambiguous answers since the last
+    /// ambiguous one.
+    pending: Option<(f64, usize)>,
+}
+
+impl Reclaim {
+    /// A frame's answer was ambiguous: the support to claim again is
+    /// `ratio` of the last claimed frame's (kept from the first ambiguous
+    /// frame of a run of them), and the count of unambiguous answers starts
+    /// again.
+    fn ambiguous(&mut self, ratio: f64) {
+        let bar = ratio * self.claimed_support;
+        let (_, run) = self.pending.get_or_insert((bar, 0));
+        *run = 0;
+    }
+
+    /// An unambiguous verified answer with outline support `support`:
+    /// `Ok` when it is claimed, else the support it needed. `after_frames`
+    /// 0 never claims by the count alone.
+    fn claim(&mut self, support: f64, after_frames: usize) -> std::result::Result<(), f64> {
+        if let Some((bar, run)) = &mut self.pending {
+            *run += 1;
+            if support < *bar && (after_frames == 0 || *run < after_frames) {
+                return Err(*bar);
+            }
+        }
+        self.pending = None;
+        self.claimed_support = support;
+        Ok(())
+    }
+
+    /// The frame was lost: a re-acquisition has its own bars (step 7).
+    fn lost(&mut self) {
+        self.pending = None;
+    }
 }
 
 /// The contrast a model edge's matches have shown on the verified frames
@@ -487,6 +552,7 @@ impl LoweTracker {
             last_diagnostics: LoweDiagnostics::default(),
             views: Vec::new(),
             contrast_memory: vec![EdgeContrast::default(); geometry.edges().len()],
+            reclaim: Reclaim::default(),
             geometry,
             params,
         };
@@ -1685,7 +1751,9 @@ impl LoweTracker {
         // The overlay's bands: the visible model at the reported state (the
         // search's segments at the solution, or those at the prediction) with
         // the spread of its perpendicular position.
-        let (status, reported, covariance, band_segs) = match verified {
+        // `unambiguous`: a verified answer that no rival matches, claimed or
+        // not (step 11 changes the status alone).
+        let (status, reported, covariance, band_segs, unambiguous) = match verified {
             Some(solution) => {
                 // Across a loss there is no velocity to extrapolate.
                 let previous = std::mem::replace(&mut self.last, solution.state.clone());
@@ -1719,10 +1787,26 @@ impl LoweTracker {
                         .unwrap_or_default(),
                 };
                 // An ambiguous answer, or the rival carried in its place, is
-                // carried on, but not claimed.
+                // carried on, but not claimed; nor are the answers after it
+                // until one is as well supported as before (step 11).
                 let status = match ambiguity {
-                    None => Status::Tracking,
+                    None => match self.reclaim.claim(diag.support, self.params.reclaim_after_frames) {
+                        Ok(()) => Status::Tracking,
+                        Err(bar) => {
+                            let run = match self.params.reclaim_after_frames {
+                                0 => String::new(),
+                                k => format!(" (or {k} unambiguous answers in a row)"),
+                            };
+                            lost_reason = Some(format!(
+                                "after an ambiguous answer: {:.0} % of the outline supported, {:.0} % needed{run}",
+                                100.0 * diag.support,
+                                100.0 * bar,
+                            ));
+                            Status::Lost
+                        }
+                    },
                     Some(Ambiguity { support_ratio, distance_px, .. }) => {
+                        self.reclaim.ambiguous(self.params.reclaim_support_ratio);
                         let carried = if rival_carried { "; that one is carried on" } else { "" };
                         lost_reason = Some(format!(
                             "ambiguous: another verified solution {distance_px:.1} px away has {support_ratio:.2} \
@@ -1731,7 +1815,7 @@ impl LoweTracker {
                         Status::Lost
                     }
                 };
-                (status, solution.state, Some(solution.covariance), final_segs)
+                (status, solution.state, Some(solution.covariance), final_segs, ambiguity.is_none())
             }
             None => {
                 // Coast: the prediction becomes the last state, so the next
@@ -1739,6 +1823,7 @@ impl LoweTracker {
                 // coasted model stays in the image at a depth near the last
                 // verified one; past that, stand at the last verified state.
                 self.lost_frames += 1;
+                self.reclaim.lost();
                 let coasted = self.prediction.clone();
                 if self.plausible(&coasted) {
                     self.before_last = Some(std::mem::replace(&mut self.last, coasted));
@@ -1748,7 +1833,7 @@ impl LoweTracker {
                 }
                 self.first_doubling = self.params.range_doublings;
                 self.phase = Phase::Lost;
-                (Status::Lost, self.prediction.clone(), None, segs)
+                (Status::Lost, self.prediction.clone(), None, segs, false)
             }
         };
         let p = covariance.unwrap_or_else(|| {
@@ -1762,7 +1847,7 @@ impl LoweTracker {
         self.prediction = self.predict();
         // Step 2: a frame verified with confident support at its first
         // range sizes the next window for `confident_window_doublings`.
-        let confident = status == Status::Tracking && at_first_range && diag.support >= self.params.confident_support;
+        let confident = unambiguous && at_first_range && diag.support >= self.params.confident_support;
         let full = Window::full(width, height);
         self.window_doublings = self.params.range_doublings;
         self.window = if self.lost_frames >= self.params.search_after {
@@ -1804,7 +1889,8 @@ mod tests {
 
     use super::estimation::{Match, Solution};
     use super::{
-        Found, LoweParams, LoweTracker, State, Verified, better_supported, distinct_outline, fixtures, rotation_between,
+        Found, LoweParams, LoweTracker, Reclaim, State, Verified, better_supported, distinct_outline, fixtures,
+        rotation_between,
     };
     use crate::geometry::{Pose, mean_point_distance};
     use crate::io::formats::InitState;
@@ -1858,6 +1944,41 @@ mod tests {
         // The first frame after a loss starts from no velocity.
         tracker.lost_frames = 3;
         assert_eq!(verify(&mut tracker, 0.9, measured, false), 0.0);
+    }
+
+    /// Step 11: after an ambiguous answer, an answer is claimed once it has
+    /// the given share of the last claimed frame's support or completes a
+    /// run of unambiguous answers; a loss ends the wait.
+    #[test]
+    fn answers_after_an_ambiguous_one_are_claimed_once_supported_as_before_or_after_a_run() {
+        let mut reclaim = Reclaim::default();
+        assert_eq!(reclaim.claim(0.6, 8), Ok(()), "nothing ambiguous yet");
+        reclaim.ambiguous(0.9);
+        let bar = reclaim.claim(0.4, 8).expect_err("0.4 < 0.9 of 0.6");
+        assert!((bar - 0.54).abs() < 1e-12, "{bar}");
+        // A second ambiguous frame keeps the bar and counts the run again.
+        for _ in 0..5 {
+            assert!(reclaim.claim(0.4, 8).is_err());
+        }
+        reclaim.ambiguous(0.9);
+        for run in 1..8 {
+            assert_eq!(reclaim.claim(0.4, 8), Err(bar), "answer {run} of the run");
+        }
+        assert_eq!(reclaim.claim(0.4, 8), Ok(()), "the eighth in a row is claimed");
+        // The reference is now that answer's support.
+        reclaim.ambiguous(0.9);
+        assert_eq!(reclaim.claim(0.35, 8), Err(0.9 * 0.4));
+        assert_eq!(reclaim.claim(0.37, 8), Ok(()), "as well supported as 0.9 of the last claim");
+        // Without a count, only the support claims.
+        reclaim.ambiguous(0.9);
+        for _ in 0..50 {
+            assert!(reclaim.claim(0.2, 0).is_err());
+        }
+        // A loss ends the wait; a ratio of 0 never waits.
+        reclaim.lost();
+        assert_eq!(reclaim.claim(0.05, 8), Ok(()));
+        reclaim.ambiguous(0.0);
+        assert_eq!(reclaim.claim(0.01, 0), Ok(()));
     }
 
     /// Step 10: a verified solution far from the answer, with as many

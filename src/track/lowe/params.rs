@@ -252,6 +252,23 @@ pub struct LoweParams {
     /// px/frame, seed 0, carried a rival 23.5 px off the box at frame 66
     /// and was lost for 29 frames (RESULTS.md). Range: [0, 10].
     pub ambiguous_carry_ratio: f64,
+    /// After an ambiguous answer (see `ambiguous_support_ratio`) the
+    /// answers that follow are carried on as before but reported `lost`
+    /// until one has at least this share of the outline support of the
+    /// last frame reported `tracking` (the tracker's module doc, step 11).
+    /// On ViSP's real `rbt/sequence` video the cube was carried off it
+    /// through a run of ambiguous frames, and 12 of the answers between
+    /// them, 25–125 px off with 26–48 % of their outline supported, were
+    /// reported `tracking`, where the last frame reported before the first
+    /// ambiguity had 59 % (RESULTS.md). 0 claims every unambiguous answer.
+    /// Range: [0, 2].
+    pub reclaim_support_ratio: f64,
+    /// See `reclaim_support_ratio`: the answer that makes this many
+    /// unambiguous answers in a row since the last ambiguous one is claimed
+    /// whatever its support (an occluder that arrives with the ambiguity
+    /// keeps the support of answers on target low). 0: only the support
+    /// claims. Range: [0, 1000].
+    pub reclaim_after_frames: usize,
     /// Whether a model edge's contrast, as its matches showed it on the
     /// last verified frames, chooses between two lines of opposite
     /// contrast side by side on it while locking on ([`super::search`],
@@ -321,6 +338,8 @@ impl Default for LoweParams {
             ambiguous_support_ratio: 0.95,
             ambiguous_distance_px: 5.0,
             ambiguous_carry_ratio: 0.0,
+            reclaim_support_ratio: 0.9,
+            reclaim_after_frames: 8,
             remember_contrast: true,
             remember_contrast_min_support: 0.6,
             segments: SegmentParams::default(),
@@ -375,6 +394,8 @@ impl LoweParams {
         Interval::closed(0.0, 10.0).check(WHO, "ambiguous_support_ratio", self.ambiguous_support_ratio, "")?;
         Interval::open_closed(0.0, 4096.0).check(WHO, "ambiguous_distance_px", self.ambiguous_distance_px, " px")?;
         Interval::closed(0.0, 10.0).check(WHO, "ambiguous_carry_ratio", self.ambiguous_carry_ratio, "")?;
+        Interval::closed(0.0, 2.0).check(WHO, "reclaim_support_ratio", self.reclaim_support_ratio, "")?;
+        check_count(WHO, "reclaim_after_frames", self.reclaim_after_frames, 0, 1000)?;
         Interval::closed(0.0, 1.0).check(
             WHO,
             "remember_contrast_min_support",
