@@ -260,8 +260,11 @@ pub struct LoweParams {
     /// through a run of ambiguous frames, and 12 of the answers between
     /// them, 25–125 px off with 26–48 % of their outline supported, were
     /// reported `tracking`, where the last frame reported before the first
-    /// ambiguity had 59 % (RESULTS.md). 0 claims every unambiguous answer.
-    /// Range: [0, 2].
+    /// ambiguity had 59 % (RESULTS.md). Over the 180 stress runs of seeds
+    /// 0–14 (`benches/lowe_sweep.sh`), 0.9 with `reclaim_after_frames` 8
+    /// takes the frames tracking more than 5 px off from 22 to 14 and the
+    /// frames tracking from 50 760 to 50 622; on seeds 15–29, 14 → 11 and
+    /// 50 417 → 50 320. 0 claims every unambiguous answer. Range: [0, 2].
     pub reclaim_support_ratio: f64,
     /// See `reclaim_support_ratio`: the answer that makes this many
     /// unambiguous answers in a row since the last ambiguous one is claimed
