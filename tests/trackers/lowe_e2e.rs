@@ -18,7 +18,7 @@ use crate::common;
 
 use pipetrack::backend::{CpuBackend, EarlyVision, GpuBackend};
 use pipetrack::cli::score::score;
-use pipetrack::io::formats::FrameResult;
+use pipetrack::io::formats::{FrameResult, Status};
 use pipetrack::synth::SyntheticSequence;
 use pipetrack::synth::boxes::{BoxKind, BoxOptions, render_box};
 use pipetrack::track::{LoweParams, LoweTracker};
@@ -372,7 +372,7 @@ fn lowe_searches_from_slower_predictions_only_at_a_drop_of_support_cpu() {
     let run = |search_slower_predictions: bool| {
         let params = LoweParams { search_slower_predictions, ..LoweParams::default() };
         let (results, _) = track(&seq, params, &mut CpuBackend::new());
-        let tracked = results.iter().filter(|r| r.status == pipetrack::io::formats::Status::Tracking).count();
+        let tracked = results.iter().filter(|r| r.status == Status::Tracking).count();
         let branches: usize = results.iter().map(|r| r.search_branches.expect("lowe reports its branches")).sum();
         (tracked, branches as f64 / results.len() as f64)
     };
@@ -424,6 +424,43 @@ const BOX_OCCLUDED_FAST_SEED_25: Case =
 #[test]
 fn lowe_does_not_claim_an_ambiguous_answer_cpu() {
     check_each_cpu(&[HINGED_OCCLUDED_FAST_SEED_14, BOX_OCCLUDED_FAST_SEED_25]);
+}
+
+/// After an ambiguous answer the answers that follow are claimed again
+/// only once as well supported as before it, or after a run of unambiguous
+/// ones (the tracker's module doc, step 11), and only their statuses
+/// change. Half the edges hidden at 10 px/frame, seed 0: the band arrives
+/// on frame 44 with the first ambiguous answer, ambiguous answers recur
+/// until frame 64, and the answers between them, with 35–54 % of their
+/// outline supported where 82 % (0.9 of frame 43's) claims, are reported
+/// lost until frame 72, the eighth unambiguous answer after frame 64.
+#[test]
+fn lowe_claims_the_answers_after_an_ambiguous_one_only_when_supported_again_cpu() {
+    let seq = render(&Case { speed: 10.0, occlude: 0.5, seed: 0, ..HINGED_25 });
+    let (claimed, _) = track(&seq, LoweParams::default(), &mut CpuBackend::new());
+    let every = LoweParams { reclaim_support_ratio: 0.0, ..LoweParams::default() };
+    let (all, _) = track(&seq, every, &mut CpuBackend::new());
+    let is = |r: &FrameResult, what: &str| r.lost_reason.as_deref().is_some_and(|why| why.starts_with(what));
+    let mut waiting = false;
+    let mut refused = Vec::new();
+    for (c, a) in claimed.iter().zip(&all) {
+        assert_eq!((&c.corners, &c.pose, &c.params, &c.covariance), (&a.corners, &a.pose, &a.params, &a.covariance));
+        if is(c, "after an ambiguous answer") {
+            assert!(waiting, "frame {}: refused with no ambiguous answer before it", c.frame);
+            assert_eq!(a.status, Status::Tracking, "frame {}: claimed without the rule", c.frame);
+            refused.push(c.frame);
+        } else {
+            assert_eq!(c.status, a.status, "frame {}", c.frame);
+        }
+        if is(c, "ambiguous") {
+            waiting = true;
+        } else if c.status == Status::Tracking || a.lost_reason.is_some() {
+            waiting = false;
+        }
+    }
+    let first = refused.first().copied();
+    assert!(refused.len() >= 20 && first == Some(45), "frames refused: {refused:?}");
+    assert!(claimed.iter().any(|c| c.frame > 64 && c.frame <= 72 && c.status == Status::Tracking), "claimed again");
 }
 
 /// The contrast memory learns only from frames with at least 0.6 of the
