@@ -133,10 +133,8 @@ impl EdgeMap {
                 near.extend(cells.iter().filter(|&&(i, j)| i.abs() <= box_x && j.abs() <= box_y));
                 near_offsets.clear();
                 near_offsets.extend(near.iter().map(|&(i, j)| j * self.width as i64 + i));
-                let mut s = END_MARGIN_PX;
-                while s <= length - END_MARGIN_PX {
+                for c in sample_positions(p, q) {
                     samples += 1;
-                    let c = [p[0] + s * ux, p[1] + s * uy];
                     let (cx, cy) = (round_to_i64(c[0]), round_to_i64(c[1]));
                     let supports = |(i, j): (i64, i64), o: f64| {
                         let (rx, ry) = ((cx + i) as f64 - c[0], (cy + j) as f64 - c[1]);
@@ -157,12 +155,26 @@ impl EdgeMap {
                     if hit {
                         supported += 1;
                     }
-                    s += SAMPLE_STEP_PX;
                 }
                 (supported, samples)
             })
             .collect()
     }
+}
+
+/// The points of the segment `p → q` where [`EdgeMap::support`] samples
+/// it (module doc): every [`SAMPLE_STEP_PX`] from [`END_MARGIN_PX`] after
+/// `p` to [`END_MARGIN_PX`] before `q`; none for a segment too short or not
+/// finite.
+pub fn sample_positions(p: [f64; 2], q: [f64; 2]) -> impl Iterator<Item = [f64; 2]> {
+    let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+    let length = dx.hypot(dy);
+    let (ux, uy) = (dx / length, dy / length);
+    let last =
+        if length.is_finite() && length > 2.0 * END_MARGIN_PX { length - END_MARGIN_PX } else { f64::NEG_INFINITY };
+    std::iter::successors(Some(END_MARGIN_PX), |s| Some(s + SAMPLE_STEP_PX))
+        .take_while(move |&s| s <= last)
+        .map(move |s| [p[0] + s * ux, p[1] + s * uy])
 }
 
 /// The segments moved by `offset` px along their left normal.

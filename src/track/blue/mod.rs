@@ -613,9 +613,10 @@ impl BlueTracker {
             .collect()
     }
 
-    /// The fraction of the visible outline at `location` (sampled every
-    /// pixel) whose verification reads edge pixels outside `window`: the
-    /// most its support could gain were that part of the image listed.
+    /// The fraction of the visible outline's samples at `location` (those
+    /// of the verification, [`support::sample_positions`]) whose
+    /// verification reads edge pixels outside `window`: the most its
+    /// support could gain were that part of the image listed.
     fn outline_unseen(&self, location: &TargetLocation, window: &Window) -> f64 {
         let reach = self.verification_reach();
         let inside = |[x, y]: [f64; 2]| {
@@ -624,16 +625,12 @@ impl BlueTracker {
                 && x + reach < f64::from(window.x1)
                 && y + reach < f64::from(window.y1)
         };
-        let (mut unseen, mut samples) = (0usize, 0usize);
-        for (a, b) in self.visible_outline(location) {
-            let n = (b[0] - a[0]).hypot(b[1] - a[1]).ceil().clamp(1.0, 1e5) as usize;
-            for k in 0..=n {
-                let t = k as f64 / n as f64;
-                samples += 1;
-                unseen += usize::from(!inside([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]));
-            }
-        }
-        if samples == 0 { 0.0 } else { unseen as f64 / samples as f64 }
+        let counts = self
+            .visible_outline(location)
+            .into_iter()
+            .flat_map(|(a, b)| support::sample_positions(a, b))
+            .fold((0, 0), |(unseen, samples), c| (unseen + usize::from(!inside(c)), samples + 1));
+        support::fraction(counts)
     }
 
     /// The frame's edge pixels indexed by position for the verification.
@@ -885,21 +882,11 @@ impl BlueTracker {
         // prediction, judged again on this look's edges; only the
         // hypotheses are measured again.
         let first_look = self.first_look.take().filter(|(f, _)| *f == frame);
-        let (mut pass, mut failure, mut support) = match (first_look, searched_pass) {
-            (Some((_, pass)), _) => {
-                let (failure, support) = self.judge(&pass, &map, None, follows_tracked);
-                (pass, failure, support)
-            }
-            (None, Some(pass)) => {
-                let (failure, support) = self.judge(&pass, &map, Some(predicted.cz), follows_tracked);
-                (pass, failure, support)
-            }
-            (None, None) => {
-                let pass = self.measure_around(edges, &predicted, self.association_distance());
-                let (failure, support) = self.judge(&pass, &map, None, follows_tracked);
-                (pass, failure, support)
-            }
+        let mut pass = match (first_look, searched_pass) {
+            (Some((_, pass)), _) | (None, Some(pass)) => pass,
+            (None, None) => self.measure_around(edges, &predicted, self.association_distance()),
         };
+        let (mut failure, mut support) = self.judge(&pass, &map, searched.then_some(predicted.cz), follows_tracked);
         // A reversal (extension, module doc "Abrupt reversals"): after a
         // tracked frame, when the target moves so fast that a reversal
         // leaves the association window, the frame is measured again around

@@ -1751,9 +1751,10 @@ impl LoweTracker {
         // The overlay's bands: the visible model at the reported state (the
         // search's segments at the solution, or those at the prediction) with
         // the spread of its perpendicular position.
-        // `unambiguous`: a verified answer that no rival matches, claimed or
-        // not (step 11 changes the status alone).
-        let (status, reported, covariance, band_segs, unambiguous) = match verified {
+        // A verified answer that no rival matches, claimed or not (step 11
+        // changes the status alone).
+        let unambiguous = verified.is_some() && ambiguity.is_none();
+        let (status, reported, covariance, band_segs) = match verified {
             Some(solution) => {
                 // Across a loss there is no velocity to extrapolate.
                 let previous = std::mem::replace(&mut self.last, solution.state.clone());
@@ -1815,7 +1816,7 @@ impl LoweTracker {
                         Status::Lost
                     }
                 };
-                (status, solution.state, Some(solution.covariance), final_segs, ambiguity.is_none())
+                (status, solution.state, Some(solution.covariance), final_segs)
             }
             None => {
                 // Coast: the prediction becomes the last state, so the next
@@ -1833,7 +1834,7 @@ impl LoweTracker {
                 }
                 self.first_doubling = self.params.range_doublings;
                 self.phase = Phase::Lost;
-                (Status::Lost, self.prediction.clone(), None, segs, false)
+                (Status::Lost, self.prediction.clone(), None, segs)
             }
         };
         let p = covariance.unwrap_or_else(|| {
