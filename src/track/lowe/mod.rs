@@ -192,7 +192,8 @@
 //!     wider ranges and slower predictions of step 6, the whole-image
 //!     search of step 8, the other joint values of step 9) can give
 //!     verified solutions other than the answer that are nearly as well
-//!     supported. When one of them has at least as many matches, at least
+//!     supported. When one of them has at least `ambiguous_match_ratio`
+//!     of the answer's matches (1: as many), at least
 //!     `ambiguous_support_ratio` of the answer's supported outline samples
 //!     and the model's vertices on average more than `ambiguous_distance_px`
 //!     from the answer's, the image supports two different answers about
@@ -964,10 +965,10 @@ impl LoweTracker {
     }
 
     /// Of the frame's `verified` solutions, the best supported one that
-    /// makes `answer` ambiguous (module doc, step 10): at least as many
-    /// matches, at least `ambiguous_support_ratio` of its supported
-    /// samples, its model vertices on average more than
-    /// `ambiguous_distance_px` away.
+    /// makes `answer` ambiguous (module doc, step 10): at least
+    /// `ambiguous_match_ratio` of its matches, at least
+    /// `ambiguous_support_ratio` of its supported samples, its model
+    /// vertices on average more than `ambiguous_distance_px` away.
     fn ambiguity(&self, answer: &Found, verified: &[Verified]) -> Option<Ambiguity> {
         let least_ratio = self.params.ambiguous_support_ratio;
         let own = answer.support?.0;
@@ -977,7 +978,7 @@ impl LoweTracker {
         let corners = self.corners_at(&answer.solution.state);
         verified
             .iter()
-            .filter(|rival| rival.matches >= answer.matches.len())
+            .filter(|rival| rival.matches as f64 >= self.params.ambiguous_match_ratio * answer.matches.len() as f64)
             .filter_map(|rival| {
                 let support_ratio = rival.supported as f64 / own as f64;
                 if support_ratio < least_ratio {
@@ -990,6 +991,7 @@ impl LoweTracker {
             .map(|(support_ratio, distance_px, rival)| Ambiguity {
                 support_ratio,
                 distance_px,
+                matches: [rival.matches, answer.matches.len()],
                 rival: rival.solution.clone(),
             })
     }
@@ -1198,6 +1200,8 @@ struct Ambiguity {
     support_ratio: f64,
     /// Mean distance between the two solutions' projected model vertices, px.
     distance_px: f64,
+    /// Its matches and the answer's.
+    matches: [usize; 2],
     /// Its fit.
     rival: estimation::Solution,
 }
@@ -1806,12 +1810,12 @@ impl LoweTracker {
                             Status::Lost
                         }
                     },
-                    Some(Ambiguity { support_ratio, distance_px, .. }) => {
+                    Some(Ambiguity { support_ratio, distance_px, matches: [theirs, ours], .. }) => {
                         self.reclaim.ambiguous(self.params.reclaim_support_ratio);
                         let carried = if rival_carried { "; that one is carried on" } else { "" };
                         lost_reason = Some(format!(
                             "ambiguous: another verified solution {distance_px:.1} px away has {support_ratio:.2} \
-                             of this one's supported outline and at least as many matches{carried}"
+                             of this one's supported outline and {theirs} matches to its {ours}{carried}"
                         ));
                         Status::Lost
                     }
@@ -2014,6 +2018,12 @@ mod tests {
         assert_eq!(rival.rival.state.params, far.state.params, "the rival's own fit");
         assert!(tracker.ambiguity(&answer, &[verified(188, 14, &far)]).is_none(), "less supported");
         assert!(tracker.ambiguity(&answer, &[verified(230, 11, &far)]).is_none(), "fewer matches");
+        // With 0.75 of the answer's 12 matches needed, 9 are enough, 8 not.
+        tracker.params.ambiguous_match_ratio = 0.75;
+        assert!(tracker.ambiguity(&answer, &[verified(230, 8, &far)]).is_none(), "too few matches");
+        let fewer = tracker.ambiguity(&answer, &[verified(230, 9, &far)]).expect("enough matches");
+        assert_eq!(fewer.matches, [9, 12]);
+        tracker.params.ambiguous_match_ratio = 1.0;
         assert!(tracker.ambiguity(&answer, &[verified(230, 12, &near)]).is_none(), "the same answer");
         tracker.params.ambiguous_support_ratio = 0.0;
         assert!(tracker.ambiguity(&answer, &[verified(230, 12, &far)]).is_none(), "the test off");
