@@ -219,7 +219,9 @@
 //!     answers are carried on as before but reported `lost` until one has
 //!     at least `reclaim_support_ratio` of the outline support of the last
 //!     frame reported `tracking` (before the first ambiguous frame of the
-//!     run), or `reclaim_after_frames` unambiguous answers follow in a row;
+//!     run; when no frame was reported `tracking` before it, as when the
+//!     first frames are ambiguous, there is no such support to reach), or
+//!     `reclaim_after_frames` unambiguous answers follow in a row;
 //!     a frame lost for want of a solution ends the wait (a re-acquisition
 //!     has its own bars, step 7). Only statuses change: poses, windows and
 //!     velocities are those of the answers. On ViSP's real `rbt/sequence`
@@ -375,8 +377,9 @@ pub struct LoweTracker {
 /// claimed frame, or `reclaim_after_frames` unambiguous answers in a row.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Reclaim {
-    /// Outline support of the last frame reported `tracking` (0 before one).
-    claimed_support: f64,
+    /// Outline support of the last frame reported `tracking` (`None`
+    /// before one).
+    claimed_support: Option<f64>,
     /// Since an ambiguous answer and until an answer is claimed again: the
     /// support that claims, and the unambiguous answers since the last
     /// ambiguous one.
@@ -386,10 +389,15 @@ struct Reclaim {
 impl Reclaim {
     /// A frame's answer was ambiguous: the support to claim again is
     /// `ratio` of the last claimed frame's (kept from the first ambiguous
-    /// frame of a run of them), and the count of unambiguous answers starts
-    /// again.
+    /// frame of a run of them; out of reach when no frame was claimed
+    /// yet, 0 when `ratio` is), and the count of unambiguous answers
+    /// starts again.
     fn ambiguous(&mut self, ratio: f64) {
-        let bar = ratio * self.claimed_support;
+        let bar = match self.claimed_support {
+            _ if ratio == 0.0 => 0.0,
+            Some(support) => ratio * support,
+            None => f64::INFINITY,
+        };
         let (_, run) = self.pending.get_or_insert((bar, 0));
         *run = 0;
     }
@@ -405,7 +413,7 @@ impl Reclaim {
             }
         }
         self.pending = None;
-        self.claimed_support = support;
+        self.claimed_support = Some(support);
         Ok(())
     }
 
@@ -1798,15 +1806,27 @@ impl LoweTracker {
                     None => match self.reclaim.claim(diag.support, self.params.reclaim_after_frames) {
                         Ok(()) => Status::Tracking,
                         Err(bar) => {
-                            let run = match self.params.reclaim_after_frames {
-                                0 => String::new(),
-                                k => format!(" (or {k} unambiguous answers in a row)"),
-                            };
-                            lost_reason = Some(format!(
-                                "after an ambiguous answer: {:.0} % of the outline supported, {:.0} % needed{run}",
-                                100.0 * diag.support,
-                                100.0 * bar,
-                            ));
+                            let support = 100.0 * diag.support;
+                            let k = self.params.reclaim_after_frames;
+                            lost_reason = Some(match (bar.is_finite(), k) {
+                                (true, 0) => format!(
+                                    "after an ambiguous answer: {support:.0} % of the outline supported, {:.0} % needed",
+                                    100.0 * bar
+                                ),
+                                (true, k) => format!(
+                                    "after an ambiguous answer: {support:.0} % of the outline supported, {:.0} % needed \
+                                     (or {k} unambiguous answers in a row)",
+                                    100.0 * bar
+                                ),
+                                (false, 0) => format!(
+                                    "after an ambiguous answer, with no frame claimed before it: {support:.0} % of the \
+                                     outline supported"
+                                ),
+                                (false, k) => format!(
+                                    "after an ambiguous answer, with no frame claimed before it: {support:.0} % of the \
+                                     outline supported ({k} unambiguous answers in a row needed)"
+                                ),
+                            });
                             Status::Lost
                         }
                     },
@@ -1984,6 +2004,19 @@ mod tests {
         assert_eq!(reclaim.claim(0.05, 8), Ok(()));
         reclaim.ambiguous(0.0);
         assert_eq!(reclaim.claim(0.01, 0), Ok(()));
+        // Ambiguous before any frame was claimed: only the run claims.
+        let mut first = Reclaim::default();
+        first.ambiguous(0.9);
+        for run in 1..8 {
+            assert_eq!(first.claim(0.9, 8), Err(f64::INFINITY), "answer {run} of the run");
+        }
+        assert_eq!(first.claim(0.9, 8), Ok(()), "the eighth in a row is claimed");
+        let mut never = Reclaim::default();
+        never.ambiguous(0.9);
+        assert!((0..50).all(|_| never.claim(1.0, 0).is_err()), "no run counted, no reference");
+        let mut off = Reclaim::default();
+        off.ambiguous(0.0);
+        assert_eq!(off.claim(0.01, 0), Ok(()), "a ratio of 0 never waits");
     }
 
     /// Step 10: a verified solution far from the answer, with as many

@@ -276,7 +276,10 @@ pub struct LoweParams {
     /// 0–14 (`benches/lowe_sweep.sh`), 0.9 with `reclaim_after_frames` 8
     /// takes the frames tracking more than 5 px off from 22 to 14 and the
     /// frames tracking from 50 760 to 50 622; on seeds 15–29, 14 → 11 and
-    /// 50 417 → 50 320. 0 claims every unambiguous answer. Range: [0, 2].
+    /// 50 417 → 50 320. When no frame was reported `tracking` before the
+    /// ambiguous one (the first frames ambiguous), no support claims and
+    /// only `reclaim_after_frames` does. 0 claims every unambiguous
+    /// answer. Range: [0, 2].
     pub reclaim_support_ratio: f64,
     /// See `reclaim_support_ratio`: the answer that makes this many
     /// unambiguous answers in a row since the last ambiguous one is claimed
