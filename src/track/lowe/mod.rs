@@ -423,6 +423,21 @@ impl Reclaim {
     }
 }
 
+/// Why an answer after an ambiguous one is not claimed (step 11): its
+/// outline `support`, the `bar` it needed ([`Reclaim::claim`]; infinite
+/// when no frame was claimed before the ambiguous one) and the run of
+/// `after_frames` unambiguous answers that would claim instead (0: none).
+fn refusal_reason(support: f64, bar: f64, after_frames: usize) -> String {
+    let before = if bar.is_finite() { "" } else { ", with no frame claimed before it" };
+    let needed = match (bar.is_finite(), after_frames) {
+        (true, 0) => format!(", {:.0} % needed", 100.0 * bar),
+        (true, k) => format!(", {:.0} % needed (or {k} unambiguous answers in a row)", 100.0 * bar),
+        (false, 0) => String::new(),
+        (false, k) => format!(" ({k} unambiguous answers in a row needed)"),
+    };
+    format!("after an ambiguous answer{before}: {:.0} % of the outline supported{needed}", 100.0 * support)
+}
+
 /// The contrast a model edge's matches have shown on the verified frames
 /// the memory learns from (`remember_contrast_min_support`) with the same
 /// faces facing the camera.
@@ -1806,27 +1821,7 @@ impl LoweTracker {
                     None => match self.reclaim.claim(diag.support, self.params.reclaim_after_frames) {
                         Ok(()) => Status::Tracking,
                         Err(bar) => {
-                            let support = 100.0 * diag.support;
-                            let k = self.params.reclaim_after_frames;
-                            lost_reason = Some(match (bar.is_finite(), k) {
-                                (true, 0) => format!(
-                                    "after an ambiguous answer: {support:.0} % of the outline supported, {:.0} % needed",
-                                    100.0 * bar
-                                ),
-                                (true, k) => format!(
-                                    "after an ambiguous answer: {support:.0} % of the outline supported, {:.0} % needed \
-                                     (or {k} unambiguous answers in a row)",
-                                    100.0 * bar
-                                ),
-                                (false, 0) => format!(
-                                    "after an ambiguous answer, with no frame claimed before it: {support:.0} % of the \
-                                     outline supported"
-                                ),
-                                (false, k) => format!(
-                                    "after an ambiguous answer, with no frame claimed before it: {support:.0} % of the \
-                                     outline supported ({k} unambiguous answers in a row needed)"
-                                ),
-                            });
+                            lost_reason = Some(refusal_reason(diag.support, bar, self.params.reclaim_after_frames));
                             Status::Lost
                         }
                     },
@@ -2017,6 +2012,30 @@ mod tests {
         let mut off = Reclaim::default();
         off.ambiguous(0.0);
         assert_eq!(off.claim(0.01, 0), Ok(()), "a ratio of 0 never waits");
+    }
+
+    /// The refusals' reasons name the support, what would claim, and
+    /// whether a frame was claimed before the ambiguous one.
+    #[test]
+    fn refusal_reasons_say_what_would_claim() {
+        use super::refusal_reason;
+        assert_eq!(
+            refusal_reason(0.43, 0.47, 8),
+            "after an ambiguous answer: 43 % of the outline supported, 47 % needed (or 8 unambiguous answers in a row)"
+        );
+        assert_eq!(
+            refusal_reason(0.43, 0.47, 0),
+            "after an ambiguous answer: 43 % of the outline supported, 47 % needed"
+        );
+        assert_eq!(
+            refusal_reason(0.53, f64::INFINITY, 8),
+            "after an ambiguous answer, with no frame claimed before it: 53 % of the outline supported \
+             (8 unambiguous answers in a row needed)"
+        );
+        assert_eq!(
+            refusal_reason(0.53, f64::INFINITY, 0),
+            "after an ambiguous answer, with no frame claimed before it: 53 % of the outline supported"
+        );
     }
 
     /// Step 10: a verified solution far from the answer, with as many

@@ -228,8 +228,9 @@ pub struct LoweParams {
     /// other joint values: the tracker's module doc, step 10) has at least
     /// `ambiguous_match_ratio` of its matches, at least this share of the
     /// answer's supported outline samples, and the model's vertices on
-    /// average more than `ambiguous_distance_px` away: the image supports two different
-    /// answers about equally, and the tracker cannot say which it is on.
+    /// average more than `ambiguous_distance_px` away: the image supports
+    /// two different answers about equally, and the tracker cannot say
+    /// which it is on.
     /// Over the 180 runs of the stress sweep (`benches/lowe_sweep.sh`,
     /// seeds 0–14), 0.95 took the frames tracking more than 5 px off from
     /// 63 to 26, the runs with more than 1 % of them from 5 to none, and
