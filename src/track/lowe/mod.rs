@@ -26,10 +26,11 @@
 //!    around the predicted model, linked with hysteresis, cut into
 //!    straight segments, indexed by midpoint and orientation. The window
 //!    is wide enough for the largest search range, or, after a frame
-//!    verified with `confident_support` at its first range, for
+//!    verified with `confident_support` (or the steady bar of step 6) at
+//!    its first range, for
 //!    `confident_window_doublings` (our addition; the first range by
 //!    default). A frame whose narrowed window gives no solution with
-//!    `confident_support` widens it and is searched again in the wider
+//!    `confident_support` (or that bar) widens it and is searched again in the wider
 //!    window ([`Tracker::track_or_widen`]; through [`Tracker::track`] the
 //!    wider ranges are searched in the narrowed window's features).
 //!    The wider ranges are seldom needed after a confident frame, and the
@@ -77,7 +78,23 @@
 //!    frame that was not confident itself, the second look is made only
 //!    when the answer is unverified or lost a tenth of that frame's
 //!    support: an object whose outline is steadily part supported is not
-//!    searched twice on every frame.
+//!    searched twice on every frame. With `steady_support_ratio` (our
+//!    addition, off by default), nor in the widest window: after a
+//!    claimed frame whose search of every range kept its first range's
+//!    answer short of `confident_support`, that share of its support
+//!    stands in for `confident_support` (when lower) in narrowing the
+//!    window (step 2) and in widening it, for an answer whose model
+//!    vertices lie on average within `ambiguous_distance_px` of the
+//!    prediction's (the answer the motion predicts). Every range is
+//!    still searched, in the narrowed window's features; a frame short of
+//!    that bar widens the window and is searched again, its support the
+//!    new reference. This holds only after a frame claimed with
+//!    `confident_support` since the start and since the last frame not
+//!    claimed (lost, ambiguous, or waiting for a claim, step 11). Without
+//!    that condition, and with the search ended at the first range too,
+//!    24 frames of ViSP's real `rbt/sequence` (never confident after
+//!    frame 20) were reported tracking more than 25 px off the cube,
+//!    against none (RESULTS.md).
 //! 7. **Verification**: the frame is `tracking` only when a set was
 //!    accepted (its residual passes), locking on added at least one match
 //!    to the node's (a node of ⌊n/2⌋ + 1 matches leaves one or two redundant
@@ -356,6 +373,9 @@ pub struct LoweTracker {
     window: Window,
     /// Doublings of the prior ranges the window is sized for.
     window_doublings: usize,
+    /// Whether the window was narrowed after an answer that reached a
+    /// steady bar: every range is searched in it (module doc, step 6).
+    window_all_ranges: bool,
     /// The diagnostics of this frame's search before its window was
     /// widened, added to the frame's.
     before_widening: Option<LoweDiagnostics>,
@@ -369,6 +389,71 @@ pub struct LoweTracker {
     /// Whether answers are claimed again after an ambiguous one (module
     /// doc, step 11).
     reclaim: Reclaim,
+    /// The steady support that may lower the bar of confidence (module
+    /// doc, step 6).
+    steady: Steady,
+}
+
+/// Step 6 of the module doc: the bar of confidence of an object steadily
+/// part supported (`steady_support_ratio`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Steady {
+    /// The outline support of the last claimed frame whose search of
+    /// every range kept its first range's answer, short of
+    /// `confident_support`.
+    support: Option<f64>,
+    /// Whether a frame has been claimed with `confident_support` since the
+    /// start, the last frame not claimed (lost, ambiguous, or waiting for
+    /// a claim after an ambiguous one): only then is a steady support kept.
+    confident_since_doubt: bool,
+}
+
+impl Steady {
+    /// The support that ends the search and keeps the window narrow:
+    /// `confident`, or `ratio` of the steady support when lower.
+    fn bar(&self, confident: f64, ratio: f64) -> f64 {
+        self.support.map_or(confident, |steady| confident.min(ratio * steady))
+    }
+
+    /// The frame's outcome: the outline support of a `claimed` answer
+    /// (`None`: not claimed), whether it was found at the first range
+    /// (`first_range`), and whether it reached a steady bar
+    /// (`reached_steady`; an answer that did not had every range searched).
+    fn update(&mut self, claimed: Option<f64>, first_range: bool, reached_steady: bool, confident: f64, ratio: f64) {
+        self.confident_since_doubt = claimed.is_some_and(|support| self.confident_since_doubt || support >= confident);
+        self.support = match claimed {
+            Some(support) if self.confident_since_doubt && first_range && support < confident && ratio > 0.0 => {
+                match self.support {
+                    Some(steady) if reached_steady => Some(steady),
+                    _ => Some(support),
+                }
+            }
+            _ => None,
+        };
+    }
+}
+
+/// What makes a verified solution confident (module doc, step 6): at
+/// least `support` of its outline supported and, under a steady bar, its
+/// model vertices on average within the given distance (px) of the
+/// given projected vertices of the prediction.
+#[derive(Clone, Copy, Debug)]
+struct Bar<'a> {
+    support: f64,
+    near: Option<(&'a [[f64; 2]], f64)>,
+}
+
+impl Bar<'_> {
+    /// A bar of support alone.
+    fn support(support: f64) -> Self {
+        Self { support, near: None }
+    }
+
+    /// Whether a solution at `state` with outline support `support` reaches it.
+    fn reached(&self, tracker: &LoweTracker, support: f64, state: &State) -> bool {
+        support >= self.support
+            && self.near.is_none_or(|(predicted, px)| mean_point_distance(predicted, &tracker.corners_at(state)) <= px)
+    }
 }
 
 /// Step 11 of the module doc: after an ambiguous answer, the answers that
@@ -572,8 +657,10 @@ impl LoweTracker {
             phase: Phase::Tracking,
             window: Window::full(camera.width as usize, camera.height as usize),
             window_doublings: params.range_doublings,
+            window_all_ranges: false,
             before_widening: None,
             last_diagnostics: LoweDiagnostics::default(),
+            steady: Steady::default(),
             views: Vec::new(),
             contrast_memory: vec![EdgeContrast::default(); geometry.edges().len()],
             reclaim: Reclaim::default(),
@@ -658,9 +745,17 @@ impl LoweTracker {
         Window::around(&corners, margin.min(1e6), width, height).unwrap_or_else(|| Window::full(width, height))
     }
 
+    /// The support that ends this frame's search and keeps its window
+    /// narrow (module doc, step 6): `confident_support`, or while tracking
+    /// after a confirmed part-supported frame `steady_support_ratio` of
+    /// that frame's support, whichever is lower.
+    fn confidence_bar(&self) -> f64 {
+        self.steady.bar(self.params.confident_support, self.params.steady_support_ratio)
+    }
+
     /// Steps 4–6 of the module doc at `prediction`, whose visible model
     /// segments are `segs`, from doubling `first` to the widest: the first
-    /// verified solution with outline support at least `confident_support`,
+    /// verified solution that reaches `bar`,
     /// else the first verified one or the later one that replaced it
     /// (module doc, step 6), else the last accepted one.
     fn search_at(
@@ -669,7 +764,7 @@ impl LoweTracker {
         prediction: &State,
         segs: &[ModelSegment],
         first: usize,
-        confident_support: f64,
+        bar: Bar<'_>,
         diag: &mut LoweDiagnostics,
     ) -> Option<Found> {
         let n = self.n();
@@ -717,7 +812,7 @@ impl LoweTracker {
             });
             // A weakly supported solution does not end the search: a wider
             // range may hold a confident one (module doc, step 6).
-            let confident = support::fraction(support) >= confident_support;
+            let confident = bar.reached(self, support::fraction(support), &found.solution.state);
             // A later range's solution replaces a weakly supported one when
             // it clears the bar of a re-acquisition and is better: more of
             // its outline supported, more matches (module doc, step 6).
@@ -772,7 +867,8 @@ impl LoweTracker {
         let mut segs = Vec::new();
         for start in &slower {
             view.visible_segments(start, &mut segs);
-            let Some(other) = self.search_at(view, start, &segs, self.first_doubling, confident, diag) else {
+            let Some(other) = self.search_at(view, start, &segs, self.first_doubling, Bar::support(confident), diag)
+            else {
                 continue;
             };
             let better = best.as_ref().is_none_or(|b| {
@@ -842,7 +938,8 @@ impl LoweTracker {
                 hypothesis.pose.translation += DVec3::new(x - centre.x, y - centre.y, 0.0);
                 view.visible_segments(&hypothesis, &mut segs);
                 self.best_supported_joints(view, &mut hypothesis, &mut segs);
-                let Some(found) = self.search_at(view, &hypothesis, &segs, self.params.range_doublings, 0.0, diag)
+                let Some(found) =
+                    self.search_at(view, &hypothesis, &segs, self.params.range_doublings, Bar::support(0.0), diag)
                 else {
                     continue;
                 };
@@ -957,7 +1054,7 @@ impl LoweTracker {
         }
         let mut best: Option<(usize, Found)> = None;
         for (_, hypothesis, segs) in &hypotheses {
-            let Some(other) = self.search_at(view, hypothesis, segs, 0, 0.0, diag) else { continue };
+            let Some(other) = self.search_at(view, hypothesis, segs, 0, Bar::support(0.0), diag) else { continue };
             let Some(counts) = other.support else { continue };
             let params = &other.solution.state.params;
             let moved = largest_difference(params, &found.solution.state.params);
@@ -1630,6 +1727,15 @@ impl LoweTracker {
         let (width, height) = (self.camera.width as usize, self.camera.height as usize);
         let started = std::time::Instant::now();
         let crossings = observations.zero_crossings.unwrap_or(&[]);
+        // Under a steady bar, a confident answer is also the one the
+        // motion predicts (step 6).
+        let steady_bar = self.confidence_bar();
+        let predicted = self.corners_at(&self.prediction);
+        let bar = Bar {
+            support: steady_bar,
+            near: (steady_bar < self.params.confident_support)
+                .then_some((&predicted[..], self.params.ambiguous_distance_px)),
+        };
         let mut image_segments = std::mem::take(&mut self.image_segments);
         self.extractor.extract(crossings, self.window, &mut image_segments);
         self.image_segments = image_segments;
@@ -1680,7 +1786,11 @@ impl LoweTracker {
             min_support,
             min_widened_support,
             max_rotation_sigma,
-            widest_doubling: if may_widen { self.window_doublings } else { p.range_doublings },
+            widest_doubling: if may_widen && !self.window_all_ranges {
+                self.window_doublings
+            } else {
+                p.range_doublings
+            },
             verified: RefCell::new(Vec::new()),
         };
         let mut segs = Vec::new();
@@ -1690,7 +1800,7 @@ impl LoweTracker {
             &self.prediction,
             &segs,
             self.first_doubling,
-            self.params.confident_support,
+            Bar::support(p.confident_support),
             &mut diag,
         );
         if self.params.search_slower_predictions && self.lost_frames == 0 && self.before_last.is_some() {
@@ -1698,7 +1808,9 @@ impl LoweTracker {
         }
         // Step 2: a narrowed window without a confident solution in it is
         // widened, and the frame searched again in the wider window.
-        let confident = |found: &Found| found.support.is_some_and(|s| support::fraction(s) >= p.confident_support);
+        let confident = |found: &Found| {
+            found.support.is_some_and(|s| bar.reached(self, support::fraction(s), &found.solution.state))
+        };
         if may_widen && self.window_doublings < p.range_doublings && !accepted.as_ref().is_some_and(confident) {
             drop(view);
             diag.time_since(started, segmented);
@@ -1867,9 +1979,16 @@ impl LoweTracker {
         self.prediction = self.predict();
         // Step 2: a frame verified with confident support at its first
         // range sizes the next window for `confident_window_doublings`.
-        let confident = unambiguous && at_first_range && diag.support >= self.params.confident_support;
+        let confident = unambiguous && at_first_range && bar.reached(self, diag.support, &reported);
+        // A claimed first-range answer short of `confident_support` sets
+        // the bar of the frames that follow (step 6).
+        let claimed = (status == Status::Tracking).then_some(diag.support);
+        let (confident_support, ratio) = (self.params.confident_support, self.params.steady_support_ratio);
+        let reached_steady = confident && bar.support < confident_support;
+        self.steady.update(claimed, at_first_range, reached_steady, confident_support, ratio);
         let full = Window::full(width, height);
         self.window_doublings = self.params.range_doublings;
+        self.window_all_ranges = false;
         self.window = if self.lost_frames >= self.params.search_after {
             full
         } else {
@@ -1879,6 +1998,7 @@ impl LoweTracker {
             match confident.then(|| self.window_at(&self.prediction, narrow, width, height)) {
                 Some(window) if window.clipped(width, height) != full => {
                     self.window_doublings = narrow;
+                    self.window_all_ranges = reached_steady;
                     window
                 }
                 _ => self.window_at(&self.prediction, self.window_doublings, width, height),
@@ -1909,7 +2029,7 @@ mod tests {
 
     use super::estimation::{Match, Solution};
     use super::{
-        Found, LoweParams, LoweTracker, Reclaim, State, Verified, better_supported, distinct_outline, fixtures,
+        Found, LoweParams, LoweTracker, Reclaim, State, Steady, Verified, better_supported, distinct_outline, fixtures,
         rotation_between,
     };
     use crate::geometry::{Pose, mean_point_distance};
@@ -1969,6 +2089,54 @@ mod tests {
     /// Step 11: after an ambiguous answer, an answer is claimed once it has
     /// the given share of the last claimed frame's support or completes a
     /// run of unambiguous answers; a loss ends the wait.
+    #[test]
+    fn a_steadily_part_supported_object_lowers_the_bar_after_a_confident_frame() {
+        let (confident, ratio) = (0.8, 0.9);
+        let bar = |steady: &Steady| steady.bar(confident, ratio);
+        let mut steady = Steady::default();
+        assert_eq!(bar(&steady), confident);
+        // No confident frame yet: a part-supported one sets nothing.
+        steady.update(Some(0.5), true, false, confident, ratio);
+        assert_eq!(bar(&steady), confident);
+        steady.update(Some(0.9), true, false, confident, ratio);
+        assert_eq!(bar(&steady), confident, "a confident frame needs no lower bar");
+        // Half hidden: every range searched, the first range's answer kept.
+        steady.update(Some(0.5), true, false, confident, ratio);
+        let steady_bar = bar(&steady);
+        assert!((steady_bar - 0.45).abs() < 1e-12, "{steady_bar}");
+        // Answers that reach the steady bar keep the reference, also when
+        // better supported.
+        steady.update(Some(0.46), true, true, confident, ratio);
+        steady.update(Some(0.7), true, true, confident, ratio);
+        assert_eq!(bar(&steady), steady_bar);
+        // One that did not reach it (too little support, or too far from
+        // the prediction) was searched in full: its support is the new one.
+        steady.update(Some(0.4), true, false, confident, ratio);
+        let lower = bar(&steady);
+        assert!((lower - 0.36).abs() < 1e-12, "{lower}");
+        steady.update(Some(0.6), true, false, confident, ratio);
+        assert!((bar(&steady) - 0.54).abs() < 1e-12);
+        // An answer of a wider range keeps no steady support.
+        steady.update(Some(0.6), false, false, confident, ratio);
+        assert_eq!(bar(&steady), confident);
+        // Nor does a frame not claimed (lost, ambiguous or waiting), and it
+        // takes a confident frame again before one does.
+        steady.update(Some(0.5), true, false, confident, ratio);
+        assert!(bar(&steady) < confident);
+        steady.update(None, false, false, confident, ratio);
+        assert_eq!(bar(&steady), confident);
+        steady.update(Some(0.5), true, false, confident, ratio);
+        assert_eq!(bar(&steady), confident, "no confident frame since the doubt");
+        steady.update(Some(0.85), true, false, confident, ratio);
+        steady.update(Some(0.5), true, false, confident, ratio);
+        assert!(bar(&steady) < confident);
+        // A ratio of 0 keeps none.
+        let mut off = Steady::default();
+        off.update(Some(0.9), true, false, confident, 0.0);
+        off.update(Some(0.5), true, false, confident, 0.0);
+        assert_eq!(off.bar(confident, 0.0), confident);
+    }
+
     #[test]
     fn answers_after_an_ambiguous_one_are_claimed_once_supported_as_before_or_after_a_run() {
         let mut reclaim = Reclaim::default();
