@@ -409,8 +409,8 @@ struct Steady {
 }
 
 impl Steady {
-    /// The support that ends the search and keeps the window narrow:
-    /// `confident`, or `ratio` of the steady support when lower.
+    /// The support that keeps the window narrow: `confident`, or `ratio`
+    /// of the steady support when lower.
     fn bar(&self, confident: f64, ratio: f64) -> f64 {
         self.support.map_or(confident, |steady| confident.min(ratio * steady))
     }
@@ -433,10 +433,10 @@ impl Steady {
     }
 }
 
-/// What makes a verified solution confident (module doc, step 6): at
-/// least `support` of its outline supported and, under a steady bar, its
-/// model vertices on average within the given distance (px) of the
-/// given projected vertices of the prediction.
+/// What keeps a frame's window narrow (module doc, steps 2 and 6): at
+/// least `support` of the answer's outline supported and, under a steady
+/// bar, its model vertices on average within the given distance (px) of
+/// the given projected vertices of the prediction.
 #[derive(Clone, Copy, Debug)]
 struct Bar<'a> {
     support: f64,
@@ -444,11 +444,6 @@ struct Bar<'a> {
 }
 
 impl Bar<'_> {
-    /// A bar of support alone.
-    fn support(support: f64) -> Self {
-        Self { support, near: None }
-    }
-
     /// Whether a solution at `state` with outline support `support` reaches it.
     fn reached(&self, tracker: &LoweTracker, support: f64, state: &State) -> bool {
         support >= self.support
@@ -745,8 +740,8 @@ impl LoweTracker {
         Window::around(&corners, margin.min(1e6), width, height).unwrap_or_else(|| Window::full(width, height))
     }
 
-    /// The support that ends this frame's search and keeps its window
-    /// narrow (module doc, step 6): `confident_support`, or while tracking
+    /// The support that keeps this frame's window narrow (module doc,
+    /// step 6): `confident_support`, or while tracking
     /// after a confirmed part-supported frame `steady_support_ratio` of
     /// that frame's support, whichever is lower.
     fn confidence_bar(&self) -> f64 {
@@ -755,7 +750,7 @@ impl LoweTracker {
 
     /// Steps 4–6 of the module doc at `prediction`, whose visible model
     /// segments are `segs`, from doubling `first` to the widest: the first
-    /// verified solution that reaches `bar`,
+    /// verified solution with outline support at least `confident_support`,
     /// else the first verified one or the later one that replaced it
     /// (module doc, step 6), else the last accepted one.
     fn search_at(
@@ -764,7 +759,7 @@ impl LoweTracker {
         prediction: &State,
         segs: &[ModelSegment],
         first: usize,
-        bar: Bar<'_>,
+        confident_support: f64,
         diag: &mut LoweDiagnostics,
     ) -> Option<Found> {
         let n = self.n();
@@ -812,7 +807,7 @@ impl LoweTracker {
             });
             // A weakly supported solution does not end the search: a wider
             // range may hold a confident one (module doc, step 6).
-            let confident = bar.reached(self, support::fraction(support), &found.solution.state);
+            let confident = support::fraction(support) >= confident_support;
             // A later range's solution replaces a weakly supported one when
             // it clears the bar of a re-acquisition and is better: more of
             // its outline supported, more matches (module doc, step 6).
@@ -867,8 +862,7 @@ impl LoweTracker {
         let mut segs = Vec::new();
         for start in &slower {
             view.visible_segments(start, &mut segs);
-            let Some(other) = self.search_at(view, start, &segs, self.first_doubling, Bar::support(confident), diag)
-            else {
+            let Some(other) = self.search_at(view, start, &segs, self.first_doubling, confident, diag) else {
                 continue;
             };
             let better = best.as_ref().is_none_or(|b| {
@@ -938,8 +932,7 @@ impl LoweTracker {
                 hypothesis.pose.translation += DVec3::new(x - centre.x, y - centre.y, 0.0);
                 view.visible_segments(&hypothesis, &mut segs);
                 self.best_supported_joints(view, &mut hypothesis, &mut segs);
-                let Some(found) =
-                    self.search_at(view, &hypothesis, &segs, self.params.range_doublings, Bar::support(0.0), diag)
+                let Some(found) = self.search_at(view, &hypothesis, &segs, self.params.range_doublings, 0.0, diag)
                 else {
                     continue;
                 };
@@ -1054,7 +1047,7 @@ impl LoweTracker {
         }
         let mut best: Option<(usize, Found)> = None;
         for (_, hypothesis, segs) in &hypotheses {
-            let Some(other) = self.search_at(view, hypothesis, segs, 0, Bar::support(0.0), diag) else { continue };
+            let Some(other) = self.search_at(view, hypothesis, segs, 0, 0.0, diag) else { continue };
             let Some(counts) = other.support else { continue };
             let params = &other.solution.state.params;
             let moved = largest_difference(params, &found.solution.state.params);
@@ -1800,7 +1793,7 @@ impl LoweTracker {
             &self.prediction,
             &segs,
             self.first_doubling,
-            Bar::support(p.confident_support),
+            self.params.confident_support,
             &mut diag,
         );
         if self.params.search_slower_predictions && self.lost_frames == 0 && self.before_last.is_some() {
@@ -1977,8 +1970,9 @@ impl LoweTracker {
             .collect();
         let corners = self.corners_at(&reported);
         self.prediction = self.predict();
-        // Step 2: a frame verified with confident support at its first
-        // range sizes the next window for `confident_window_doublings`.
+        // Step 2: a frame verified with confident support (or the steady
+        // bar of step 6) at its first range sizes the next window for
+        // `confident_window_doublings`.
         let confident = unambiguous && at_first_range && bar.reached(self, diag.support, &reported);
         // A claimed first-range answer short of `confident_support` sets
         // the bar of the frames that follow (step 6).
@@ -2086,9 +2080,6 @@ mod tests {
         assert_eq!(verify(&mut tracker, 0.9, measured, false), 0.0);
     }
 
-    /// Step 11: after an ambiguous answer, an answer is claimed once it has
-    /// the given share of the last claimed frame's support or completes a
-    /// run of unambiguous answers; a loss ends the wait.
     #[test]
     fn a_steadily_part_supported_object_lowers_the_bar_after_a_confident_frame() {
         let (confident, ratio) = (0.8, 0.9);
@@ -2137,6 +2128,9 @@ mod tests {
         assert_eq!(off.bar(confident, 0.0), confident);
     }
 
+    /// Step 11: after an ambiguous answer, an answer is claimed once it has
+    /// the given share of the last claimed frame's support or completes a
+    /// run of unambiguous answers; a loss ends the wait.
     #[test]
     fn answers_after_an_ambiguous_one_are_claimed_once_supported_as_before_or_after_a_run() {
         let mut reclaim = Reclaim::default();
