@@ -91,10 +91,10 @@
 //!    new reference. This holds only after a frame claimed with
 //!    `confident_support` since the start and since the last frame not
 //!    claimed (lost, ambiguous, or waiting for a claim, step 11). Without
-//!    that condition, and with the search ended at the first range too,
-//!    24 frames of ViSP's real `rbt/sequence` (never confident after
-//!    frame 20) were reported tracking more than 25 px off the cube,
-//!    against none (RESULTS.md).
+//!    that condition (and with the search ended at the first range and no
+//!    distance from the prediction asked), 24 frames of ViSP's real
+//!    `rbt/sequence` (never confident after frame 20) were reported
+//!    tracking more than 25 px off the cube, against none (RESULTS.md).
 //! 7. **Verification**: the frame is `tracking` only when a set was
 //!    accepted (its residual passes), locking on added at least one match
 //!    to the node's (a node of ⌊n/2⌋ + 1 matches leaves one or two redundant
