@@ -444,10 +444,12 @@ struct Bar<'a> {
 }
 
 impl Bar<'_> {
-    /// Whether a solution at `state` with outline support `support` reaches it.
-    fn reached(&self, tracker: &LoweTracker, support: f64, state: &State) -> bool {
+    /// Whether an answer with outline support `support` reaches it;
+    /// `corners` projects the answer's model vertices, called only under
+    /// a steady bar.
+    fn reached(&self, support: f64, corners: impl FnOnce() -> Vec<[f64; 2]>) -> bool {
         support >= self.support
-            && self.near.is_none_or(|(predicted, px)| mean_point_distance(predicted, &tracker.corners_at(state)) <= px)
+            && self.near.is_none_or(|(predicted, px)| mean_point_distance(predicted, &corners()) <= px)
     }
 }
 
@@ -738,14 +740,6 @@ impl LoweTracker {
         }
         let margin = self.params.search_sigmas * reach + self.params.window_margin_px;
         Window::around(&corners, margin.min(1e6), width, height).unwrap_or_else(|| Window::full(width, height))
-    }
-
-    /// The support that keeps this frame's window narrow (module doc,
-    /// step 6): `confident_support`, or while tracking
-    /// after a confirmed part-supported frame `steady_support_ratio` of
-    /// that frame's support, whichever is lower.
-    fn confidence_bar(&self) -> f64 {
-        self.steady.bar(self.params.confident_support, self.params.steady_support_ratio)
     }
 
     /// Steps 4–6 of the module doc at `prediction`, whose visible model
@@ -1720,14 +1714,14 @@ impl LoweTracker {
         let (width, height) = (self.camera.width as usize, self.camera.height as usize);
         let started = std::time::Instant::now();
         let crossings = observations.zero_crossings.unwrap_or(&[]);
-        // Under a steady bar, a confident answer is also the one the
-        // motion predicts (step 6).
-        let steady_bar = self.confidence_bar();
-        let predicted = self.corners_at(&self.prediction);
+        // The support that keeps the window narrow (step 6): under a
+        // steady bar, for an answer that is also the one the motion
+        // predicts.
+        let support_bar = self.steady.bar(self.params.confident_support, self.params.steady_support_ratio);
+        let predicted = (support_bar < self.params.confident_support).then(|| self.corners_at(&self.prediction));
         let bar = Bar {
-            support: steady_bar,
-            near: (steady_bar < self.params.confident_support)
-                .then_some((&predicted[..], self.params.ambiguous_distance_px)),
+            support: support_bar,
+            near: predicted.as_deref().map(|predicted| (predicted, self.params.ambiguous_distance_px)),
         };
         let mut image_segments = std::mem::take(&mut self.image_segments);
         self.extractor.extract(crossings, self.window, &mut image_segments);
@@ -1802,7 +1796,7 @@ impl LoweTracker {
         // Step 2: a narrowed window without a confident solution in it is
         // widened, and the frame searched again in the wider window.
         let confident = |found: &Found| {
-            found.support.is_some_and(|s| bar.reached(self, support::fraction(s), &found.solution.state))
+            found.support.is_some_and(|s| bar.reached(support::fraction(s), || self.corners_at(&found.solution.state)))
         };
         if may_widen && self.window_doublings < p.range_doublings && !accepted.as_ref().is_some_and(confident) {
             drop(view);
@@ -1973,7 +1967,7 @@ impl LoweTracker {
         // Step 2: a frame verified with confident support (or the steady
         // bar of step 6) at its first range sizes the next window for
         // `confident_window_doublings`.
-        let confident = unambiguous && at_first_range && bar.reached(self, diag.support, &reported);
+        let confident = unambiguous && at_first_range && bar.reached(diag.support, || corners.clone());
         // A claimed first-range answer short of `confident_support` sets
         // the bar of the frames that follow (step 6).
         let claimed = (status == Status::Tracking).then_some(diag.support);
