@@ -2074,6 +2074,44 @@ mod tests {
         assert_eq!(verify(&mut tracker, 0.9, measured, false), 0.0);
     }
 
+    /// Step 2's window holds the model at the extremes of the search
+    /// range: for each vertex and image axis, the step within
+    /// `search_sigmas` of the prior (after 0, 1 and 2 doublings) that moves
+    /// the vertex farthest along it, one way and the other; every vertex
+    /// of every such pose lies inside the window.
+    #[test]
+    fn the_window_holds_the_model_at_the_search_ranges_extremes() {
+        let init = InitState { pose: Some(start_pose()), params: vec![0.5], ..InitState::default() };
+        let tracker =
+            LoweTracker::new(fixtures::camera(), &fixtures::hinged_box_model(), &init, LoweParams::default()).unwrap();
+        let (width, height) = (tracker.camera.width as usize, tracker.camera.height as usize);
+        let (n, k) = (tracker.n(), tracker.params.search_sigmas);
+        let state = tracker.last.clone();
+        let lin = super::Linearised::at(&tracker.geometry, &state, tracker.centre).unwrap();
+        for doublings in 0..=tracker.params.range_doublings {
+            let window = tracker.window_at(&state, doublings, width, height);
+            assert!(window.area() < width * height, "doublings {doublings}: the whole frame");
+            let sigmas = tracker.prior_sigmas(&state, doublings);
+            for (p, rows) in lin.points.iter().zip(&lin.derivatives) {
+                let (_, pixel_rows) = super::projection::project_with_rows(&tracker.camera, *p, rows, n).unwrap();
+                for row in pixel_rows {
+                    let spread = (0..n).map(|j| (sigmas[j] * row[j]).powi(2)).sum::<f64>().sqrt();
+                    for sign in [-1.0, 1.0] {
+                        let step: Vec<f64> =
+                            (0..n).map(|j| sign * k * sigmas[j] * sigmas[j] * row[j] / spread).collect();
+                        for c in tracker.corners_at(&state.corrected(&step, tracker.centre, &tracker.limits)) {
+                            let inside = c[0] >= f64::from(window.x0)
+                                && c[0] < f64::from(window.x1)
+                                && c[1] >= f64::from(window.y0)
+                                && c[1] < f64::from(window.y1);
+                            assert!(inside, "doublings {doublings}: vertex at {c:?} outside {window:?}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn a_steadily_part_supported_object_lowers_the_bar_after_a_confident_frame() {
         let (confident, ratio) = (0.8, 0.9);
