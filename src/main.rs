@@ -546,7 +546,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 Some(path) => roundtrip_to_file(&seq, &opts, path)?,
                 None => roundtrip(&seq, &opts)?,
             };
-            println!("{}", summary(&report));
+            say(format_args!("{}", summary(&report)))?;
             note_ignored_keys(&seq);
             Ok(())
         }

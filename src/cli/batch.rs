@@ -3,7 +3,9 @@
 //! `OUT/summary.jsonl`.
 //!
 //! **Manifest.** Either a folder, whose sub-folders (sorted by name, the
-//! output folder and hidden ones left out) are the sequences, or a text
+//! output folder and hidden ones left out) are the sequences (a sequence
+//! folder itself, holding `camera.json`, `init.json` or a model file, is
+//! refused: its parent is the folder of sequences), or a text
 //! file with one sequence per line:
 //! `SEQ_DIR [TRACKER [CONFIG]]`, fields separated by spaces or tabs (no
 //! quoting: a folder whose name has a space is listed by its parent), blank
@@ -51,6 +53,7 @@ use serde::{Deserialize, Serialize};
 use super::score::{read_predictions, score};
 use crate::backend::BackendKind;
 use crate::io::formats::FrameResult;
+use crate::io::sequence::{CAMERA_FILE, INIT_FILE, MODEL_CAO_FILE, MODEL_JSON_FILE, MODEL_OBJ_FILE};
 use crate::io::{AtomicFile, Sequence};
 use crate::track::batch::{BatchJob, BatchProgress, run_batch};
 use crate::track::run::{MAX_CONFIG_BYTES, RunSummary, TRACKERS, TrackOptions};
@@ -109,6 +112,10 @@ impl FromStr for Shard {
     }
 }
 
+/// Files of a sequence folder: a folder holding one is a sequence, not a
+/// folder of sequences.
+const SEQUENCE_FILES: [&str; 5] = [CAMERA_FILE, INIT_FILE, MODEL_JSON_FILE, MODEL_CAO_FILE, MODEL_OBJ_FILE];
+
 /// Read the manifest at `path` (module doc); `default_tracker` is
 /// `--tracker`. Errors name the manifest and, for a file, the line.
 pub fn read_manifest(path: &Path, default_tracker: Option<&str>, out_dir: &Path) -> Result<Vec<ManifestEntry>> {
@@ -130,6 +137,15 @@ pub fn read_manifest(path: &Path, default_tracker: Option<&str>, out_dir: &Path)
     let mut entries = Vec::new();
     let mut lines = Vec::new();
     if path.is_dir() {
+        if let Some(file) = SEQUENCE_FILES.iter().find(|f| path.join(f).is_file()) {
+            return Err(Error::input(
+                path,
+                format!(
+                    "is a sequence folder (it holds {file}), not a folder of sequences: \
+                     give its parent folder, or a manifest listing it"
+                ),
+            ));
+        }
         let out = fs::canonicalize(out_dir).ok();
         let mut dirs: Vec<PathBuf> = fs::read_dir(path)
             .map_err(|e| Error::input(path, format!("cannot read folder: {e}")))?
@@ -439,7 +455,7 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
             let unchanged = |record: &&RunRecord| RunRecord::of(entry).as_ref() == Some(*record);
             if let (true, Some(record)) = (written, job_record[job].as_ref().filter(unchanged)) {
                 if let Err(e) = record.write(&jobs[job].out_path) {
-                    bar.suspend(|| eprintln!("pipetrack: {e}"));
+                    bar.suspend(|| note(format_args!("pipetrack: {e}")));
                 }
             }
             let done = sequences_done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -481,10 +497,17 @@ fn report_failure(entry: &ManifestEntry, line: &SummaryLine) {
     let dir = shown.trim_end_matches(std::path::MAIN_SEPARATOR);
     let names_dir = error.strip_prefix(dir).is_some_and(|rest| rest.starts_with([':', std::path::MAIN_SEPARATOR]));
     if names_dir {
-        eprintln!("pipetrack: {error}");
+        note(format_args!("pipetrack: {error}"));
     } else {
-        eprintln!("pipetrack: {dir}: {error}");
+        note(format_args!("pipetrack: {dir}: {error}"));
     }
+}
+
+/// A line on stderr; a closed or full stderr is ignored (there is nowhere
+/// left to report it).
+fn note(line: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "{line}");
 }
 
 /// What made an output (module doc): `<name>.run.json` beside it.

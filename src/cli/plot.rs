@@ -1,7 +1,8 @@
 //! `score --plot FILE.png`: the per-frame corner error and the status of
 //! each frame over time, drawn with `plotters` into an RGB buffer and saved
-//! as a PNG (atomically). Text uses the DejaVu Sans font built into the
-//! binary, so no system font is needed.
+//! as a PNG (through an [`OutputFile`]: a regular file appears only when
+//! complete, a device or a named pipe is written in place). Text uses the
+//! DejaVu Sans font built into the binary, so no system font is needed.
 
 use std::path::{Path, PathBuf};
 use std::sync::Once;
@@ -9,7 +10,7 @@ use std::sync::Once;
 use plotters::prelude::*;
 
 use super::score::Score;
-use crate::io::AtomicFile;
+use crate::io::OutputFile;
 use crate::io::formats::{FrameResult, Status};
 use crate::{Error, Result};
 
@@ -72,7 +73,7 @@ pub fn plot_score(score: &Score, predictions: &[FrameResult], path: &Path, size:
         ::image::ExtendedColorType::Rgb8,
     )
     .map_err(|e| Error::input(path, format!("cannot encode the plot: {e}")))?;
-    AtomicFile::write_all_to(path, &png)
+    OutputFile::write_all_to(path, &png)
 }
 
 /// Check `--plot` before anything is read or written: it must be named

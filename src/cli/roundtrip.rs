@@ -35,7 +35,7 @@ use serde::Serialize;
 use crate::cli::score::ErrorStats;
 use crate::geometry::{Pose, mean_point_distance};
 use crate::io::formats::{FrameResult, InitState, Status};
-use crate::io::{AtomicFile, Sequence};
+use crate::io::{OutputFile, Sequence};
 use crate::track::run::{TrackOptions, check_output, read_config, track_sequence};
 use crate::{Error, Result};
 
@@ -205,13 +205,14 @@ fn rotation_angle(a: &Pose, b: &Pose) -> f64 {
 }
 
 /// [`roundtrip`], writing each frame's [`FrameAgreement`] as a JSON line
-/// to `out` (a regular file: checked and created before the runs, it
-/// appears under its name only when complete).
+/// to `out`, checked and opened before the runs (an [`OutputFile`]: a
+/// regular file appears under its name only when complete; a device or a
+/// named pipe is written in place).
 pub fn roundtrip_to_file(seq: &Sequence, opts: &TrackOptions, out: &Path) -> Result<RoundtripReport> {
     check_output(seq, opts, out)?;
-    // Created before the runs, so a place that cannot be written is known
-    // at once; dropped unfinished, it leaves nothing.
-    let mut file = AtomicFile::create(out)?;
+    // Opened before the runs, so a place that cannot be written is known
+    // at once; dropped unfinished, a regular file leaves nothing.
+    let mut file = OutputFile::create(out)?;
     let report = roundtrip(seq, opts)?;
     for line in &report.per_frame {
         serde_json::to_writer(&mut file, line).map_err(|e| Error::io(out, e.into()))?;

@@ -22,7 +22,9 @@
 //! predictions must list exactly the truth's frames, in the same order:
 //! a different count (a run that stopped early, a truth file for another
 //! sequence) or a different frame number is an error naming the
-//! predictions file, never a silently partial score. A tracking frame whose
+//! predictions file, never a silently partial score; a gap in the truth's
+//! own frames is an error of `truth.jsonl`, found as it is read
+//! ([`crate::io::Sequence::read_truth`]). A tracking frame whose
 //! truth is visible must have as many corners as the truth.
 
 use std::fmt;

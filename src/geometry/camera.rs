@@ -9,6 +9,11 @@ use glam::DVec3;
 
 pub use crate::io::formats::Camera;
 
+/// Least width and height, pixels, of a target's image for a tracker to
+/// start from it ([`Camera::start_image_problem`]): smaller, the target has
+/// no outline to follow.
+pub const MIN_START_IMAGE_PX: f64 = 1.0;
+
 impl Camera {
     /// The pixel (u, v) = (f_x·X/Z + c_x, f_y·Y/Z + c_y) of the camera-frame
     /// point `p`. Defined for any Z ≠ 0 (a point behind the camera, Z < 0,
@@ -64,6 +69,47 @@ impl Camera {
             [fx / z, 0.0, -u / z, -u * v / fy, (fx * fx + u * u) / fx, -v * fx / fy],
             [0.0, fy / z, -v / z, -(fy * fy + v * v) / fy, u * v / fx, u * fy / fx],
         ]
+    }
+
+    /// Why a tracker cannot start from a pose that puts a target's vertices
+    /// at the camera-frame `points`, in words (to be blamed on the file the
+    /// pose came from), or `None`. The images of the points in front of the
+    /// camera ([`Camera::project_in_front`]) must have a bounding box that
+    /// meets the image (a close-up whose vertices all lie outside still
+    /// crosses it; see [`Camera::in_image`] for the image's extent) and is
+    /// at least [`MIN_START_IMAGE_PX`] wide and high (a target so far away,
+    /// or a flat one seen edge on, has no outline). No point in front is a
+    /// problem; whether some points may lie behind is the caller's to say.
+    #[must_use]
+    pub fn start_image_problem(&self, points: &[DVec3]) -> Option<String> {
+        let pixels: Vec<[f64; 2]> = points.iter().filter_map(|&p| self.project_in_front(p)).collect();
+        if pixels.is_empty() {
+            return Some("the pose puts the whole model behind the camera".into());
+        }
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in &pixels {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let (w, h) = (f64::from(self.width) - 0.5, f64::from(self.height) - 0.5);
+        if hi[0] < -0.5 || lo[0] > w || hi[1] < -0.5 || lo[1] > h {
+            return Some(format!(
+                "the pose puts the whole model beside the {}x{} image (with the intrinsics of camera.json)",
+                self.width, self.height
+            ));
+        }
+        let (across, down) = (hi[0] - lo[0], hi[1] - lo[1]);
+        if across < MIN_START_IMAGE_PX || down < MIN_START_IMAGE_PX {
+            return Some(format!(
+                "the pose makes the model's image {}x{} px: it must be at least {MIN_START_IMAGE_PX} px wide and high \
+                 (the model is too far away, or seen edge on)",
+                crate::bounds::short_number(across),
+                crate::bounds::short_number(down)
+            ));
+        }
+        None
     }
 
     /// Whether `pixel` lies on the image: pixel centres span 0..W−1 and
@@ -129,6 +175,29 @@ mod tests {
         }
         assert_eq!(j[0][1], 0.0);
         assert_eq!(j[1][0], 0.0);
+    }
+
+    #[test]
+    fn a_start_image_must_meet_the_image_and_span_a_pixel() {
+        let c = camera();
+        let square = |x: f64, z: f64| {
+            [[-0.1, -0.1], [0.1, -0.1], [0.1, 0.1], [-0.1, 0.1]].map(|[dx, dy]| DVec3::new(x + dx, dy, z))
+        };
+        assert_eq!(c.start_image_problem(&square(0.0, 1.0)), None);
+        // A close-up: every vertex outside, the outline across the image.
+        assert_eq!(c.start_image_problem(&square(0.0, 0.01)), None);
+        // Part of the target behind the camera: the rest is judged.
+        let mut straddling = square(0.0, 1.0).to_vec();
+        straddling.push(DVec3::new(0.0, 0.0, -1.0));
+        assert_eq!(c.start_image_problem(&straddling), None);
+        let beside = c.start_image_problem(&square(1e6, 1.0)).unwrap();
+        assert!(beside.contains("beside the 640x480 image"), "{beside}");
+        let far = c.start_image_problem(&square(0.0, 1e9)).unwrap();
+        assert!(far.contains("at least 1 px wide and high"), "{far}");
+        let edge_on = [DVec3::new(-0.1, 0.0, 1.0), DVec3::new(0.1, 0.0, 1.0)];
+        assert!(c.start_image_problem(&edge_on).unwrap().contains("x0 px"));
+        let behind = square(0.0, -1.0);
+        assert!(c.start_image_problem(&behind).unwrap().contains("behind the camera"));
     }
 
     #[test]

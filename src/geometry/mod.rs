@@ -28,5 +28,5 @@ pub mod pose;
 pub use camera::Camera;
 pub use hidden_lines::{VisibleEdgeParts, VisibleSegment, visible_edge_parts, visible_edge_segments};
 pub use model::{ModelGeometry, faces_camera, newell_normal};
-pub use polygon::{check_simple_polygon, mean_point_distance, similarity_step};
+pub use polygon::{check_polygon_in_image, check_simple_polygon, mean_point_distance, similarity_step};
 pub use pose::{Pose, axis_angle_from_rotation, rotation_from_axis_angle};

@@ -84,6 +84,83 @@ pub fn check_simple_polygon(corners: &[[f64; 2]], edges: &[[usize; 2]]) -> std::
     Ok(())
 }
 
+/// How far outside the image a start corner may lie, in image sizes: x
+/// within [−k·W, (1 + k)·W], y within [−k·H, (1 + k)·H]. Tracking samples
+/// along the outline, so its length must stay of the image's order.
+pub const MAX_START_CORNER_OFFSET: f64 = 1.0;
+
+/// Check that start `corners` (`init.json`'s, one per model vertex) suit a
+/// `width`×`height` image: every corner within [`MAX_START_CORNER_OFFSET`]
+/// image sizes of it, and the polygon the model's `edges` trace over the
+/// corners overlapping it (a corner on the image, an edge across it, or
+/// the image inside the polygon). The image spans −½ to W − ½ and −½ to
+/// H − ½, the pixels' extent. `Err` is the message, to be blamed on the
+/// file the corners came from. Edges whose indices are out of range are
+/// left out (the model is to blame for them).
+pub fn check_polygon_in_image(
+    corners: &[[f64; 2]],
+    edges: &[[usize; 2]],
+    width: u32,
+    height: u32,
+) -> std::result::Result<(), String> {
+    let (w, h) = (f64::from(width), f64::from(height));
+    let k = MAX_START_CORNER_OFFSET;
+    let (x_range, y_range) = (-k * w..=(1.0 + k) * w, -k * h..=(1.0 + k) * h);
+    if let Some((i, c)) =
+        corners.iter().enumerate().find(|(_, c)| !(x_range.contains(&c[0]) && y_range.contains(&c[1])))
+    {
+        return Err(format!(
+            "corner {i} at [{}, {}] lies more than {k} image size outside the {width}x{height} image: \
+             every corner must have x in [{}, {}] and y in [{}, {}]",
+            crate::bounds::short_number(c[0]),
+            crate::bounds::short_number(c[1]),
+            x_range.start(),
+            x_range.end(),
+            y_range.start(),
+            y_range.end()
+        ));
+    }
+    let (lo, hi) = ([-0.5, -0.5], [w - 0.5, h - 0.5]);
+    let on_image = |p: [f64; 2]| (lo[0]..=hi[0]).contains(&p[0]) && (lo[1]..=hi[1]).contains(&p[1]);
+    let segments: Vec<([f64; 2], [f64; 2])> =
+        edges.iter().filter_map(|&[i, j]| Some((*corners.get(i)?, *corners.get(j)?))).collect();
+    // Liang–Barsky: whether some point of a→b lies on the image.
+    let crosses = |(a, b): &([f64; 2], [f64; 2])| {
+        let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
+        for axis in 0..2 {
+            let d = b[axis] - a[axis];
+            for (p, q) in [(-d, a[axis] - lo[axis]), (d, hi[axis] - a[axis])] {
+                if p == 0.0 {
+                    if q < 0.0 {
+                        return false;
+                    }
+                } else if p < 0.0 {
+                    t0 = t0.max(q / p);
+                } else {
+                    t1 = t1.min(q / p);
+                }
+            }
+        }
+        t0 <= t1
+    };
+    // Even–odd rule: whether the image's centre lies inside the polygon.
+    let centre = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])];
+    let encloses_centre = segments
+        .iter()
+        .filter(|(a, b)| {
+            (a[1] > centre[1]) != (b[1] > centre[1])
+                && centre[0] < a[0] + (centre[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0])
+        })
+        .count()
+        % 2
+        == 1;
+    if corners.iter().any(|&c| on_image(c)) || segments.iter().any(crosses) || encloses_centre {
+        Ok(())
+    } else {
+        Err(format!("the corners' polygon lies wholly outside the {width}x{height} image: it must overlap it"))
+    }
+}
+
 /// The displacement of each of `to`'s points when the least-squares
 /// similarity transform (turn, uniform scale, shift) that takes `from` to
 /// `to` is applied once more: `T(to_i) − to_i`, `T` minimising
@@ -156,6 +233,27 @@ mod tests {
             let error = (d[0] - 10.0).hypot(d[1]);
             assert!(error < 2.5, "step {d:?}");
         }
+    }
+
+    #[test]
+    fn start_polygons_must_overlap_the_image_and_stay_near_it() {
+        let square = [[0usize, 1], [1, 2], [2, 3], [3, 0]];
+        let ok = |c: &[[f64; 2]]| check_polygon_in_image(c, &square, 100, 80);
+        // On the image, partly off it, and around the whole image.
+        assert!(ok(&[[10.0, 10.0], [50.0, 10.0], [50.0, 40.0], [10.0, 40.0]]).is_ok());
+        assert!(ok(&[[-50.0, 10.0], [20.0, 10.0], [20.0, 40.0], [-50.0, 40.0]]).is_ok());
+        assert!(ok(&[[-90.0, -70.0], [190.0, -70.0], [190.0, 150.0], [-90.0, 150.0]]).is_ok());
+        // Every corner off the image, an edge across it.
+        assert!(ok(&[[-50.0, 30.0], [150.0, 30.0], [150.0, 150.0], [-50.0, 150.0]]).is_ok());
+        // Wholly beside the image.
+        let msg = ok(&[[110.0, 10.0], [150.0, 10.0], [150.0, 40.0], [110.0, 40.0]]).unwrap_err();
+        assert!(msg.contains("wholly outside the 100x80 image"), "{msg}");
+        // A corner far out, even with the rest on the image.
+        let msg = ok(&[[-1e9, 0.0], [50.0, 10.0], [50.0, 40.0], [10.0, 40.0]]).unwrap_err();
+        assert!(msg.starts_with("corner 0 at [-1.0e9, 0] lies more than 1 image size outside"), "{msg}");
+        assert!(msg.contains("x in [-100, 200] and y in [-80, 160]"), "{msg}");
+        assert!(ok(&[[10.0, 10.0], [50.0, 10.0], [50.0, 160.5], [10.0, 40.0]]).is_err());
+        assert!(ok(&[[10.0, 10.0], [50.0, 10.0], [50.0, 160.0], [10.0, 40.0]]).is_ok());
     }
 
     #[test]

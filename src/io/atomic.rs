@@ -156,6 +156,86 @@ impl Drop for AtomicFile {
     }
 }
 
+/// A file output named on the command line (`--out FILE`, `--plot FILE`):
+/// an [`AtomicFile`] for a regular file or a name not yet taken, so that it
+/// appears only when complete; an existing path that is neither a regular
+/// file nor a folder (a device such as `/dev/null`, a named pipe) cannot be
+/// replaced, and is written in place. Writes are buffered; errors name the
+/// path.
+pub enum OutputFile {
+    /// Written under `<path>.partial`, renamed by [`OutputFile::finish`].
+    Atomic(AtomicFile),
+    /// A device or a pipe, written directly.
+    InPlace {
+        /// The path given.
+        path: PathBuf,
+        /// The open device or pipe.
+        writer: BufWriter<File>,
+    },
+}
+
+impl OutputFile {
+    /// Open `path` for writing: in place for an existing device or pipe
+    /// (opening a named pipe waits for its reader), else as an
+    /// [`AtomicFile`] (a folder is an input error).
+    pub fn create(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        match fs::metadata(path) {
+            Ok(meta) if !meta.is_file() && !meta.is_dir() => {
+                let file = fs::OpenOptions::new()
+                    .write(true)
+                    .open(path)
+                    .map_err(|e| Error::input(path, format!("cannot open for writing: {e}")))?;
+                Ok(Self::InPlace { path: path.to_path_buf(), writer: BufWriter::new(file) })
+            }
+            _ => AtomicFile::create(path).map(Self::Atomic),
+        }
+    }
+
+    /// Write `bytes` to `path` ([`OutputFile::create`], then
+    /// [`OutputFile::finish`]).
+    pub fn write_all_to(path: impl AsRef<Path>, bytes: &[u8]) -> Result<()> {
+        let path = path.as_ref();
+        let mut file = Self::create(path)?;
+        file.write_all(bytes).map_err(|e| Error::io(path, e))?;
+        file.finish()
+    }
+
+    /// The path given.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        match self {
+            Self::Atomic(file) => file.path(),
+            Self::InPlace { path, .. } => path,
+        }
+    }
+
+    /// Flush what is written; an [`AtomicFile`] is then renamed to its
+    /// final name ([`AtomicFile::finish`]). Errors name the path.
+    pub fn finish(self) -> Result<()> {
+        match self {
+            Self::Atomic(file) => file.finish(),
+            Self::InPlace { path, mut writer } => writer.flush().map_err(|e| Error::io(&path, e)),
+        }
+    }
+}
+
+impl Write for OutputFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        match self {
+            Self::Atomic(file) => file.write(buf),
+            Self::InPlace { writer, .. } => writer.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        match self {
+            Self::Atomic(file) => file.flush(),
+            Self::InPlace { writer, .. } => writer.flush(),
+        }
+    }
+}
+
 /// An output folder written in full or not at all: files go into a hidden
 /// sibling staging folder `.<name>.partial-<pid>`, which
 /// [`StagedDir::finish`] renames to the final name; dropped unfinished, the

@@ -40,11 +40,13 @@
 //!   points, one per line; a `load(` anywhere else is an error. The path is
 //!   relative to the folder of the file that holds the line (or absolute).
 //! - `load("path", t=[x; y; z], tu=[a; b; c])` places the included part:
-//!   each of its points X becomes R·X + t, with R the rotation by the
-//!   theta-u (axis-angle) vector `tu`, in radians, or in degrees where a
-//!   value ends in `deg` (`rad` is allowed too); `R=[r11; r12; ...; r33]`
-//!   gives R row by row instead of `tu`. An included file may include
-//!   others: the placements compose, the outer one applied last.
+//!   each of its points X becomes R·X + t (each value of t within the
+//!   model coordinates' bound, ±[`MAX_MODEL_COORDINATE`]), with R the
+//!   rotation by the theta-u (axis-angle) vector `tu`, in radians, or in
+//!   degrees where a value ends in `deg` (`rad` is allowed too);
+//!   `R=[r11; r12; ...; r33]` gives R row by row instead of `tu`. An
+//!   included file may include others: the placements compose, the outer
+//!   one applied last.
 //! - Each file's point, line and face indices are its own (they count from
 //!   0 in every file); the merged model lists the parts in the order ViSP
 //!   reads them, depth first: a file's includes, in order, then its own
@@ -73,7 +75,10 @@ use std::path::{Path, PathBuf};
 use glam::{DMat3, DVec3};
 
 use crate::Result;
-use crate::io::formats::{DUPLICATE_VERTEX_TOLERANCE, Model, ModelPart, PointGrid, bounding_diagonal};
+use crate::bounds::short_number;
+use crate::io::formats::{
+    DUPLICATE_VERTEX_TOLERANCE, MAX_MODEL_COORDINATE, Model, ModelPart, PointGrid, bounding_diagonal,
+};
 use crate::io::json::{input_error, read_text};
 
 /// Read and convert a `.cao` file and the files it includes.
@@ -393,7 +398,17 @@ fn parse_load(text: &str) -> std::result::Result<(String, Placement), String> {
                 .collect()
         };
         match key {
-            "t" => translation = DVec3::from_slice(&numbers(3, false)?),
+            "t" => {
+                let t = numbers(3, false)?;
+                if let Some(v) = t.iter().find(|v| v.abs() > MAX_MODEL_COORDINATE) {
+                    return Err(format!(
+                        "load(\"{path}\"): t=: {} is beyond ±{}, the bound of a model's coordinates",
+                        short_number(*v),
+                        short_number(MAX_MODEL_COORDINATE)
+                    ));
+                }
+                translation = DVec3::from_slice(&t);
+            }
             "tu" | "R" if rotation.is_some() => {
                 return Err(format!("load(\"{path}\"): give one rotation, tu= or R=, once"));
             }
@@ -1007,6 +1022,7 @@ mod tests {
             ("load(\"part.cao\"", "no closing parenthesis"),
             ("load(\"part.cao\", t=[1; 2])", "t= needs 3 values"),
             ("load(\"part.cao\", t=[1; 2; x])", "\"x\" is not a finite number"),
+            ("load(\"part.cao\", t=[0; -2e9; 0])", "t=: -2.0e9 is beyond ±1.0e9"),
             ("load(\"part.cao\", s=[1; 2; 3])", "unknown parameter \"s\""),
             ("load(\"part.cao\", tu=[0; 0; 1], R=[1; 0; 0; 0; 1; 0; 0; 0; 1])", "give one rotation"),
             ("load(\"part.cao\", R=[1; 0; 0; 0; 2; 0; 0; 0; 1])", "not a rotation matrix"),

@@ -78,13 +78,18 @@ pub struct Pose {
 /// The state at frame 0 (`init.json`).
 #[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
 pub struct InitState {
-    /// Pose at frame 0 (3-D trackers).
+    /// Pose at frame 0 (3-D trackers). The trackers refuse a pose that puts
+    /// the model behind the camera, beside the image or at less than a pixel
+    /// across ([`crate::geometry::Camera::start_image_problem`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pose: Option<Pose>,
     /// Joint values at frame 0.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub params: Vec<f64>,
-    /// Image positions of every model vertex at frame 0 (2-D trackers).
+    /// Image positions of every model vertex at frame 0 (2-D trackers):
+    /// each within one image size of the image (x in [−W, 2W], y in
+    /// [−H, 2H]), their polygon overlapping it
+    /// ([`crate::geometry::polygon::check_polygon_in_image`]).
     #[serde(default)]
     pub corners: Vec<[f64; 2]>,
     /// The known motion of the camera from frame 0 to frame 1: camera 1 in

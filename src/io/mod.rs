@@ -13,7 +13,7 @@ pub mod overlay;
 pub mod sequence;
 pub mod y4m;
 
-pub use atomic::{AtomicFile, StagedDir};
+pub use atomic::{AtomicFile, OutputFile, StagedDir};
 pub use frames::{FrameSource, decode_gray, dynamic_to_gray, list_frames};
 pub use json::{read_json, read_jsonl};
 pub use sequence::Sequence;

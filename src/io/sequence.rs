@@ -175,9 +175,9 @@ impl Sequence {
     }
 
     /// Read and validate `truth.jsonl` (for `score`): every line passes
-    /// [`TruthFrame::validate`] against the model, frame numbers strictly
-    /// increase and (for a frames folder) name existing frames. A missing
-    /// file is an input error naming it.
+    /// [`TruthFrame::validate`] against the model, frame numbers count up
+    /// from 0 without a gap and (for a frames folder) name existing frames.
+    /// A missing file is an input error naming it.
     pub fn read_truth(&self) -> Result<Vec<TruthFrame>> {
         let path = self.truth_path();
         if !path.exists() {
@@ -362,10 +362,12 @@ fn read_model(dir: &Path) -> Result<(Model, PathBuf, Vec<String>)> {
 }
 
 fn read_truth(path: &Path, model: &Model, model_path: &Path, frame_count: Option<usize>) -> Result<Vec<TruthFrame>> {
-    read_frame_lines(
+    let mut lines = Vec::new();
+    let truth = read_frame_lines(
         path,
         |t: &TruthFrame| t.frame,
         |t, line| {
+            lines.push(line);
             t.validate(path, line, model, model_path)?;
             match frame_count.filter(|&n| t.frame >= n) {
                 Some(n) => {
@@ -374,5 +376,20 @@ fn read_truth(path: &Path, model: &Model, model_path: &Path, frame_count: Option
                 None => Ok(()),
             }
         },
-    )
+    )?;
+    // The frames increase: the first line whose frame is not its index
+    // follows a gap.
+    if let Some((k, t)) = truth.iter().enumerate().find(|(k, t)| t.frame != *k) {
+        let found = match k {
+            0 => format!("the first frame is {}", t.frame),
+            _ => format!("frame {} after frame {}", t.frame, k - 1),
+        };
+        let missing = match t.frame - k {
+            1 => format!("frame {k} is missing"),
+            _ => format!("frames {k} to {} are missing", t.frame - 1),
+        };
+        let message = format!("line {}: {found}: {missing} (one line per frame, from frame 0)", lines[k]);
+        return Err(Error::input(path, message));
+    }
+    Ok(truth)
 }

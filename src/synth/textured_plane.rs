@@ -96,6 +96,9 @@ impl std::str::FromStr for PlaneMotion {
     }
 }
 
+/// Largest `noise` σ accepted, grey levels (as the other scenes').
+pub const MAX_NOISE_SIGMA: f64 = 64.0;
+
 /// Options of the scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TexturedPlaneOptions {
@@ -107,7 +110,7 @@ pub struct TexturedPlaneOptions {
     pub motion: PlaneMotion,
     /// Scale of the screw's amplitudes (1 = [`AMPLITUDES`]), 0..=10.
     pub speed: f64,
-    /// Noise per channel, grey levels (σ), 0..=50.
+    /// Noise per channel, grey levels (σ), 0..=[`MAX_NOISE_SIGMA`].
     pub noise_sigma: f64,
 }
 
@@ -135,7 +138,7 @@ impl TexturedPlaneOptions {
     fn validate(&self) -> Result<()> {
         check_frames(self.frames, MAX_FRAMES)?;
         check_range("speed", self.speed, 10.0, "")?;
-        check_range("noise", self.noise_sigma, 50.0, " grey levels")
+        check_range("noise", self.noise_sigma, MAX_NOISE_SIGMA, " grey levels")
     }
 }
 

@@ -32,6 +32,7 @@
 //! error in its result and leaves no output; the others go on. Only a failing
 //! device stops the batch.
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -96,7 +97,8 @@ pub fn run_batch(
         BackendKind::Gpu => match GpuContext::new() {
             Ok(ctx) => run_batch_on_gpu(jobs, &mut GpuBackend::new(ctx), lanes, progress),
             Err(e) => {
-                eprintln!("pipetrack: no GPU ({e}; running the CPU backend)");
+                // A closed or full stderr is no reason to stop.
+                let _ = writeln!(std::io::stderr(), "pipetrack: no GPU ({e}; running the CPU backend)");
                 Ok(run_on_cpu(jobs, lanes, progress))
             }
         },

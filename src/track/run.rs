@@ -5,18 +5,17 @@
 //! frames, as bytes or as wgpu textures ([`Frame`]), or calls
 //! [`track_step`] once per frame from its own render loop.
 
-use std::fs;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::backend::{BackendKind, EarlyVision, FrameFeatures, FrameRequest, make_backend};
-use crate::geometry::{ModelGeometry, check_simple_polygon};
+use crate::geometry::{ModelGeometry, check_polygon_in_image, check_simple_polygon};
 use crate::image::{GrayImage, RgbImage};
 use crate::io::formats::{FrameResult, Status};
 use crate::io::json::input_error;
 use crate::io::sequence::CAMERA_FILE;
-use crate::io::{AtomicFile, Sequence, StagedDir};
+use crate::io::{OutputFile, Sequence, StagedDir};
 use crate::track::{
     BlueParams, BlueTracker, CondensationParams, CondensationTracker, FrameOutcome, LoweParams, LoweTracker,
     MotionEdgeParams, MotionEdgeTracker, Observations, Tracked, Tracker,
@@ -164,6 +163,8 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             check_simple_polygon(&seq.init.corners, &seq.model.edges).map_err(|msg| seq.init_error(msg))?;
             let tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), params)
                 .map_err(|e| Error::input(seq.model_path(), e.message()))?;
+            let (w, h) = (seq.camera.width, seq.camera.height);
+            check_polygon_in_image(&seq.init.corners, &seq.model.edges, w, h).map_err(|msg| seq.init_error(msg))?;
             Ok(Box::new(tracker))
         }
         "blue" => {
@@ -744,8 +745,8 @@ fn progress_bar(enabled: bool, len: Option<usize>) -> indicatif::ProgressBar {
     bar
 }
 
-/// Track `seq` writing JSON Lines to `out_path` atomically: a regular file
-/// appears only when the run completed (an [`AtomicFile`]). An existing
+/// Track `seq` writing JSON Lines to `out_path` (an [`OutputFile`]): a
+/// regular file appears only when the run completed; an existing
 /// `out_path` that is not a regular file or a folder (a device such as
 /// `/dev/null`, a named pipe) is written in place, as it cannot be replaced.
 ///
@@ -763,22 +764,10 @@ pub fn track_to_file_with(
     mut on_result: impl FnMut(&FrameResult),
 ) -> Result<RunSummary> {
     check_output(seq, opts, out_path)?;
-    match fs::metadata(out_path) {
-        Ok(meta) if !meta.is_file() => {
-            let file = fs::OpenOptions::new()
-                .write(true)
-                .open(out_path)
-                .map_err(|e| Error::input(out_path, format!("cannot open for writing: {e}")))?;
-            // `track_named` flushes what it wrote.
-            track_named(seq, opts, &mut BufWriter::new(file), out_path, &mut on_result)
-        }
-        _ => {
-            let mut file = AtomicFile::create(out_path)?;
-            let summary = track_named(seq, opts, &mut file, out_path, &mut on_result)?;
-            file.finish()?;
-            Ok(summary)
-        }
-    }
+    let mut file = OutputFile::create(out_path)?;
+    let summary = track_named(seq, opts, &mut file, out_path, &mut on_result)?;
+    file.finish()?;
+    Ok(summary)
 }
 
 /// Track `seq` writing JSON Lines to standard output; errors writing name

@@ -376,3 +376,46 @@ fn a_folder_of_sequences_is_a_manifest() {
     assert!(again.status.success(), "{}", text(&again).1);
     assert_eq!(summary(&out).len(), 3, "the output folder is not taken for a sequence");
 }
+
+/// One sequence folder given as the manifest is refused as such, not
+/// searched for sequences (its `frames` folder taken for one).
+#[test]
+fn a_sequence_folder_as_the_manifest_is_refused() {
+    let root = crate::common::scratch("batch", "one-sequence");
+    sequences(&root, 1);
+    let seq = root.join("s0");
+    let out = root.join("out");
+    for extra in [&[][..], &["--list"][..]] {
+        let run = batch_cpu(&seq, &out, extra);
+        let (stdout, stderr) = text(&run);
+        assert_eq!(run.status.code(), Some(2), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        let line = stderr.lines().next().unwrap();
+        assert!(line.contains(&seq.display().to_string()), "{line}");
+        assert!(line.contains("is a sequence folder") && line.contains("give its parent folder"), "{line}");
+        assert!(!line.contains("frames"), "{line}");
+        assert!(stdout.is_empty() && !out.exists(), "nothing written");
+    }
+}
+
+/// A closed stderr does not stop a batch from reporting a failed sequence
+/// in its summary and its exit status.
+#[test]
+fn a_failed_sequence_with_stderr_closed_is_no_panic() {
+    let root = crate::common::scratch("batch", "stderr-closed");
+    let manifest = sequences(&root, 2);
+    std::fs::write(root.join("s1/camera.json"), "{\"width\": 64,").unwrap();
+    let out = root.join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .args(["batch", manifest.to_str().unwrap(), "--out", out.to_str().unwrap(), "--tracker", "motion-edge"])
+        .args(["--backend", "cpu"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("binary runs");
+    drop(child.stderr.take());
+    let status = child.wait().expect("binary ends");
+    assert_eq!(status.code(), Some(2), "a failed sequence: status 2, no panic (101)");
+    assert_eq!(status_of(&summary(&out), "s1"), "failed");
+    assert_eq!(status_of(&summary(&out), "s0"), "tracked");
+}

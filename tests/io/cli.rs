@@ -951,3 +951,135 @@ fn demo_tracks_its_pendulum_and_names_its_files() {
     assert_eq!(lines.lines().count(), 120);
     assert!(named("sequence:").join("truth.jsonl").is_file());
 }
+
+/// A named pipe made with `mkfifo` at `path`, and a `cat` draining it into
+/// `drained` (it waits for a writer to open the pipe).
+fn fifo_with_reader(path: &Path, drained: &Path) -> std::process::Child {
+    let made = Command::new("mkfifo").arg(path).status().expect("mkfifo runs");
+    assert!(made.success(), "mkfifo {}", path.display());
+    Command::new("cat").arg(path).stdout(std::fs::File::create(drained).unwrap()).spawn().expect("cat runs")
+}
+
+/// What `reader` drained, once the command that should have written the
+/// pipe has ended: a reader still waiting (the pipe was replaced and never
+/// opened) is stopped, and what it has is returned all the same.
+fn drained(mut reader: std::process::Child, drained: &Path) -> Vec<u8> {
+    let start = std::time::Instant::now();
+    while reader.try_wait().unwrap().is_none() && start.elapsed().as_secs() < 10 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    if reader.try_wait().unwrap().is_none() {
+        reader.kill().unwrap();
+        reader.wait().unwrap();
+    }
+    std::fs::read(drained).unwrap()
+}
+
+/// `roundtrip --out` and `score --plot` naming a named pipe write into it,
+/// as `track --out` does, and leave it a pipe (a regular file is still
+/// replaced only when complete).
+#[test]
+fn roundtrip_out_and_score_plot_write_into_a_named_pipe() {
+    use std::os::unix::fs::FileTypeExt;
+    let root = scratch("fifo");
+    let seq = good_sequence(&root);
+    let seq_arg = seq.to_str().unwrap();
+    let is_fifo = |p: &Path| std::fs::symlink_metadata(p).unwrap().file_type().is_fifo();
+
+    let pipe = root.join("agreement.jsonl");
+    let reader = fifo_with_reader(&pipe, &root.join("agreement.read"));
+    let args = ["roundtrip", seq_arg, "--tracker", "motion-edge", "--backend", "cpu", "--out", pipe.to_str().unwrap()];
+    let out = pipetrack(&args);
+    let read = drained(reader, &root.join("agreement.read"));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(is_fifo(&pipe), "--out replaced the named pipe with a file");
+    assert!(!root.join("agreement.jsonl.partial").exists());
+    let text = String::from_utf8(read).unwrap();
+    assert_eq!(text.lines().count(), 6, "one line per frame through the pipe: {text}");
+
+    let pred = root.join("pred.jsonl");
+    assert!(track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]).status.success());
+    let plot = root.join("plot.png");
+    let reader = fifo_with_reader(&plot, &root.join("plot.read"));
+    let out = pipetrack(&["score", seq_arg, pred.to_str().unwrap(), "--plot", plot.to_str().unwrap()]);
+    let read = drained(reader, &root.join("plot.read"));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(is_fifo(&plot), "--plot replaced the named pipe with a file");
+    assert!(read.starts_with(b"\x89PNG"), "the PNG went through the pipe: {} bytes", read.len());
+}
+
+/// `roundtrip` prints its report as the other commands do: a reader that
+/// closes stdout early ends it quietly, without a panic.
+#[test]
+fn roundtrip_with_stdout_closed_ends_quietly() {
+    let root = scratch("roundtrip-pipe");
+    let seq = good_sequence(&root);
+    let out = with_stdout_closed(&["roundtrip", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(error_lines(&out).is_empty(), "{stderr}");
+}
+
+/// motion-edge's start corners must lie near the image and their polygon
+/// overlap it: a corner far out (which made the run take ever longer) or
+/// a polygon beside the image names init.json.
+#[test]
+fn motion_edge_start_corners_far_from_the_image_are_refused() {
+    let root = scratch("far-corners");
+    let seq = good_sequence(&root);
+    let init_path = seq.join("init.json");
+    let init: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&init_path).unwrap()).unwrap();
+    let with_corners = |f: &dyn Fn(&mut Vec<serde_json::Value>)| {
+        let mut edited = init.clone();
+        f(edited["corners"].as_array_mut().unwrap());
+        std::fs::write(&init_path, edited.to_string()).unwrap();
+    };
+    with_corners(&|corners| corners[0] = serde_json::json!([-1e5, 0.0]));
+    expect_bad_input(&root, &seq, &["init.json", "corner 0 at [-100000, 0]", "x in [-256, 512]"]);
+    // The whole polygon moved to start 10 px right of the 256-pixel-wide image.
+    with_corners(&|corners| {
+        let left = corners.iter().map(|c| c[0].as_f64().unwrap()).fold(f64::INFINITY, f64::min);
+        for c in corners.iter_mut() {
+            c[0] = serde_json::json!(c[0].as_f64().unwrap() - left + 266.0);
+        }
+    });
+    expect_bad_input(&root, &seq, &["init.json", "wholly outside the 256x242 image"]);
+}
+
+/// A gap in truth.jsonl is that file's error, with the frame missing, not
+/// a disagreement blamed on the predictions.
+#[test]
+fn score_names_a_frame_missing_from_truth() {
+    let root = scratch("truth-gap");
+    let seq = good_sequence(&root);
+    let pred = root.join("pred.jsonl");
+    assert!(track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]).status.success());
+    let truth_path = seq.join("truth.jsonl");
+    let truth = std::fs::read_to_string(&truth_path).unwrap();
+    let without_frame_2: Vec<&str> = truth.lines().enumerate().filter(|(k, _)| *k != 2).map(|(_, l)| l).collect();
+    std::fs::write(&truth_path, without_frame_2.join("\n") + "\n").unwrap();
+    let out = pipetrack(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]);
+    let lines = error_lines(&out);
+    assert_eq!(out.status.code(), Some(2), "{lines:?}");
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    assert!(lines[0].contains("truth.jsonl: line 3: frame 3 after frame 1: frame 2 is missing"), "{}", lines[0]);
+    assert!(!lines[0].contains("pred.jsonl"), "{}", lines[0]);
+}
+
+/// Every scene takes the noise σ that `synth --help` gives, 0 to 64.
+#[test]
+fn every_scene_takes_noise_up_to_64() {
+    let root = scratch("noise-range");
+    for scene in ["pendulum", "target3dof", "textured-plane", "box", "hinged-box"] {
+        let dir = root.join(scene);
+        let out = pipetrack(&["synth", scene, dir.to_str().unwrap(), "--frames", "1", "--noise", "64"]);
+        assert!(out.status.success(), "{scene}: {}", String::from_utf8_lossy(&out.stderr));
+        let dir = root.join(format!("{scene}-over"));
+        let out = pipetrack(&["synth", scene, dir.to_str().unwrap(), "--frames", "1", "--noise", "64.5"]);
+        assert_eq!(out.status.code(), Some(2), "{scene}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains("not in 0..=64"), "{scene}");
+    }
+    let help = pipetrack(&["synth", "--help"]);
+    assert!(String::from_utf8_lossy(&help.stdout).contains("Gaussian noise σ in grey levels, 0 to 64"));
+}

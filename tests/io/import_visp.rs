@@ -346,6 +346,8 @@ fn loaded_files_are_copied_and_included_parts_placed() {
     // would add a line of its own to the written model.cao.
     for (include, needle) in [
         ("Extra/wedge.cao, t=[0.2; 0]", "Extra/wedge.cao, t=[0.2; 0]\": load(\"wedge.cao\")"),
+        // A translation that would carry the part beyond the model coordinates' bound.
+        ("Extra/wedge.cao, t=[1e300; 0; 0]", "t=[1e300; 0; 0]\": load(\"wedge.cao\"): t=: 1.0e300 is beyond"),
         ("Extra/wedge.cao, t=[0.2; 0; 0])\nload(\"/elsewhere/other.cao\")\n#", "control character"),
     ] {
         let bad = root.join("seq-bad");

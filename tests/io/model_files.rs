@@ -401,3 +401,32 @@ fn lowe_names_the_file_at_fault_for_joints() {
     });
     expect_lowe_refused(&seq, "model.json", "at most 10 joints", "11 joints");
 }
+
+/// blue and condensation, like lowe, refuse a start pose whose model lies
+/// beside the image or projects to less than a pixel, naming init.json,
+/// instead of reporting frames tracked (or lost) from it.
+#[test]
+fn blue_and_condensation_refuse_a_start_pose_off_the_image_or_too_small() {
+    let root = scratch("start-image");
+    for (scene, tracker) in [("target3dof", "blue"), ("textured-plane", "condensation")] {
+        let seq = root.join(scene);
+        synth(scene, &seq, "2");
+        let init_path = seq.join("init.json");
+        let init = std::fs::read_to_string(&init_path).unwrap();
+        for (axis, value, needle) in [(0, 1e6, "the whole model beside the"), (2, 1e9, "at least 1 px wide and high")] {
+            std::fs::write(&init_path, &init).unwrap();
+            edit_json(&init_path, |init| init["pose"]["translation"][axis] = serde_json::json!(value));
+            let out_file = seq.with_extension("jsonl");
+            let out = track_cpu(&seq, tracker, &out_file);
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            let what = format!("{tracker}, translation[{axis}] = {value}");
+            assert_eq!(out.status.code(), Some(2), "{what}: {stderr}");
+            assert_eq!(stderr.lines().count(), 1, "{what}: {stderr}");
+            assert!(stderr.contains("init.json: ") && stderr.contains(needle), "{what}: {stderr}");
+            assert!(!out_file.exists(), "{what}: nothing written");
+        }
+        std::fs::write(&init_path, &init).unwrap();
+        let out = track_cpu(&seq, tracker, &seq.with_extension("jsonl"));
+        assert!(out.status.success(), "{tracker} from the scene's own pose: {}", String::from_utf8_lossy(&out.stderr));
+    }
+}

@@ -499,6 +499,21 @@ fn bad_truth_lines_are_named_with_their_line() {
     assert!(input_error(f.open().unwrap().read_truth(), "truth.jsonl").starts_with("empty file"));
 }
 
+#[test]
+fn a_gap_in_truth_names_the_missing_frames() {
+    let f = Folder::good("truth-gap");
+    f.write("truth.jsonl", "{\"frame\":1}\n");
+    let msg = input_error(f.open().unwrap().read_truth(), "truth.jsonl");
+    assert!(msg.starts_with("line 1: the first frame is 1: frame 0 is missing"), "{msg}");
+    // Lines counted as in the file, a blank one too.
+    f.write("truth.jsonl", "\n{\"frame\":1}\n");
+    let msg = input_error(f.open().unwrap().read_truth(), "truth.jsonl");
+    assert!(msg.starts_with("line 2: the first frame is 1"), "{msg}");
+    // A truth that stops early has no gap.
+    f.write("truth.jsonl", "{\"frame\":0}\n");
+    f.open().unwrap().read_truth().expect("frame 0 alone");
+}
+
 /// A 4×3 mono Y4M stream with `frames` frames.
 fn y4m(w: usize, h: usize, frames: usize) -> Vec<u8> {
     let mut s = format!("YUV4MPEG2 W{w} H{h} F25:1 Cmono\n").into_bytes();

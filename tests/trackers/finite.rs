@@ -186,25 +186,33 @@ fn absurd_intrinsics_are_refused() {
     }
 }
 
-/// Cameras at the ends of the accepted ranges: the blue tracker, tracking
-/// nothing (every frame lost, the motion models coasting and restarting),
-/// writes only finite numbers.
+/// Cameras at the ends of the accepted ranges: the blue tracker, started
+/// with the box on the image centre and tracking nothing (every frame lost,
+/// the motion models coasting and restarting), writes only finite numbers.
+/// (A start that puts the box beside the image, or at less than a pixel
+/// across, is refused.)
 #[test]
 fn blue_at_the_ends_of_the_camera_ranges_writes_finite_numbers() {
     let good = camera();
-    for c in [
-        Camera { fx: 6.4, fy: 6.4, ..good },
-        Camera { fx: 6.4e6, fy: 6.4e6, ..good },
-        Camera { cx: -6400.0, cy: 5280.0, ..good },
+    let start = |c: Camera, translation| {
+        let init = InitState { pose: Some(Pose { rotation: ROTATION, translation }), ..InitState::default() };
+        BlueTracker::new(c, box_model(), init, BlueParams::default())
+    };
+    for (c, depth) in [
+        (Camera { fx: 6.4, fy: 6.4, ..good }, 0.45),
+        (Camera { fx: 6.4e6, fy: 6.4e6, ..good }, 0.9),
+        (Camera { cx: -6400.0, cy: 5280.0, ..good }, 0.9),
     ] {
-        let init = InitState {
-            pose: Some(Pose { rotation: ROTATION, translation: [0.01, -0.02, 0.9] }),
-            ..InitState::default()
-        };
-        let mut tracker = BlueTracker::new(c, box_model(), init, BlueParams::default()).expect("tracker");
+        let centre = c.back_project([319.5, 239.5], depth).to_array();
+        let mut tracker = start(c, centre).expect("tracker");
         let results: Vec<FrameResult> = (0..40).map(|frame| tracker.update(frame, &[]).to_result(1.0)).collect();
         write_check_and_score(&format!("ends-{}", c.fx), &results, &truth(results.len(), &[[0.0, 0.0]; 8]));
     }
+    let refusal = |c, translation| start(c, translation).err().map(|e| e.to_string()).unwrap_or_default();
+    let beside = refusal(Camera { cx: -6400.0, cy: 5280.0, ..good }, [0.01, -0.02, 0.9]);
+    assert!(beside.contains("beside the 640x480 image"), "{beside}");
+    let tiny = refusal(Camera { fx: 6.4, fy: 6.4, ..good }, [0.0, 0.0, 9.0]);
+    assert!(tiny.contains("at least 1 px wide and high"), "{tiny}");
 }
 
 fn outcome(corners: Vec<[f64; 2]>, pose: Option<Pose>, covariance: Option<Vec<f64>>) -> FrameOutcome {

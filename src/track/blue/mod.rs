@@ -401,7 +401,11 @@ impl BlueTracker {
 
     /// A tracker for `model` seen by `camera`, starting at `init.pose`
     /// (required; its rotation stays fixed). Errors on a model the tracker
-    /// cannot use ([`BlueTracker::check_model`]).
+    /// cannot use ([`BlueTracker::check_model`]), and on a start pose that
+    /// puts the model's centroid at or behind the camera, or whose image of
+    /// the model (of its vertices in front of the camera) misses the image
+    /// or is less than a pixel wide or high
+    /// ([`Camera::start_image_problem`]).
     pub fn new(camera: Camera, model: Model, init: InitState, params: BlueParams) -> Result<Self> {
         params.validate()?;
         Self::check_model(&model)?;
@@ -440,6 +444,10 @@ impl BlueTracker {
         let reference = pose.apply(centroid);
         if !(reference.z > 0.0) {
             return bad(format!("the init pose puts the model's centroid behind the camera (Z = {})", reference.z));
+        }
+        let points: Vec<DVec3> = offsets.iter().map(|&q| reference + q).collect();
+        if let Some(problem) = camera.start_image_problem(&points) {
+            return bad(problem);
         }
         let [cx, cy] = camera.project(reference);
         let init_location = TargetLocation { cx, cy, cz: reference.z };

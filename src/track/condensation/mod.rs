@@ -178,7 +178,10 @@ struct Search {
 impl CondensationTracker {
     /// A tracker of the four-vertex window `model` seen by `camera`, starting
     /// at `init.pose`; the first motion from `params.camera_motion`, else
-    /// `init.camera_motion`, else zero.
+    /// `init.camera_motion`, else zero. Errors on a start pose that puts a
+    /// window vertex at or behind the camera, or whose window's image
+    /// misses the image or is less than a pixel wide or high
+    /// ([`Camera::start_image_problem`]).
     pub fn new(camera: Camera, model: &Model, init: &InitState, params: CondensationParams) -> Result<Self> {
         params.validate()?;
         let [a, b, c, d] = model.vertices[..] else {
@@ -203,6 +206,9 @@ impl CondensationTracker {
         let pose: Pose = init_pose.into();
         if vertices.iter().any(|v| !(pose.apply(*v).z > 0.0)) {
             return Err(Error::Parameter("a window vertex is not in front of the camera at the initial pose".into()));
+        }
+        if let Some(problem) = camera.start_image_problem(&vertices.map(|v| pose.apply(v))) {
+            return Err(Error::Parameter(problem));
         }
         let motion = params.camera_motion.or(init.camera_motion).unwrap_or([0.0; 6]);
         let mut tracker = Self {
