@@ -29,7 +29,7 @@
 //!    verified with `confident_support` (or the steady bar of step 6) at
 //!    its first range, for
 //!    `confident_window_doublings` (our addition; the first range by
-//!    default). A frame whose narrowed window gives no solution with
+//!    default), each vertex's reach along x and y bounded on its own. A frame whose narrowed window gives no solution with
 //!    `confident_support` (or that bar) widens it and is searched again in the wider
 //!    window ([`Tracker::track_or_widen`]; through [`Tracker::track`] the
 //!    wider ranges are searched in the narrowed window's features).
@@ -720,26 +720,42 @@ impl LoweTracker {
         self.last.corrected(&step[..self.n()], self.centre, &self.limits)
     }
 
-    /// Window of interest around the model at `state`, grown by the search
-    /// reach of the prior after `doublings` doublings.
+    /// Window of interest around the model at `state` for the search
+    /// range after `doublings` doublings of the prior, grown by
+    /// `window_margin_px`. A narrowed window (fewer doublings than
+    /// `range_doublings`) bounds each vertex's own reach: the box of
+    /// `search_sigmas` standard deviations of its projection along x and
+    /// along y, which holds the model at every pose of the range, each edge
+    /// lying between its vertices. The widest window grows the vertices' box
+    /// by the largest reach of any vertex (both coordinates' deviations in
+    /// quadrature) on every side: bounded vertex by vertex as well, its
+    /// whole-image search took a board of tags for ViSP's cube
+    /// (BENCHMARKS.md, "A window bounded vertex by vertex").
     fn window_at(&self, state: &State, doublings: usize, width: usize, height: usize) -> Window {
         let n = self.n();
-        let widest = estimation::diagonal(&self.prior_sigmas(state, doublings), n);
+        let prior = estimation::diagonal(&self.prior_sigmas(state, doublings), n);
         let Ok(lin) = Linearised::at(&self.geometry, state, self.centre) else {
             return Window::full(width, height);
         };
+        let narrowed = doublings < self.params.range_doublings;
+        let sigmas = self.params.search_sigmas;
         let mut reach: f64 = 0.0;
-        let mut corners = Vec::with_capacity(lin.points.len());
+        let mut points = Vec::with_capacity(2 * lin.points.len());
         for (p, rows) in lin.points.iter().zip(&lin.derivatives) {
             if let Some((pixel, pixel_rows)) = projection::project_with_rows(&self.camera, *p, rows, n) {
-                corners.push(pixel);
-                let var = estimation::quadratic_form(&widest, &pixel_rows[0], n)
-                    + estimation::quadratic_form(&widest, &pixel_rows[1], n);
-                reach = reach.max(var.sqrt());
+                let var = pixel_rows.map(|row| estimation::quadratic_form(&prior, &row, n));
+                if narrowed {
+                    let [rx, ry] = var.map(|v| (sigmas * v.sqrt()).min(1e6));
+                    points.push([pixel[0] - rx, pixel[1] - ry]);
+                    points.push([pixel[0] + rx, pixel[1] + ry]);
+                } else {
+                    points.push(pixel);
+                    reach = reach.max((var[0] + var[1]).sqrt());
+                }
             }
         }
-        let margin = self.params.search_sigmas * reach + self.params.window_margin_px;
-        Window::around(&corners, margin.min(1e6), width, height).unwrap_or_else(|| Window::full(width, height))
+        let margin = sigmas * reach + self.params.window_margin_px;
+        Window::around(&points, margin.min(1e6), width, height).unwrap_or_else(|| Window::full(width, height))
     }
 
     /// Steps 4–6 of the module doc at `prediction`, whose visible model
@@ -2078,7 +2094,10 @@ mod tests {
     /// range: for each vertex and image axis, the step within
     /// `search_sigmas` of the prior (after 0, 1 and 2 doublings) that moves
     /// the vertex farthest along it, one way and the other; every vertex
-    /// of every such pose lies inside the window.
+    /// of every such pose lies inside the window. A narrowed window holds
+    /// no more than that and its margin: each side lies within the margin of
+    /// the farthest vertex, give or take 3 px (2 of rounding to whole
+    /// pixels, and the projection's curvature).
     #[test]
     fn the_window_holds_the_model_at_the_search_ranges_extremes() {
         let init = InitState { pose: Some(start_pose()), params: vec![0.5], ..InitState::default() };
@@ -2092,6 +2111,7 @@ mod tests {
             let window = tracker.window_at(&state, doublings, width, height);
             assert!(window.area() < width * height, "doublings {doublings}: the whole frame");
             let sigmas = tracker.prior_sigmas(&state, doublings);
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
             for (p, rows) in lin.points.iter().zip(&lin.derivatives) {
                 let (_, pixel_rows) = super::projection::project_with_rows(&tracker.camera, *p, rows, n).unwrap();
                 for row in pixel_rows {
@@ -2105,9 +2125,23 @@ mod tests {
                                 && c[1] >= f64::from(window.y0)
                                 && c[1] < f64::from(window.y1);
                             assert!(inside, "doublings {doublings}: vertex at {c:?} outside {window:?}");
+                            for a in 0..2 {
+                                lo[a] = lo[a].min(c[a]);
+                                hi[a] = hi[a].max(c[a]);
+                            }
                         }
                     }
                 }
+            }
+            if doublings < tracker.params.range_doublings {
+                let beyond = [
+                    lo[0] - f64::from(window.x0),
+                    lo[1] - f64::from(window.y0),
+                    f64::from(window.x1) - hi[0],
+                    f64::from(window.y1) - hi[1],
+                ];
+                let most = tracker.params.window_margin_px + 3.0;
+                assert!(beyond.iter().all(|b| *b <= most), "doublings {doublings}: {beyond:?} px beyond the range");
             }
         }
     }
