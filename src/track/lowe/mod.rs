@@ -29,7 +29,8 @@
 //!    verified with `confident_support` (or the steady bar of step 6) at
 //!    its first range, for
 //!    `confident_window_doublings` (our addition; the first range by
-//!    default), each vertex's reach along x and y bounded on its own. A frame whose narrowed window gives no solution with
+//!    default), each vertex's reach along x and y bounded on its own. A
+//!    frame whose narrowed window gives no solution with
 //!    `confident_support` (or that bar) widens it and is searched again in the wider
 //!    window ([`Tracker::track_or_widen`]; through [`Tracker::track`] the
 //!    wider ranges are searched in the narrowed window's features).
@@ -730,7 +731,7 @@ impl LoweTracker {
     /// by the largest reach of any vertex (both coordinates' deviations in
     /// quadrature) on every side: bounded vertex by vertex as well, its
     /// whole-image search took a board of tags for ViSP's cube
-    /// (BENCHMARKS.md, "A window bounded vertex by vertex").
+    /// (BENCHMARKS.md, "A narrowed window bounded vertex by vertex").
     fn window_at(&self, state: &State, doublings: usize, width: usize, height: usize) -> Window {
         let n = self.n();
         let prior = estimation::diagonal(&self.prior_sigmas(state, doublings), n);
