@@ -217,11 +217,13 @@ pub struct LoweParams {
     /// widens it to the widest and is searched again
     /// ([`crate::track::Tracker::track_or_widen`]), so the wider ranges are
     /// searched with their own features, as with the widest window. The
-    /// default, 0, sizes it for the first range: on the rendered box at
-    /// 4 px/frame that window holds about 92 000 pixels against 252 000,
-    /// and a frame takes less than half the time (BENCHMARKS.md, "A
-    /// narrower window after a confident frame"). `range_doublings` keeps
-    /// the widest window on every frame. Range: 0 ..= `range_doublings`.
+    /// default, 0, sizes it for the first range, each vertex's reach
+    /// bounded on its own: on the rendered box at 4 px/frame those windows
+    /// hold about 47 000 pixels on average against about 227 000 for the
+    /// widest, and a frame takes less than half the time (BENCHMARKS.md, "A
+    /// narrower window after a confident frame" and "A narrowed window
+    /// bounded vertex by vertex"). `range_doublings` keeps the widest
+    /// window on every frame. Range: 0 ..= `range_doublings`.
     pub confident_window_doublings: usize,
     /// Widest gap between a matched model edge and an unmatched, nearly
     /// parallel neighbour that the search tries the other way round after
