@@ -92,8 +92,8 @@ pub const MAX_START_CORNER_OFFSET: f64 = 1.0;
 /// Check that start `corners` (`init.json`'s, one per model vertex) suit a
 /// `width`×`height` image: every corner within [`MAX_START_CORNER_OFFSET`]
 /// image sizes of it, and the polygon the model's `edges` trace over the
-/// corners overlapping it (a corner on the image, an edge across it, or
-/// the image inside the polygon). The image spans −½ to W − ½ and −½ to
+/// corners overlapping it (an edge on or across it, clipped by
+/// [`clip_segment`], or the image inside the polygon). The image spans −½ to W − ½ and −½ to
 /// H − ½, the pixels' extent. `Err` is the message, to be blamed on the
 /// file the corners came from. Edges whose indices are out of range are
 /// left out (the model is to blame for them).
@@ -121,28 +121,9 @@ pub fn check_polygon_in_image(
         ));
     }
     let (lo, hi) = ([-0.5, -0.5], [w - 0.5, h - 0.5]);
-    let on_image = |p: [f64; 2]| (lo[0]..=hi[0]).contains(&p[0]) && (lo[1]..=hi[1]).contains(&p[1]);
     let segments: Vec<([f64; 2], [f64; 2])> =
         edges.iter().filter_map(|&[i, j]| Some((*corners.get(i)?, *corners.get(j)?))).collect();
-    // Liang–Barsky: whether some point of a→b lies on the image.
-    let crosses = |(a, b): &([f64; 2], [f64; 2])| {
-        let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
-        for axis in 0..2 {
-            let d = b[axis] - a[axis];
-            for (p, q) in [(-d, a[axis] - lo[axis]), (d, hi[axis] - a[axis])] {
-                if p == 0.0 {
-                    if q < 0.0 {
-                        return false;
-                    }
-                } else if p < 0.0 {
-                    t0 = t0.max(q / p);
-                } else {
-                    t1 = t1.min(q / p);
-                }
-            }
-        }
-        t0 <= t1
-    };
+    let crosses = |&(a, b): &([f64; 2], [f64; 2])| clip_segment(a, b, lo, hi).is_some();
     // Even–odd rule: whether the image's centre lies inside the polygon.
     let centre = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])];
     let encloses_centre = segments
@@ -154,11 +135,40 @@ pub fn check_polygon_in_image(
         .count()
         % 2
         == 1;
-    if corners.iter().any(|&c| on_image(c)) || segments.iter().any(crosses) || encloses_centre {
+    if segments.iter().any(crosses) || encloses_centre {
         Ok(())
     } else {
         Err(format!("the corners' polygon lies wholly outside the {width}x{height} image: it must overlap it"))
     }
+}
+
+/// Clip the segment `a`–`b` to `[lo, hi]` in both coordinates (Liang–Barsky);
+/// `None` when nothing of it is inside.
+#[must_use]
+pub fn clip_segment(a: [f64; 2], b: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> Option<([f64; 2], [f64; 2])> {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for axis in 0..2 {
+        for (p, q) in [(-d[axis], a[axis] - lo[axis]), (d[axis], hi[axis] - a[axis])] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return None;
+                }
+            } else {
+                let r = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(r);
+                } else {
+                    t1 = t1.min(r);
+                }
+            }
+        }
+    }
+    if t0 > t1 {
+        return None;
+    }
+    let at = |t: f64| [a[0] + t * d[0], a[1] + t * d[1]];
+    Some((at(t0), at(t1)))
 }
 
 /// The displacement of each of `to`'s points when the least-squares

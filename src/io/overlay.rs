@@ -11,6 +11,7 @@
 
 use image::RgbImage;
 
+use crate::geometry::polygon::clip_segment;
 use crate::image::GrayImage;
 use crate::io::formats::Status;
 
@@ -176,34 +177,6 @@ fn draw_cross(img: &mut RgbImage, p: [f64; 2], colour: [u8; 3]) {
         blend(img, x + d, y, colour, 1.0);
         blend(img, x, y + d, colour, 1.0);
     }
-}
-
-/// Clip the segment `a`–`b` to `[lo, hi]` in both coordinates (Liang–Barsky);
-/// `None` when nothing of it is inside.
-fn clip_segment(a: [f64; 2], b: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> Option<([f64; 2], [f64; 2])> {
-    let d = [b[0] - a[0], b[1] - a[1]];
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    for axis in 0..2 {
-        for (p, q) in [(-d[axis], a[axis] - lo[axis]), (d[axis], hi[axis] - a[axis])] {
-            if p == 0.0 {
-                if q < 0.0 {
-                    return None;
-                }
-            } else {
-                let r = q / p;
-                if p < 0.0 {
-                    t0 = t0.max(r);
-                } else {
-                    t1 = t1.min(r);
-                }
-            }
-        }
-    }
-    if t0 > t1 {
-        return None;
-    }
-    let at = |t: f64| [a[0] + t * d[0], a[1] + t * d[1]];
-    Some((at(t0), at(t1)))
 }
 
 /// Xiaolin Wu's anti-aliased line from `a` to `b`, clipped to the image

@@ -362,13 +362,28 @@ fn read_model(dir: &Path) -> Result<(Model, PathBuf, Vec<String>)> {
 }
 
 fn read_truth(path: &Path, model: &Model, model_path: &Path, frame_count: Option<usize>) -> Result<Vec<TruthFrame>> {
-    let mut lines = Vec::new();
+    // The frame each line must hold, the lines before it having held 0, 1, …;
+    // the first line after a gap, reported once the file passes the other
+    // checks (a frame out of order, one beyond the sequence, a bad line).
+    let mut next = 0;
+    let mut gap = None;
     let truth = read_frame_lines(
         path,
         |t: &TruthFrame| t.frame,
         |t, line| {
-            lines.push(line);
             t.validate(path, line, model, model_path)?;
+            if gap.is_none() && t.frame > next {
+                let found = match next {
+                    0 => format!("the first frame is {}", t.frame),
+                    _ => format!("frame {} after frame {}", t.frame, next - 1),
+                };
+                let missing = match t.frame - next {
+                    1 => format!("frame {next} is missing"),
+                    _ => format!("frames {next} to {} are missing", t.frame - 1),
+                };
+                gap = Some(format!("line {line}: {found}: {missing} (one line per frame, from frame 0)"));
+            }
+            next = t.frame + 1;
             match frame_count.filter(|&n| t.frame >= n) {
                 Some(n) => {
                     Err(Error::input(path, format!("line {line}: frame {} but the sequence has {n} frames", t.frame)))
@@ -377,19 +392,8 @@ fn read_truth(path: &Path, model: &Model, model_path: &Path, frame_count: Option
             }
         },
     )?;
-    // The frames increase: the first line whose frame is not its index
-    // follows a gap.
-    if let Some((k, t)) = truth.iter().enumerate().find(|(k, t)| t.frame != *k) {
-        let found = match k {
-            0 => format!("the first frame is {}", t.frame),
-            _ => format!("frame {} after frame {}", t.frame, k - 1),
-        };
-        let missing = match t.frame - k {
-            1 => format!("frame {k} is missing"),
-            _ => format!("frames {k} to {} are missing", t.frame - 1),
-        };
-        let message = format!("line {}: {found}: {missing} (one line per frame, from frame 0)", lines[k]);
-        return Err(Error::input(path, message));
+    match gap {
+        Some(message) => Err(Error::input(path, message)),
+        None => Ok(truth),
     }
-    Ok(truth)
 }

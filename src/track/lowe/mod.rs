@@ -614,26 +614,17 @@ impl LoweTracker {
         // Every vertex must project: a vertex at or behind the camera has no
         // image, and the model no outline to match.
         let points = geometry.camera_vertices(&state.pose, &state.params)?;
-        let mut pixels = Vec::with_capacity(points.len());
-        for (k, p) in points.iter().enumerate() {
-            let Some(pixel) = camera.project_in_front(*p) else {
-                return Err(Error::Parameter(format!(
-                    "the pose puts model vertex {k} at depth {}: the whole model must lie in front of the camera",
-                    crate::bounds::short_number(p.z)
-                )));
-            };
-            pixels.push(pixel);
-        }
-        // A model whose image lies wholly beside the frame leaves nothing to
-        // start from: the pose, or the camera's intrinsics, are wrong. (A
-        // close-up whose vertices all lie outside still crosses the frame:
-        // the vertices' bounding box is what must meet it.)
-        let (w, h) = (camera.width as usize, camera.height as usize);
-        if Window::around(&pixels, 0.0, w, h).is_none_or(|window| window.is_empty()) {
+        if let Some((k, p)) = points.iter().enumerate().find(|(_, p)| camera.project_in_front(**p).is_none()) {
             return Err(Error::Parameter(format!(
-                "the pose puts the whole model beside the {}x{} image (with the intrinsics of camera.json)",
-                camera.width, camera.height
+                "the pose puts model vertex {k} at depth {}: the whole model must lie in front of the camera",
+                crate::bounds::short_number(p.z)
             )));
+        }
+        // A model whose image lies wholly beside the frame, or spans less
+        // than a pixel, leaves nothing to start from: the pose, or the
+        // camera's intrinsics, are wrong.
+        if let Some(problem) = camera.start_image_problem(&points) {
+            return Err(Error::Parameter(problem));
         }
         let segment_params = params.segments.clone();
         let mut tracker = Self {
