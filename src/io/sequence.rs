@@ -383,7 +383,7 @@ fn read_truth(path: &Path, model: &Model, model_path: &Path, frame_count: Option
                 };
                 gap = Some(format!("line {line}: {found}: {missing} (one line per frame, from frame 0)"));
             }
-            next = t.frame + 1;
+            next = t.frame.saturating_add(1);
             match frame_count.filter(|&n| t.frame >= n) {
                 Some(n) => {
                     Err(Error::input(path, format!("line {line}: frame {} but the sequence has {n} frames", t.frame)))
