@@ -3,7 +3,8 @@
 # device and driver, `pipetrack bench` stage by stage at three sizes, the
 # whole chain with 1, 8 and 64 sequences in flight, the window energy, and
 # `batch` over a few hundred synthetic sequences with --jobs 1, 8 and 64
-# (GPU) beside the CPU backend, then single-sequence `track` times.
+# (GPU) beside the CPU backend, then single-sequence `track` times (lowe on
+# the box at 4 and 20 px/frame, the box half hidden and the hinged box).
 #
 #   OUT=results benches/gpu_machine.sh [path/to/pipetrack]
 #
@@ -110,11 +111,17 @@ say "track: one sequence at a time"
 "$BIN" synth pendulum "$WORK/tp" --speed 3.9 --frames "$TRACK_FRAMES" >/dev/null 2>>"$LOG"
 "$BIN" synth target3dof "$WORK/tt" --speed 0.3 --frames "$TRACK_FRAMES" >/dev/null 2>>"$LOG"
 "$BIN" synth box "$WORK/tb" --speed 4 --frames "$TRACK_FRAMES" >/dev/null 2>>"$LOG"
-for backend in gpu cpu; do
-    for run in "tp motion-edge" "tt blue" "tb lowe"; do
+"$BIN" synth box "$WORK/tb20" --speed 20 --frames "$TRACK_FRAMES" >/dev/null 2>>"$LOG"
+"$BIN" synth box "$WORK/tbh" --speed 4 --occlude 0.5 --frames "$TRACK_FRAMES" >/dev/null 2>>"$LOG"
+"$BIN" synth hinged-box "$WORK/th" --speed 4 --frames "$TRACK_FRAMES" >/dev/null 2>>"$LOG"
+# The CPU backend on every core, then on one thread (RAYON_NUM_THREADS=1).
+for backend in gpu cpu cpu1; do
+    threads=$([ "$backend" = cpu1 ] && echo 1 || nproc)
+    for run in "tp motion-edge" "tt blue" "tb lowe" "tb20 lowe" "tbh lowe" "th lowe"; do
         set -- $run
-        line=$(timeout 120 "$BIN" track "$WORK/$1" --tracker "$2" --backend "$backend" --out "$WORK/o.jsonl" 2>&1 | tail -n 1)
-        echo "$2 backend=$backend: $line" | tee -a "$OUT/track.txt"
+        line=$(RAYON_NUM_THREADS=$threads timeout 120 "$BIN" track "$WORK/$1" --tracker "$2" \
+            --backend "${backend%1}" --out "$WORK/o.jsonl" 2>&1 | tail -n 1)
+        echo "$2 $1 backend=$backend: $line" | tee -a "$OUT/track.txt"
     done
 done
 
