@@ -5,7 +5,7 @@
 //
 // The window's pixels are numbered i = 0..area row-major inside the window
 // and cut into blocks of BLOCK consecutive numbers, one workgroup each; each
-// of the workgroup's GROUP invocations takes a run of RUN consecutive pixels
+// of the workgroup's GROUP invocations takes a run of COMPACTION_RUN consecutive pixels
 // of its block, so a workgroup's scan (its barriers) serves BLOCK pixels.
 // Four entry points, one per pass:
 //   count_blocks  how many pixels of each block are selected
@@ -27,8 +27,10 @@
 // src/early/compaction.rs and `Feature` in src/early/mod.rs.
 
 const GROUP: u32 = 256u;
-const RUN: u32 = 32u;
-const BLOCK: u32 = GROUP * RUN;
+// Pixels per invocation (1 to 32), set by the host for its device: long runs
+// suit a CPU adapter, short ones a GPU (coalesced reads, more workgroups).
+override COMPACTION_RUN: u32 = 32u;
+override BLOCK: u32 = GROUP * COMPACTION_RUN;
 
 struct Params {
     image_width: u32,
@@ -158,10 +160,24 @@ fn subsample_rank(j: u32, n: u32, cap: u32, seed: u32) -> u32 {
 // `layer` is selected (pixels past the window's area are not).
 fn run_flags(win: LayerWindow, layer: u32, start: u32) -> u32 {
     var flags = 0u;
-    let end = min(start + RUN, win.area);
+    let end = min(start + COMPACTION_RUN, win.area);
+    if (start >= end) {
+        return 0u;
+    }
+    // Walk the run along the window's rows: one division for its first pixel.
+    let first = window_xy(win, start);
+    let row_end = win.x0 + win.win_width;
+    var x = first.x;
+    var p = pixel_index(layer, first);
     for (var i = start; i < end; i++) {
-        if (select_values[pixel_index(layer, window_xy(win, i))] > win.threshold) {
+        if (select_values[p] > win.threshold) {
             flags |= 1u << (i - start);
+        }
+        x += 1u;
+        p += 1u;
+        if (x == row_end) {
+            x = win.x0;
+            p += params.image_width - win.win_width;
         }
     }
     return flags;
@@ -174,7 +190,7 @@ fn count_blocks(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
     let block = wg.y * params.grid_x + wg.x;
     var count = 0u;
     if (block < win.num_blocks) {
-        count = countOneBits(run_flags(win, wg.z, block * BLOCK + lid * RUN));
+        count = countOneBits(run_flags(win, wg.z, block * BLOCK + lid * COMPACTION_RUN));
     }
     let sum = inclusive_scan(lid, count);
     if (lid == GROUP - 1u && block < win.num_blocks) {
@@ -215,7 +231,7 @@ fn scan_blocks(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
 fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let win = scatter_windows[wg.z];
     let block = wg.y * params.grid_x + wg.x;
-    let start = block * BLOCK + lid * RUN;
+    let start = block * BLOCK + lid * COMPACTION_RUN;
     var flags = 0u;
     if (block < win.num_blocks) {
         flags = run_flags(win, wg.z, start);

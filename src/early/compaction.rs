@@ -21,11 +21,14 @@
 //! because the cap is at most [`MAX_CAP`]; both twins use exactly this integer
 //! arithmetic, so their lists are identical element for element.
 //!
-//! GPU: four passes over blocks of [`BLOCK`] window pixels (a scan, since
-//! atomic append gives an unspecified order), see `encode`; only the header
-//! and the final list are read back. Each of a block's [`GROUP`]
-//! invocations reads a run of [`RUN`] consecutive pixels, so the
-//! workgroup's scan and its barriers serve `RUN` pixels an invocation.
+//! GPU: four passes over blocks of window pixels (a scan, since atomic
+//! append gives an unspecified order), see `encode`; only the header and
+//! the final list are read back. Each of a block's [`GROUP`] invocations
+//! reads a run of consecutive pixels, so the workgroup's scan and its
+//! barriers serve a run of pixels an invocation. The run's length is the
+//! context's [`GpuContext::compaction_run`] (the shader's overridable
+//! `COMPACTION_RUN`): 32 on a CPU adapter, 8 on a GPU, the same lists
+//! either way.
 
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -53,17 +56,13 @@ pub const SHADER: ShaderDef = ShaderDef {
         EntryPoint::linear("scatter", GROUP, &[Uniform, ReadOnly, ReadOnly, ReadOnly, ReadOnly, ReadOnly, Storage]),
         EntryPoint::linear("gather", GROUP, &[Uniform, ReadOnly, ReadOnly, ReadOnly, Storage]),
     ],
+    overrides: &["COMPACTION_RUN"],
 };
 
 /// Largest cap accepted: keeps `j·(n % cap)` below 2³² in the stratum bounds.
 pub const MAX_CAP: u32 = 65_535;
 /// Invocations per workgroup of every pass (the shader's `GROUP`).
 pub const GROUP: u32 = 256;
-/// Consecutive window pixels per invocation of the count and scatter passes
-/// (the shader's `RUN`).
-pub const RUN: u32 = 32;
-/// Window pixels per workgroup of the count and scatter passes (the shader's `BLOCK`).
-pub const BLOCK: u32 = GROUP * RUN;
 /// Most workgroups per grid dimension (wgpu's downlevel limit); longer block
 /// grids wrap onto a second dimension.
 const MAX_GROUPS_PER_DIM: u32 = 65_535;
@@ -321,6 +320,12 @@ pub struct CompactionGpu {
     max_pixels: usize,
     max_cap: Option<u32>,
     layers: usize,
+    /// Window pixels per workgroup of the count and scatter passes (the
+    /// shader's `BLOCK`: `GROUP` invocations of the context's
+    /// [`GpuContext::compaction_run`] pixels each).
+    block: u32,
+    /// The run length the scratch was sized for.
+    run: u32,
     /// Whether the last [`encode`] gathered into `capped_list`.
     last_capped: AtomicBool,
     /// Features of each layer copied to `staging` by the last
@@ -361,7 +366,9 @@ impl CompactionGpu {
         check_list_fits(&ctx.device.limits(), max_pixels.max(1).saturating_mul(layers))?;
         let n = layers as u64;
         let list_bytes = max_pixels.max(1) as u64 * FEATURE_BYTES * n;
-        let max_blocks = max_pixels.div_ceil(BLOCK as usize).max(1) as u64;
+        let run = ctx.compaction_run();
+        let block = GROUP * run;
+        let max_blocks = max_pixels.div_ceil(block as usize).max(1) as u64;
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
         let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -391,6 +398,8 @@ impl CompactionGpu {
             max_pixels,
             max_cap,
             layers,
+            block,
+            run,
             last_capped: AtomicBool::new(false),
             prefetched: Mutex::new(vec![0; layers]),
         })
@@ -548,7 +557,7 @@ fn block_grid(blocks: u32) -> [u32; 3] {
 /// Record compaction of `params.window` of `select`, `theta`, `magnitude`
 /// (all the same size) into `scratch`'s list. Dispatches: 3 without a cap
 /// (count_blocks, scan_blocks, scatter; the first and last over
-/// `ceil(area / BLOCK)` workgroups, skipped for an empty window, scan_blocks
+/// `ceil(area / block)` workgroups, skipped for an empty window, scan_blocks
 /// always one workgroup so the header is always written), 4 with a cap
 /// (gather over `ceil(min(cap, area) / GROUP)` workgroups). Follow with
 /// [`CompactionGpu::encode_readback`] in the same submission.
@@ -588,6 +597,13 @@ pub(crate) fn encode_layers(
             scratch.layers
         )));
     }
+    if rec.context().compaction_run() != scratch.run {
+        return Err(Error::Gpu(format!(
+            "compaction scratch sized for runs of {} pixels recorded on a context with runs of {}",
+            scratch.run,
+            rec.context().compaction_run()
+        )));
+    }
     let capped = params.first().is_some_and(|p| p.cap.is_some());
     if params.iter().any(|p| p.cap.is_some() != capped) {
         return Err(Error::Parameter("stacked compaction: either every layer has a cap or none has".into()));
@@ -614,7 +630,7 @@ pub(crate) fn encode_layers(
             y0: win.y0,
             win_width: win.width(),
             area,
-            num_blocks: area.div_ceil(BLOCK),
+            num_blocks: area.div_ceil(scratch.block),
             cap: p.cap.unwrap_or(u32::MAX),
             seed: p.seed,
             threshold: p.threshold,
@@ -629,7 +645,7 @@ pub(crate) fn encode_layers(
         image_width: size.0 as u32,
         image_height: size.1 as u32,
         grid_x: gx,
-        max_blocks: s.max_pixels.div_ceil(BLOCK as usize).max(1) as u32,
+        max_blocks: s.max_pixels.div_ceil(s.block as usize).max(1) as u32,
         list_stride: s.max_pixels.max(1) as u32,
         capped_stride: s.capped_capacity().max(1) as u32,
         _pad0: 0,

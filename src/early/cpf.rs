@@ -67,6 +67,7 @@ pub const SHADER: ShaderDef = ShaderDef {
     source: include_str!("../../shaders/cpf.wgsl"),
     includes: &[PYRAMID_TILE],
     entry_points: &[EntryPoint::pyramid_levels("cpf_levels", &[Uniform, Storage, Storage, Storage, Storage])],
+    overrides: &[],
 };
 
 /// The index arithmetic of a pyramid built several levels to a dispatch,

@@ -29,6 +29,7 @@ pub const SHADER: ShaderDef = ShaderDef {
     source: include_str!("../../shaders/edge_pyramid.wgsl"),
     includes: &[PYRAMID_TILE],
     entry_points: &[EntryPoint::pyramid_levels("edge_levels", &[Uniform, Storage, Storage])],
+    overrides: &[],
 };
 
 /// The averaged horizontal and vertical edge hierarchies of one image.

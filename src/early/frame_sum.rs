@@ -22,6 +22,7 @@ pub const SHADER: ShaderDef = ShaderDef {
     source: include_str!("../../shaders/frame_sum.wgsl"),
     includes: &[],
     entry_points: &[EntryPoint::tiled("frame_sum", &[Uniform, ReadOnly, ReadOnly, Storage])],
+    overrides: &[],
 };
 
 /// Uniform block of `frame_sum.wgsl`; kept in sync with its `Params`.

@@ -30,6 +30,7 @@ pub const SHADER: ShaderDef = ShaderDef {
         EntryPoint::tiled("blur_rows", &[Uniform, ReadOnly, Storage]),
         EntryPoint::tiled("blur_cols", &[Uniform, ReadOnly, Storage]),
     ],
+    overrides: &[],
 };
 
 /// Most half-kernel weights the shader's uniform block holds.

@@ -34,6 +34,7 @@ pub const SHADER: ShaderDef = ShaderDef {
     source: include_str!("../../shaders/ingest.wgsl"),
     includes: &[],
     entry_points: &[EntryPoint::tiled("from_bytes", &[Uniform, Storage, ReadOnly])],
+    overrides: &[],
 };
 /// Shader for texture frames.
 pub const TEXTURE_SHADER: ShaderDef = ShaderDef {
@@ -41,6 +42,7 @@ pub const TEXTURE_SHADER: ShaderDef = ShaderDef {
     source: include_str!("../../shaders/ingest_texture.wgsl"),
     includes: &[],
     entry_points: &[EntryPoint::tiled("from_texture", &[Uniform, Storage, Texture])],
+    overrides: &[],
 };
 
 /// The texture formats [`ingest_texture_gpu`] and

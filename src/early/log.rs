@@ -43,6 +43,7 @@ pub const SHADER: ShaderDef = ShaderDef {
         EntryPoint::tiled("rows", &[Uniform, ReadOnly, Storage, Storage]),
         EntryPoint::tiled("cols", &[Uniform, ReadOnly, ReadOnly, Storage]),
     ],
+    overrides: &[],
 };
 
 /// Most half-kernel weights the shader's uniform block holds per kernel

@@ -58,6 +58,7 @@ pub const SHADER: ShaderDef = ShaderDef {
     source: include_str!("../../shaders/sobel.wgsl"),
     includes: &[super::angle::INCLUDE],
     entry_points: &[EntryPoint::tiled("sobel", &[Uniform, ReadOnly, Storage, Storage, Storage, Storage, Storage])],
+    overrides: &[],
 };
 
 /// The five planes of the Sobel stage on the CPU, all the same size.

@@ -27,6 +27,7 @@ pub const SHADER: ShaderDef = ShaderDef {
         EntryPoint::tiled("temporal_diff", &[Uniform, ReadOnly, ReadOnly, Storage]),
         EntryPoint::tiled("temporal_diff_and_sum", &[Uniform, ReadOnly, ReadOnly, Storage, Storage]),
     ],
+    overrides: &[],
 };
 
 /// Mask value of a moving pixel.

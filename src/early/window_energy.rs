@@ -67,6 +67,7 @@ pub const SHADER: ShaderDef = ShaderDef {
         EntryPoint::linear("window_terms", GROUP as u32, &[Uniform, ReadOnly, ReadOnly, ReadOnly, Storage]),
         EntryPoint::linear("normalise", NORMALISE_GROUP as u32, &[Uniform, ReadOnly, Storage]),
     ],
+    overrides: &[],
 };
 
 /// Invocations scoring one window (the shader's `GROUP`).

@@ -51,6 +51,7 @@ pub const SHADER: ShaderDef = ShaderDef {
     source: include_str!("../../shaders/zero_crossing.wgsl"),
     includes: &[super::angle::INCLUDE],
     entry_points: &[EntryPoint::tiled("edgels", &[Uniform, ReadOnly, Storage, Storage, Storage, Storage])],
+    overrides: &[],
 };
 
 /// Smallest effective `min_slope`: smaller values (and NaN) act as this one,

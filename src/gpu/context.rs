@@ -59,8 +59,20 @@ pub struct GpuContext {
     pub(crate) device: wgpu::Device,
     pub(crate) queue: wgpu::Queue,
     adapter_name: String,
+    /// Pixels each invocation of the compaction's count and scatter passes
+    /// reads ([`GpuContext::compaction_run`]).
+    compaction_run: u32,
     pipelines: Arc<Mutex<HashMap<(&'static str, &'static str), wgpu::ComputePipeline>>>,
     modules: Arc<Mutex<HashMap<&'static str, wgpu::ShaderModule>>>,
+}
+
+/// The compaction's run length for a device of type `device_type`: 32 on a
+/// CPU adapter (lavapipe: a long serial loop per invocation, few
+/// workgroups), 8 on a GPU (reads closer together, four times the
+/// workgroups; BENCHMARKS.md, "Compaction runs by device").
+#[must_use]
+pub fn default_compaction_run(device_type: wgpu::DeviceType) -> u32 {
+    if device_type == wgpu::DeviceType::Cpu { 32 } else { 8 }
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -106,7 +118,8 @@ impl GpuContext {
                 ..Default::default()
             })
             .await?;
-        Ok(Self::wrap(device, queue, format!("{} ({:?}, {})", info.name, info.backend, info.driver)))
+        let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
+        Ok(Self::wrap(device, queue, name, default_compaction_run(info.device_type)))
     }
 
     /// Use the caller's own device and queue (for embedding pipetrack in a
@@ -116,12 +129,42 @@ impl GpuContext {
     /// one that falls short.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Result<Self> {
         check_device(&device.limits(), device.features())?;
-        let name = format!("{:?} (caller's device)", device.adapter_info().name);
-        Ok(Self::wrap(device, queue, name))
+        let info = device.adapter_info();
+        let name = format!("{:?} (caller's device)", info.name);
+        let run = default_compaction_run(info.device_type);
+        Ok(Self::wrap(device, queue, name, run))
     }
 
-    fn wrap(device: wgpu::Device, queue: wgpu::Queue, adapter_name: String) -> Self {
-        Self { device, queue, adapter_name, pipelines: Arc::default(), modules: Arc::default() }
+    fn wrap(device: wgpu::Device, queue: wgpu::Queue, adapter_name: String, compaction_run: u32) -> Self {
+        Self { device, queue, adapter_name, compaction_run, pipelines: Arc::default(), modules: Arc::default() }
+    }
+
+    /// Pixels each invocation of the compaction's count and scatter passes
+    /// reads, 1 to 32 ([`default_compaction_run`] of the device's type unless
+    /// set by [`GpuContext::with_compaction_run`]). The lists are the same
+    /// for every value; only the speed differs.
+    #[must_use]
+    pub fn compaction_run(&self) -> u32 {
+        self.compaction_run
+    }
+
+    /// This context on the same device with the compaction's run length set
+    /// to `run` (1 to 32), with its own pipeline cache. Compaction scratch
+    /// ([`crate::early::compaction::CompactionGpu`]) is sized for the run of
+    /// the context that made it and must be used with that context.
+    pub fn with_compaction_run(&self, run: u32) -> Result<Self> {
+        if !(1..=32).contains(&run) {
+            return Err(Error::Parameter(format!("compaction run {run} is not 1 to 32")));
+        }
+        Ok(Self::wrap(self.device.clone(), self.queue.clone(), self.adapter_name.clone(), run))
+    }
+
+    /// The value of pipeline-overridable constant `name` on this context.
+    fn override_value(&self, name: &str) -> Result<f64> {
+        match name {
+            "COMPACTION_RUN" => Ok(f64::from(self.compaction_run)),
+            _ => Err(Error::Gpu(format!("no value for the pipeline-overridable constant `{name}`"))),
+        }
     }
 
     /// The adapter's name, backend and driver, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, llvmpipe)`.
@@ -176,12 +219,14 @@ impl GpuContext {
             bind_group_layouts: &[Some(&bind_group_layout)],
             immediate_size: 0,
         });
+        let constants =
+            shader.overrides.iter().map(|&name| Ok((name, self.override_value(name)?))).collect::<Result<Vec<_>>>()?;
         let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(&label),
             layout: Some(&layout),
             module: &module,
             entry_point: Some(entry),
-            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
             cache: None,
         });
         pipelines.insert((shader.name, entry), pipeline.clone());

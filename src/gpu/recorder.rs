@@ -440,6 +440,25 @@ mod tests {
         }
     }
 
+    /// Compaction scratch sized on a context of one run length is refused
+    /// by a recording on a context of another, not read with the wrong
+    /// block size.
+    #[test]
+    fn compaction_scratch_of_another_run_length_is_refused() {
+        use crate::early::compaction::{self, CompactionGpu, CompactionParams};
+        let Some(ctx) = test_context("compaction_scratch_of_another_run_length_is_refused") else { return };
+        let other = ctx.with_compaction_run(if ctx.compaction_run() == 8 { 32 } else { 8 }).unwrap();
+        let scratch = CompactionGpu::new(&other, 15, None).unwrap();
+        let img = || GpuImage::new(&ctx, 5, 3, "test");
+        let (sel, th, mag) = (img(), img(), img());
+        let p = CompactionParams { window: Window::full(5, 3), threshold: 0.5, cap: None, seed: 1 };
+        let err = run_once(&ctx, |rec| compaction::encode(rec, &sel, &th, &mag, &p, &scratch))
+            .expect_err("scratch of another run length");
+        assert!(matches!(err, Error::Gpu(ref m) if m.contains("runs of")), "{err}");
+        let own = CompactionGpu::new(&ctx, 15, None).unwrap();
+        run_once(&ctx, |rec| compaction::encode(rec, &sel, &th, &mag, &p, &own)).unwrap();
+    }
+
     /// Every stage's `encode` refuses a `GpuImage` whose size differs from
     /// its input's with [`Error::Size`] naming the pair, and records nothing;
     /// with matching sizes the same calls record their dispatches.

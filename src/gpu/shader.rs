@@ -110,6 +110,10 @@ pub struct ShaderDef {
     pub includes: &'static [Include],
     /// Every entry point the host dispatches.
     pub entry_points: &'static [EntryPoint],
+    /// The shader's pipeline-overridable constants (WGSL `override`
+    /// declarations) that the context sets when it compiles a pipeline,
+    /// each to the value [`super::GpuContext`] chose for its device.
+    pub overrides: &'static [&'static str],
 }
 
 /// `source` as composed, ending in exactly one line break more than it has
@@ -183,7 +187,13 @@ mod tests {
 
     #[test]
     fn composed_source_appends_includes_and_lines_map_back_to_their_files() {
-        let def = ShaderDef { name: "s", source: "// s line 1\n// s line 2", includes: &[A, B], entry_points: &[] };
+        let def = ShaderDef {
+            name: "s",
+            source: "// s line 1\n// s line 2",
+            includes: &[A, B],
+            entry_points: &[],
+            overrides: &[],
+        };
         let composed = def.composed_source();
         assert_eq!(
             composed,
@@ -207,6 +217,7 @@ mod tests {
             source: "",
             includes: &[],
             entry_points: &[EntryPoint::tiled("a", BINDINGS), EntryPoint::linear("b", 64, BINDINGS)],
+            overrides: &[],
         };
         let def = DEF;
         assert_eq!(def.entry_point("a").map(|e| e.workgroup_size), Some([TILE, TILE, 1]));

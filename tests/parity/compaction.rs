@@ -140,3 +140,28 @@ fn parity_compaction_cap_1500_is_exercised_and_seeds_differ() {
     let span = ymax - ymin;
     assert!(a[0].y <= ymin + span / 10 && a[a.len() - 1].y >= ymax - span / 10, "subsample not spread over the rows");
 }
+
+/// The lists are the same whatever run of pixels each invocation reads
+/// (`GpuContext::with_compaction_run`): the runs a CPU adapter and a GPU
+/// get (32 and 8), one pixel, and a run that does not divide the rows.
+#[test]
+fn parity_compaction_every_run_length() {
+    let Some((ctx, _g)) = common::gpu("parity_compaction_every_run_length") else { return };
+    assert!(ctx.with_compaction_run(0).is_err() && ctx.with_compaction_run(33).is_err());
+    for run in [1, 5, 8, 32] {
+        let run_ctx = ctx.with_compaction_run(run).unwrap();
+        assert_eq!(run_ctx.compaction_run(), run);
+        for &(w, h) in common::PARITY_SIZES {
+            let inp = inputs(w, h);
+            for (wname, window) in windows(w, h) {
+                for cap in [None, Some(1500), Some(1)] {
+                    let p = CompactionParams { window, threshold: MAGNITUDE_THRESHOLD, cap, seed: 7 };
+                    let cpu = compaction::compaction(&inp.magnitude, &inp.theta, &inp.magnitude, &p).unwrap();
+                    let gpu =
+                        compaction::compaction_gpu(&run_ctx, &inp.magnitude, &inp.theta, &inp.magnitude, &p).unwrap();
+                    assert_lists_equal(&format!("compaction/run{run}/{w}x{h}/{wname}/cap{cap:?}"), &cpu, &gpu);
+                }
+            }
+        }
+    }
+}

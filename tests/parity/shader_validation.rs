@@ -57,6 +57,11 @@ fn declaration_problems(def: &ShaderDef) -> Vec<String> {
     };
     let file = def.path();
     let mut problems = Vec::new();
+    for name in def.overrides {
+        if !module.overrides.iter().any(|(_, o)| o.name.as_deref() == Some(*name)) {
+            problems.push(format!("{file}: override `{name}` is declared but not in the shader"));
+        }
+    }
     for ep in &module.entry_points {
         if def.entry_point(&ep.name).is_none() {
             problems.push(format!("{file}: entry point `{}` is in the shader but not declared", ep.name));
@@ -119,7 +124,8 @@ fn every_shader_validates_with_naga() {
     let mut failures: Vec<String> = SHADERS.iter().filter_map(|d| validate(d).err()).collect();
     // Each include also stands alone as a module of its own.
     for include in &includes {
-        let alone = ShaderDef { name: include.name, source: include.source, includes: &[], entry_points: &[] };
+        let alone =
+            ShaderDef { name: include.name, source: include.source, includes: &[], entry_points: &[], overrides: &[] };
         failures.extend(validate(&alone).err());
     }
     assert!(failures.is_empty(), "shader validation failed:\n{}", failures.join("\n"));
@@ -193,6 +199,11 @@ fn a_wrong_declaration_is_caught() {
     );
     let problems = declaration_problems(&ShaderDef { entry_points: &[], ..sobel });
     assert_eq!(problems, ["shaders/sobel.wgsl: entry point `sobel` is in the shader but not declared"]);
+
+    // An overridable constant the shader does not have.
+    let problems = declaration_problems(&ShaderDef { overrides: &["COMPACTION_RUN"], ..sobel });
+    assert_eq!(problems, ["shaders/sobel.wgsl: override `COMPACTION_RUN` is declared but not in the shader"]);
+    assert!(declaration_problems(&pipetrack::early::compaction::SHADER).is_empty());
 }
 
 #[test]
@@ -202,6 +213,7 @@ fn validator_reports_file_and_line_of_a_broken_shader() {
         source: "@compute @workgroup_size(1)\nfn main() {\n  let x: f32 = 1u;\n}\n",
         includes: &[],
         entry_points: &[],
+        overrides: &[],
     };
     let err = validate(&broken).expect_err("a u32 is not an f32");
     assert!(err.starts_with("shaders/broken.wgsl:3: "), "{err}");
@@ -213,12 +225,18 @@ fn validator_reports_file_and_line_of_a_broken_shader() {
 fn validator_reports_file_and_line_inside_an_include() {
     const BROKEN: Include = Include { name: "broken_include", source: "// one\n// two\nconst Z: f32 = 1u;\n" };
     let source = "// the file\n@compute @workgroup_size(1)\nfn main() {\n  let a = fast_atan(Z);\n}\n";
-    let def = ShaderDef { name: "file", source, includes: &[angle::INCLUDE, BROKEN], entry_points: &[] };
+    let def =
+        ShaderDef { name: "file", source, includes: &[angle::INCLUDE, BROKEN], entry_points: &[], overrides: &[] };
     let err = validate(&def).expect_err("a u32 is not an f32");
     assert!(err.starts_with("shaders/broken_include.wgsl:3: "), "{err}");
 
-    let def =
-        ShaderDef { name: "file", source: "const Y: i32 = 1.5;\n", includes: &[angle::INCLUDE], entry_points: &[] };
+    let def = ShaderDef {
+        name: "file",
+        source: "const Y: i32 = 1.5;\n",
+        includes: &[angle::INCLUDE],
+        entry_points: &[],
+        overrides: &[],
+    };
     let err = validate(&def).expect_err("1.5 is not an i32");
     assert!(err.starts_with("shaders/file.wgsl:1: "), "{err}");
 }
