@@ -47,9 +47,18 @@ fn request(layer: usize, step: usize) -> FrameRequest {
     r
 }
 
+/// With the device's compaction run and with the other one (8 on a CPU
+/// adapter, 32 on a GPU), so both shader variants are checked here.
 #[test]
 fn stacked_sequences_equal_the_cpu_per_sequence() {
     let Some((ctx, _g)) = common::gpu("stacked_sequences_equal_the_cpu_per_sequence") else { return };
+    let other = ctx.with_compaction_run(if ctx.compaction_run() == 8 { 32 } else { 8 }).unwrap();
+    for ctx in [ctx.clone(), other] {
+        stacked_sequences_equal_the_cpu_on(&ctx);
+    }
+}
+
+fn stacked_sequences_equal_the_cpu_on(ctx: &pipetrack::GpuContext) {
     let scene = natural(SIZE.0 + 30, SIZE.1 + 9 * LAYERS, 5);
     // Edge lists smoothed on layer 0 only: requests that differ in a stage's
     // input do not stack, so every layer takes the raw frame's edges here.
