@@ -66,6 +66,23 @@ pub struct GpuContext {
     modules: Arc<Mutex<HashMap<&'static str, wgpu::ShaderModule>>>,
 }
 
+/// The first adapter of `backends` whose name contains `wanted` (ignoring
+/// case), as wgpu reads `WGPU_ADAPTER_NAME`; an error naming the adapters
+/// there are when none does.
+async fn adapter_named(instance: &wgpu::Instance, backends: wgpu::Backends, wanted: &str) -> Result<wgpu::Adapter> {
+    let adapters = instance.enumerate_adapters(backends).await;
+    let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+    let wanted_lower = wanted.to_lowercase();
+    match names.iter().position(|n| n.to_lowercase().contains(&wanted_lower)) {
+        Some(i) => Ok(adapters.into_iter().nth(i).expect("position within the list")),
+        None => Err(Error::Gpu(format!(
+            "WGPU_ADAPTER_NAME={wanted:?} names no adapter (there {}: {})",
+            if names.len() == 1 { "is" } else { "are" },
+            if names.is_empty() { "none".to_string() } else { names.join(", ") }
+        ))),
+    }
+}
+
 /// The compaction's run length for a device of type `device_type`: 32 on a
 /// CPU adapter (lavapipe: a long serial loop per invocation, few
 /// workgroups), 8 on a GPU (reads closer together, four times the
@@ -92,8 +109,8 @@ impl GpuContext {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         desc.backends = wgpu::Backends::VULKAN;
         let instance = wgpu::Instance::new(desc);
-        let adapter = match wgpu::util::initialize_adapter_from_env(&instance, None).await {
-            Ok(a) => a,
+        let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
+            Ok(wanted) => adapter_named(&instance, wgpu::Backends::VULKAN, &wanted).await?,
             Err(_) => {
                 instance
                     .request_adapter(&wgpu::RequestAdapterOptions {

@@ -54,11 +54,13 @@ fn remove_path(path: &Path) {
     }
 }
 
-/// A file written under `<path>.partial` and renamed to `path` by
-/// [`AtomicFile::finish`]. Dropped without `finish` (an error, a panic that
+/// A file written under `<path>.partial-<pid>` (the process's id, so two
+/// runs writing the same output do not write into one file) and renamed to
+/// `path` by [`AtomicFile::finish`]: of two such runs the one that finishes
+/// last wins, whole. Dropped without `finish` (an error, a panic that
 /// unwinds), it deletes the partial file, so a half-written output never
 /// sits under the final name. A process killed outright leaves at most a
-/// `.partial` file. Note that `std::process::exit` runs no destructors:
+/// partial file, removed by the next run that writes the same output. Note that `std::process::exit` runs no destructors:
 /// drop or finish the file before exiting.
 ///
 /// Writes are buffered. Meant for regular files (`--out FILE.jsonl`,
@@ -70,15 +72,22 @@ pub struct AtomicFile {
 }
 
 impl AtomicFile {
-    /// Create (or truncate, replacing a stale one) `<path>.partial` for
-    /// writing. A `path` that is an existing folder is an input error.
+    /// Create `<path>.partial-<pid>` for writing, first removing the
+    /// partial files of the same output left by processes that no longer
+    /// run. A `path` that is an existing folder is an input error.
     pub fn create(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
         if path.is_dir() {
             return Err(Error::input(&path, "is a folder: the output must be a file name"));
         }
         let mut name = path.file_name().ok_or_else(|| Error::input(&path, "not a file name"))?.to_os_string();
-        name.push(".partial");
+        name.push(".partial-");
+        let parent = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        remove_stale_partials(&parent, &name.to_string_lossy());
+        name.push(std::process::id().to_string());
         let partial = path.with_file_name(name);
         let mut list = unfinished();
         let file = File::create(&partial).map_err(|e| Error::input(&path, format!("cannot create: {e}")))?;
@@ -86,7 +95,7 @@ impl AtomicFile {
         Ok(Self { path, partial, writer: Some(BufWriter::new(file)) })
     }
 
-    /// Write `bytes` to `path` atomically (through `<path>.partial`).
+    /// Write `bytes` to `path` atomically (through `<path>.partial-<pid>`).
     pub fn write_all_to(path: impl AsRef<Path>, bytes: &[u8]) -> Result<()> {
         let mut f = Self::create(path)?;
         f.write_all(bytes).map_err(|e| Error::io(&f.partial, e))?;
@@ -163,7 +172,7 @@ impl Drop for AtomicFile {
 /// replaced, and is written in place. Writes are buffered; errors name the
 /// path.
 pub enum OutputFile {
-    /// Written under `<path>.partial`, renamed by [`OutputFile::finish`].
+    /// Written under `<path>.partial-<pid>`, renamed by [`OutputFile::finish`].
     Atomic(AtomicFile),
     /// A device or a pipe, written directly.
     InPlace {
@@ -267,7 +276,7 @@ impl StagedDir {
         };
         fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
         let prefix = format!(".{name}.partial-");
-        remove_stale_staging(&parent, &prefix);
+        remove_stale_partials(&parent, &prefix);
         let staging = parent.join(format!("{prefix}{}", std::process::id()));
         if staging.exists() {
             fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
@@ -309,10 +318,10 @@ impl Drop for StagedDir {
     }
 }
 
-/// Remove the folders in `parent` named `<prefix><pid>` whose process no
-/// longer runs. Whether a process runs is read from `/proc`; where there is
-/// no `/proc`, nothing is removed.
-fn remove_stale_staging(parent: &Path, prefix: &str) {
+/// Remove the files and folders in `parent` named `<prefix><pid>` whose
+/// process no longer runs. Whether a process runs is read from `/proc`;
+/// where there is no `/proc`, nothing is removed.
+fn remove_stale_partials(parent: &Path, prefix: &str) {
     let proc = Path::new("/proc");
     if !proc.join("self").exists() {
         return;
@@ -323,8 +332,8 @@ fn remove_stale_staging(parent: &Path, prefix: &str) {
         let Some(pid) = name.to_str().and_then(|n| n.strip_prefix(prefix)) else { continue };
         let alive =
             pid.parse::<u32>().map_or(true, |pid| pid == std::process::id() || proc.join(pid.to_string()).exists());
-        if !alive && entry.path().is_dir() {
-            let _ = fs::remove_dir_all(entry.path());
+        if !alive {
+            remove_path(&entry.path());
         }
     }
 }

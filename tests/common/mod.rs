@@ -229,6 +229,15 @@ pub fn pipetrack(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
 }
 
+/// The partial files of output `name` in `dir` (`<name>.partial-<pid>`,
+/// and the `<name>.partial` of older builds): what a finished or refused
+/// run must not leave.
+pub fn partials(dir: &Path, name: &str) -> Vec<PathBuf> {
+    let prefix = format!("{name}.partial");
+    let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
+    entries.flatten().filter(|e| e.file_name().to_string_lossy().starts_with(&prefix)).map(|e| e.path()).collect()
+}
+
 /// [`pipetrack`] run in the folder `dir` (for relative paths).
 pub fn pipetrack_in(dir: &Path, args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_pipetrack"))

@@ -77,7 +77,7 @@ fn complete_outputs_are_skipped_and_a_stopped_run_is_finished() {
     // What a run stopped part-way leaves: a missing output, a partial file,
     // and (from some other run) an output that does not match its sequence.
     std::fs::remove_file(out.join("s1.jsonl")).unwrap();
-    std::fs::write(out.join("s1.jsonl.partial"), "{\"frame\":0").unwrap();
+    std::fs::write(out.join("s1.jsonl.partial-4294967295"), "{\"frame\":0").unwrap();
     let s2 = std::fs::read_to_string(out.join("s2.jsonl")).unwrap();
     std::fs::write(out.join("s2.jsonl"), s2.lines().next().unwrap().to_string() + "\n").unwrap();
 
@@ -95,7 +95,8 @@ fn complete_outputs_are_skipped_and_a_stopped_run_is_finished() {
     for i in 0..4 {
         assert_eq!(line_count(&out.join(format!("s{i}.jsonl"))), 4 + i % 3);
     }
-    assert!(!out.join("s1.jsonl.partial").exists());
+    assert!(!out.join("s1.jsonl.partial-4294967295").exists(), "the killed run's partial file is removed");
+    assert!(crate::common::partials(&out, "s1.jsonl").is_empty());
     assert!(stdout.contains("| s0 | motion-edge | skipped |"), "{stdout}");
     assert!(stdout.contains("| s1 | motion-edge | tracked |"), "{stdout}");
 
@@ -130,7 +131,7 @@ fn a_bad_sequence_is_reported_and_the_others_finish() {
         let l = lines.iter().find(|l| l["name"] == name).unwrap();
         assert!(l["error"].as_str().unwrap().contains(needle), "{l}");
         assert!(!out.join(format!("{name}.jsonl")).exists(), "no output for {name}");
-        assert!(!out.join(format!("{name}.jsonl.partial")).exists(), "no partial output for {name}");
+        assert!(crate::common::partials(&out, &format!("{name}.jsonl")).is_empty(), "no partial output for {name}");
         // One line names the failure, its folder once.
         let dir = root.join(name).display().to_string();
         let said = |l: &&str| l.starts_with(&format!("pipetrack: {dir}")) && l.matches(&dir).count() == 1;

@@ -40,8 +40,7 @@ fn expect_bad_input(root: &Path, seq: &Path, needles: &[&str]) {
     }
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(!out_file.exists(), "no output file may be left");
-    let partial = root.join("out.jsonl.partial");
-    assert!(!partial.exists(), "no partial output may be left");
+    assert!(crate::common::partials(root, "out.jsonl").is_empty(), "no partial output may be left");
 }
 
 #[test]
@@ -487,7 +486,7 @@ fn out_over_an_input_file_or_a_folder_is_refused_before_tracking() {
     assert_eq!(out.status.code(), Some(2));
     assert_eq!(lines.len(), 1, "refused before tracking, so no summary line: {lines:?}");
     assert!(lines[0].contains("a-folder: is a folder"), "{}", lines[0]);
-    assert!(!root.join("a-folder.partial").exists());
+    assert!(crate::common::partials(&root, "a-folder").is_empty());
 
     let file = root.join("a-file");
     std::fs::write(&file, "x").unwrap();
@@ -601,7 +600,7 @@ fn sigint_during_track_leaves_no_partial_output() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("binary runs");
-    let partial = root.join("pred.jsonl.partial");
+    let partial = root.join(format!("pred.jsonl.partial-{}", child.id()));
     let staging = root.join(format!(".overlay.partial-{}", child.id()));
     let started = std::time::Instant::now();
     while !(partial.exists() && std::fs::read_dir(&staging).is_ok_and(|mut d| d.next().is_some())) {
@@ -993,7 +992,7 @@ fn roundtrip_out_and_score_plot_write_into_a_named_pipe() {
     let read = drained(reader, &root.join("agreement.read"));
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(is_fifo(&pipe), "--out replaced the named pipe with a file");
-    assert!(!root.join("agreement.jsonl.partial").exists());
+    assert!(crate::common::partials(&root, "agreement.jsonl").is_empty());
     let text = String::from_utf8(read).unwrap();
     assert_eq!(text.lines().count(), 6, "one line per frame through the pipe: {text}");
 
@@ -1082,4 +1081,64 @@ fn every_scene_takes_noise_up_to_64() {
     }
     let help = pipetrack(&["synth", "--help"]);
     assert!(String::from_utf8_lossy(&help.stdout).contains("Gaussian noise σ in grey levels, 0 to 64"));
+}
+
+/// `WGPU_ADAPTER_NAME` naming no adapter is the GPU's absence, said in one
+/// line with the adapters there are, and the run goes on on the CPU (wgpu's
+/// own reading of the variable panics instead).
+#[test]
+fn an_adapter_name_that_matches_nothing_falls_back_to_the_cpu() {
+    let root = scratch("adapter_name");
+    let seq = good_sequence(&root);
+    let pred = root.join("pred.jsonl");
+    let out = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .args(["track", seq.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "gpu"])
+        .args(["--out", pred.to_str().unwrap()])
+        .env("WGPU_ADAPTER_NAME", "no adapter is called this")
+        .output()
+        .expect("binary runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let notice: Vec<&str> = stderr.lines().filter(|l| l.contains("names no adapter")).collect();
+    assert_eq!(notice.len(), 1, "{stderr}");
+    assert!(notice[0].contains("\"no adapter is called this\"") && notice[0].contains("running the CPU backend"));
+    assert_eq!(std::fs::read_to_string(&pred).unwrap().lines().count(), 6);
+}
+
+/// Two runs writing the same `--out` at once each write their own partial
+/// file: the file is then the whole output of the run that finished last,
+/// never a mix of the two.
+#[test]
+fn two_runs_writing_one_output_leave_the_last_ones_whole() {
+    let root = scratch("same_out");
+    let long = root.join("long");
+    let out = pipetrack(&["synth", "pendulum", long.to_str().unwrap(), "--frames", "3000", "--seed", "2"]);
+    assert!(out.status.success(), "synth failed: {}", String::from_utf8_lossy(&out.stderr));
+    let short = good_sequence(&root);
+    let pred = root.join("pred.jsonl");
+    let first = Command::new(env!("CARGO_BIN_EXE_pipetrack"))
+        .args(["track", long.to_str().unwrap(), "--tracker", "motion-edge", "--backend", "cpu"])
+        .args(["--out", pred.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("binary runs");
+    let first_partial = root.join(format!("pred.jsonl.partial-{}", first.id()));
+    let started = std::time::Instant::now();
+    while !std::fs::metadata(&first_partial).is_ok_and(|m| m.len() > 0) {
+        assert!(started.elapsed().as_secs() < 120, "the first run never started writing");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let second = track_motion_edge_cpu(&short, &["--out", pred.to_str().unwrap()]);
+    assert!(second.status.success(), "{}", String::from_utf8_lossy(&second.stderr));
+    let first = first.wait_with_output().unwrap();
+    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    let text = std::fs::read_to_string(&pred).unwrap();
+    let frames: Vec<u64> = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["frame"].as_u64().unwrap())
+        .collect();
+    assert_eq!(frames, (0..3000).collect::<Vec<u64>>(), "the output is the last run's, whole");
+    assert!(crate::common::partials(&root, "pred.jsonl").is_empty());
 }
