@@ -9,13 +9,15 @@
 # Arguments after the script name go to `pipetrack batch` unchanged, e.g.
 # `sbatch examples/batch/slurm.sh --tracker motion-edge`.
 #
-# A task killed part-way (time limit, pre-emption) is simply run again: it
-# skips the sequences whose output is complete. Once every task has ended,
+# Each task adds its lines to OUT/summary.jsonl (under a lock, so tasks
+# that end together keep each other's lines). A task killed part-way (time
+# limit, pre-emption) is simply run again: it skips the sequences whose
+# output is complete. Or, once every task has ended,
 #
 #   pipetrack batch "$MANIFEST" --out "$OUT" [the same arguments, e.g. --tracker motion-edge]
 #
-# (no --shard) tracks whatever is still missing and writes the summary of the
-# whole manifest; as a follow-up job: `sbatch --dependency=afterany:<job id> ...`.
+# (no --shard) tracks whatever is still missing; as a follow-up job:
+# `sbatch --dependency=afterany:<job id> ...`.
 #
 #SBATCH --job-name=pipetrack-batch
 #SBATCH --array=0-3

@@ -39,9 +39,10 @@
 //! At the end of a run, `summary.jsonl` is rewritten atomically: the lines
 //! of this run's sequences replace any earlier lines of the same names, the
 //! other lines are kept, in manifest order; a re-run never duplicates a
-//! line. Shards writing into one folder each merge their own lines; running
-//! `batch` once more without `--shard` after all shards ended (every output
-//! complete, so nothing is tracked) rewrites the whole summary.
+//! line. The summary is read again for this, under an exclusive lock on
+//! `OUT/.summary.lock` held until it is rewritten, so shards that run at
+//! once into one folder each add their lines to what the others wrote:
+//! once every shard has ended, the summary has a line for every sequence.
 
 use std::collections::HashMap;
 use std::fs;
@@ -484,7 +485,7 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
         });
     }
     let lines: Vec<SummaryLine> = lines.into_iter().flatten().collect();
-    write_summary(&summary_path, &all, earlier, &lines)?;
+    write_summary(&summary_path, &all, &lines)?;
     let first_error = failures.into_iter().min_by_key(|(k, _)| *k).map(|(_, e)| e);
     Ok(BatchReport { lines, first_error })
 }
@@ -579,10 +580,24 @@ fn read_summary(path: &Path) -> Vec<SummaryLine> {
         .unwrap_or_default()
 }
 
-/// Merge `ours` into `earlier` (ours replace lines of the same name) and
-/// write the summary atomically, in the order of the manifest `all`, lines
-/// of names it does not list last.
-fn write_summary(path: &Path, all: &[ManifestEntry], earlier: Vec<SummaryLine>, ours: &[SummaryLine]) -> Result<()> {
+/// File locked while a run reads and rewrites the summary.
+const SUMMARY_LOCK_FILE: &str = ".summary.lock";
+
+/// Merge `ours` into the summary at `path` as it is now (ours replace lines
+/// of the same name) and write it atomically, in the order of the manifest
+/// `all`, lines of names it does not list last; all under an exclusive lock
+/// on [`SUMMARY_LOCK_FILE`] beside it, so that runs into the same folder
+/// (shards) do not drop each other's lines.
+fn write_summary(path: &Path, all: &[ManifestEntry], ours: &[SummaryLine]) -> Result<()> {
+    let lock_path = path.with_file_name(SUMMARY_LOCK_FILE);
+    let lock = fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .map_err(|e| Error::input(&lock_path, format!("cannot create: {e}")))?;
+    lock.lock().map_err(|e| Error::io(&lock_path, e))?;
+    let earlier = read_summary(path);
     let mut merged: Vec<SummaryLine> = earlier.into_iter().filter(|l| !ours.iter().any(|o| o.name == l.name)).collect();
     merged.extend(ours.iter().cloned());
     let position: HashMap<&str, usize> = all.iter().enumerate().map(|(i, e)| (e.name.as_str(), i)).collect();

@@ -255,9 +255,10 @@ fn example(name: &str) -> String {
     std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
-/// `examples/batch/slurm.sh` run as every task of its array would run it
-/// (one after another here): each task tracks its shard into the shared
-/// output folder, and together they track the whole manifest once.
+/// `examples/batch/slurm.sh` run as every task of its array would run it,
+/// all at once: each task tracks its shard into the shared output folder,
+/// together they track the whole manifest once, and the summary has every
+/// task's lines.
 #[test]
 fn slurm_example_splits_a_manifest_across_its_array() {
     let script = example("slurm.sh");
@@ -271,17 +272,24 @@ fn slurm_example_splits_a_manifest_across_its_array() {
     let path = format!("{}:{}", bin_dir.display(), std::env::var("PATH").unwrap_or_default());
     let script_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/batch/slurm.sh");
     let mut tracked = BTreeSet::new();
-    for task in 0..tasks {
-        let run = Command::new("bash")
-            .arg(&script_path)
-            .args(["--tracker", "motion-edge", "--backend", "cpu"])
-            .env("PATH", &path)
-            .env("SLURM_ARRAY_TASK_ID", task.to_string())
-            .env("SLURM_ARRAY_TASK_COUNT", tasks.to_string())
-            .env("MANIFEST", &manifest)
-            .env("OUT", &out)
-            .output()
-            .unwrap();
+    let runs: Vec<_> = (0..tasks)
+        .map(|task| {
+            Command::new("bash")
+                .arg(&script_path)
+                .args(["--tracker", "motion-edge", "--backend", "cpu"])
+                .env("PATH", &path)
+                .env("SLURM_ARRAY_TASK_ID", task.to_string())
+                .env("SLURM_ARRAY_TASK_COUNT", tasks.to_string())
+                .env("MANIFEST", &manifest)
+                .env("OUT", &out)
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for (task, child) in runs.into_iter().enumerate() {
+        let run = child.wait_with_output().unwrap();
         let (stdout, stderr) = text(&run);
         assert!(run.status.success(), "task {task}: {stderr}");
         let rows: Vec<&str> = stdout.lines().filter(|l| l.contains("| tracked |")).collect();
