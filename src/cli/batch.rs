@@ -454,10 +454,10 @@ pub fn run(manifest: &Path, opts: &BatchOptions) -> Result<BatchReport> {
             // read it after the record was made).
             let entry = &selected[job_entry[job]];
             let unchanged = |record: &&RunRecord| RunRecord::of(entry).as_ref() == Some(*record);
-            if let (true, Some(record)) = (written, job_record[job].as_ref().filter(unchanged)) {
-                if let Err(e) = record.write(&jobs[job].out_path) {
-                    bar.suspend(|| note(format_args!("pipetrack: {e}")));
-                }
+            if let (true, Some(record)) = (written, job_record[job].as_ref().filter(unchanged))
+                && let Err(e) = record.write(&jobs[job].out_path)
+            {
+                bar.suspend(|| note(format_args!("pipetrack: {e}")));
             }
             let done = sequences_done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             bar.set_message(format!("{done}/{} sequences", jobs.len()));

@@ -236,15 +236,16 @@ fn score_impl(
         if p.frame != t.frame {
             return Err(format!("frame {} where truth.jsonl has frame {}", p.frame, t.frame));
         }
-        if let Visibility::Vertices(seen) = &t.visible {
-            if !t.corners.is_empty() && seen.len() != t.corners.len() {
-                return Err(format!(
-                    "frame {}: truth.jsonl has {} visibility flags for {} corners",
-                    t.frame,
-                    seen.len(),
-                    t.corners.len()
-                ));
-            }
+        if let Visibility::Vertices(seen) = &t.visible
+            && !t.corners.is_empty()
+            && seen.len() != t.corners.len()
+        {
+            return Err(format!(
+                "frame {}: truth.jsonl has {} visibility flags for {} corners",
+                t.frame,
+                seen.len(),
+                t.corners.len()
+            ));
         }
         if p.status != Status::Tracking {
             continue;
@@ -264,15 +265,15 @@ fn score_impl(
                 t.corners.len()
             ));
         }
-        if let Some(params) = p.params.as_ref().filter(|p| !p.is_empty() && !t.params.is_empty()) {
-            if params.len() != t.params.len() {
-                return Err(format!(
-                    "frame {}: {} joint values (\"params\") but truth.jsonl has {}",
-                    p.frame,
-                    params.len(),
-                    t.params.len()
-                ));
-            }
+        if let Some(params) = p.params.as_ref().filter(|p| !p.is_empty() && !t.params.is_empty())
+            && params.len() != t.params.len()
+        {
+            return Err(format!(
+                "frame {}: {} joint values (\"params\") but truth.jsonl has {}",
+                p.frame,
+                params.len(),
+                t.params.len()
+            ));
         }
         if corner_sums.is_empty() {
             corner_sums = vec![(0.0, 0); t.corners.len()];

@@ -802,7 +802,7 @@ mod tests {
                     state ^= state << 13;
                     state ^= state >> 7;
                     state ^= state << 17;
-                    state % 2 == 0
+                    state.is_multiple_of(2)
                 })
                 .collect();
             let pooled = fit_line_across(&sums_of(&pts), dir).expect("fit");

@@ -61,7 +61,11 @@ pub(crate) fn read_text_at_most(path: &Path, max: u64) -> Result<String> {
 
 /// `bytes` as MiB when a whole number of them, else as bytes.
 fn byte_size(bytes: u64) -> String {
-    if bytes >= 1 << 20 && bytes % (1 << 20) == 0 { format!("{} MiB", bytes >> 20) } else { format!("{bytes} bytes") }
+    if bytes >= 1 << 20 && bytes.is_multiple_of(1 << 20) {
+        format!("{} MiB", bytes >> 20)
+    } else {
+        format!("{bytes} bytes")
+    }
 }
 
 /// A JSON Lines file of per-frame records (`truth.jsonl`, a tracker's

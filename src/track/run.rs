@@ -805,10 +805,10 @@ pub fn check_output(seq: &Sequence, opts: &TrackOptions, out_path: &Path) -> Res
     if frames.is_ok_and(|frames| parent.and_then(|p| std::fs::canonicalize(p).ok()) == Some(frames)) {
         return Err(Error::input(out_path, "lies in the sequence's frames folder: write the output elsewhere"));
     }
-    if let Some(config) = &opts.config {
-        if Sequence::same_file_among(out_path, std::slice::from_ref(config)).is_some() {
-            return Err(Error::input(out_path, "is the --config file: write the output elsewhere"));
-        }
+    if let Some(config) = &opts.config
+        && Sequence::same_file_among(out_path, std::slice::from_ref(config)).is_some()
+    {
+        return Err(Error::input(out_path, "is the --config file: write the output elsewhere"));
     }
     Ok(())
 }

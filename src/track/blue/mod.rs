@@ -1019,10 +1019,8 @@ impl BlueTracker {
             let cov = vec![var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2] * rho.powi(4)];
             (predicted, cov)
         };
-        if !tracked {
-            if let Some(reason) = self.unprojectable_vertex(&location) {
-                failure = Some(super::add_lost_reason(failure, format!("{reason}; reported at its last position")));
-            }
+        if !tracked && let Some(reason) = self.unprojectable_vertex(&location) {
+            failure = Some(super::add_lost_reason(failure, format!("{reason}; reported at its last position")));
         }
         let contour_support = support.map(|(on, _)| on);
         let corners = self.report_corners(&location);

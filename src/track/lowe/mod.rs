@@ -1815,10 +1815,11 @@ impl LoweTracker {
             return Tracked::Widened;
         }
         let verified_here = accepted.as_ref().is_some_and(Found::verified);
-        if !verified_here && self.lost_frames >= self.params.search_after {
-            if let Some(found) = self.search_image(&view, &mut diag) {
-                accepted = Some(found);
-            }
+        if !verified_here
+            && self.lost_frames >= self.params.search_after
+            && let Some(found) = self.search_image(&view, &mut diag)
+        {
+            accepted = Some(found);
         }
         let mut joints_jumped = Vec::new();
         if let Some(found) = accepted.take() {
