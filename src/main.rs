@@ -179,8 +179,8 @@ enum Command {
         /// A file listing `SEQ_DIR [TRACKER [CONFIG]]` per line (paths relative to the file's folder), or a
         /// folder of sequence folders.
         manifest: PathBuf,
-        /// Output folder: <name>.jsonl per sequence and summary.jsonl (with --list too: a folder manifest
-        /// leaves it out).
+        /// Output folder: <name>.jsonl per sequence and summary.jsonl. Needed with --list too: a folder
+        /// manifest does not list the output folder when it lies inside it.
         #[arg(long)]
         out: PathBuf,
         /// Tracker for sequences whose manifest line names none.

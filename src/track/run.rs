@@ -160,9 +160,11 @@ pub fn make_tracker(name: &str, seq: &Sequence, config: Option<&Path>) -> Result
             if seq.init.corners.is_empty() {
                 return Err(seq.init_error("motion-edge needs \"corners\" (the operator's points)"));
             }
-            check_simple_polygon(&seq.init.corners, &seq.model.edges).map_err(|msg| seq.init_error(msg))?;
+            // Where the corners are first: corners far outside the image
+            // (1e300) make every turn of the polygon look flat.
             let (w, h) = (seq.camera.width, seq.camera.height);
             check_polygon_in_image(&seq.init.corners, &seq.model.edges, w, h).map_err(|msg| seq.init_error(msg))?;
+            check_simple_polygon(&seq.init.corners, &seq.model.edges).map_err(|msg| seq.init_error(msg))?;
             let tracker = MotionEdgeTracker::new(seq.init.corners.clone(), seq.model.edges.clone(), params)
                 .map_err(|e| Error::input(seq.model_path(), e.message()))?;
             Ok(Box::new(tracker))

@@ -222,6 +222,17 @@ fn malformed_json() {
     expect_bad_input(&root, &seq, &["init.json"]);
 }
 
+/// Start corners far outside the image are said to be there, not taken for
+/// a polygon whose edges lie on one line (every turn looks flat at 1e300).
+#[test]
+fn start_corners_far_outside_the_image() {
+    let root = scratch("far_corners");
+    let seq = good_sequence(&root);
+    std::fs::write(seq.join("init.json"), r#"{"corners":[[1e300,1e300],[2e300,1e300],[2e300,2e300],[1e300,2e300]]}"#)
+        .unwrap();
+    expect_bad_input(&root, &seq, &["init.json", "image size outside"]);
+}
+
 #[test]
 fn nan_intrinsics() {
     let root = scratch("nan");
