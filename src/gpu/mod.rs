@@ -10,7 +10,7 @@ mod context;
 mod recorder;
 mod shader;
 
-pub use context::{GpuContext, required_features, required_limits};
+pub use context::{GpuContext, default_compaction_run, required_features, required_limits};
 pub use recorder::GpuImage;
 pub(crate) use recorder::{FrameArena, Recorder, run_once, workgroups_2d};
 pub use shader::{Binding, EntryPoint, Include, ShaderDef};
