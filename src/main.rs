@@ -551,7 +551,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Score { seq_dir, pred, false_tracking_px, plot, plot_size } => {
-            let seq = Sequence::open(&seq_dir, false)?;
+            if pred.as_os_str() == "-" {
+                let msg = "score reads the predictions from a file (`track --out FILE`), not from stdin";
+                return Err(pipetrack::Error::input(&pred, msg).into());
+            }
+            let seq = Sequence::open_for_scoring(&seq_dir)?;
             if let Some(png) = &plot {
                 let mut inputs = seq.input_files();
                 inputs.push(pred.clone());

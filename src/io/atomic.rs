@@ -353,14 +353,34 @@ mod tests {
         let path = temp_path("finish");
         let _ = fs::remove_file(&path);
         let mut f = AtomicFile::create(&path).unwrap();
-        assert_eq!(f.partial_path(), path.with_file_name("out.jsonl.partial"));
+        let partial = path.with_file_name(format!("out.jsonl.partial-{}", std::process::id()));
+        assert_eq!(f.partial_path(), partial);
         writeln!(f, "{{\"frame\":0}}").unwrap();
         f.flush().unwrap();
         assert!(!path.exists(), "nothing under the final name before finish");
-        assert!(path.with_file_name("out.jsonl.partial").exists());
+        assert!(partial.exists());
         f.finish().unwrap();
         assert_eq!(fs::read_to_string(&path).unwrap(), "{\"frame\":0}\n");
-        assert!(!path.with_file_name("out.jsonl.partial").exists());
+        assert!(!partial.exists());
+        fs::remove_dir_all(path.parent().unwrap()).unwrap();
+    }
+
+    /// A partial file of the same output left by a process that no longer
+    /// runs is removed when the output is created again; one of a process
+    /// that runs (pid 1) is another run's, and stays.
+    #[test]
+    fn stale_partial_files_of_dead_processes_are_removed() {
+        if !Path::new("/proc/self").exists() {
+            return;
+        }
+        let path = temp_path("stale");
+        let dead = path.with_file_name("out.jsonl.partial-4294967295");
+        let live = path.with_file_name("out.jsonl.partial-1");
+        fs::write(&dead, "{\"frame\":0").unwrap();
+        fs::write(&live, "{\"frame\":0").unwrap();
+        AtomicFile::write_all_to(&path, b"new\n").unwrap();
+        assert!(!dead.exists() && live.exists());
+        assert_eq!(fs::read_to_string(&path).unwrap(), "new\n");
         fs::remove_dir_all(path.parent().unwrap()).unwrap();
     }
 
@@ -372,7 +392,7 @@ mod tests {
             let mut f = AtomicFile::create(&path).unwrap();
             f.write_all(b"half of a new").unwrap();
         }
-        assert!(!path.with_file_name("out.jsonl.partial").exists());
+        assert!(!path.with_file_name(format!("out.jsonl.partial-{}", std::process::id())).exists());
         assert_eq!(fs::read_to_string(&path).unwrap(), "old complete output\n");
         AtomicFile::write_all_to(&path, b"new\n").unwrap();
         assert_eq!(fs::read_to_string(&path).unwrap(), "new\n");

@@ -71,12 +71,16 @@ enum FramesFrom {
     Stdin,
     /// Nowhere: the caller has its own.
     Caller,
+    /// `frames/` when there is one, counted; else none, their number unknown.
+    Counted,
 }
 
 #[derive(Clone, Debug)]
 enum FrameList {
     Files(Vec<PathBuf>),
     Stdin,
+    /// No frames here, and how many the sequence has is not known.
+    Uncounted,
 }
 
 impl Sequence {
@@ -97,6 +101,14 @@ impl Sequence {
     /// sequence has no frames ([`Sequence::frames`] yields none).
     pub fn open_without_frames(dir: &Path) -> Result<Self> {
         Self::read(dir, FramesFrom::Caller)
+    }
+
+    /// Read and validate the sequence folder `dir` as [`Sequence::open`]
+    /// does, for a program that reads no frames (`score`): `frames/` when
+    /// there is one, which then bounds the frames `truth.jsonl` may name;
+    /// without it the sequence has no frames and their number is not known.
+    pub fn open_for_scoring(dir: &Path) -> Result<Self> {
+        Self::read(dir, FramesFrom::Counted)
     }
 
     fn read(dir: &Path, frames_from: FramesFrom) -> Result<Self> {
@@ -121,7 +133,8 @@ impl Sequence {
         let frames = match frames_from {
             FramesFrom::Stdin => FrameList::Stdin,
             FramesFrom::Caller => FrameList::Files(Vec::new()),
-            FramesFrom::Folder => {
+            FramesFrom::Counted if !dir.join(FRAMES_DIR).exists() => FrameList::Uncounted,
+            FramesFrom::Folder | FramesFrom::Counted => {
                 let paths = list_frames(&dir.join(FRAMES_DIR))?;
                 check_frame_header(&paths[0], &camera, &camera_path)?;
                 FrameList::Files(paths)
@@ -213,16 +226,18 @@ impl Sequence {
         files
     }
 
-    /// The frame files in order, or `None` when frames come from stdin.
+    /// The frame files in order, or `None` when frames come from stdin (or,
+    /// opened for scoring, there are none and their number is not known).
     #[must_use]
     pub fn frame_paths(&self) -> Option<&[PathBuf]> {
         match &self.frames {
             FrameList::Files(paths) => Some(paths),
-            FrameList::Stdin => None,
+            FrameList::Stdin | FrameList::Uncounted => None,
         }
     }
 
-    /// Number of frames, when known (not for stdin).
+    /// Number of frames, when known (not for stdin, nor for a sequence
+    /// opened for scoring without `frames/`).
     #[must_use]
     pub fn frame_count(&self) -> Option<usize> {
         self.frame_paths().map(<[PathBuf]>::len)
@@ -242,6 +257,7 @@ impl Sequence {
         match &self.frames {
             FrameList::Files(paths) => FrameSource::files(paths.clone(), self.camera, camera_path),
             FrameList::Stdin => FrameSource::y4m(io::stdin(), Path::new(STDIN_NAME), self.camera, camera_path),
+            FrameList::Uncounted => FrameSource::files(Vec::new(), self.camera, camera_path),
         }
     }
 }

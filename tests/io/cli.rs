@@ -1153,3 +1153,28 @@ fn two_runs_writing_one_output_leave_the_last_ones_whole() {
     assert_eq!(frames, (0..3000).collect::<Vec<u64>>(), "the output is the last run's, whole");
     assert!(crate::common::partials(&root, "pred.jsonl").is_empty());
 }
+
+/// `score` reads no frames: a sequence folder without `frames/` scores the
+/// same (its truth then unbounded by a frame count), and `-` for the
+/// predictions is one line saying they come from a file.
+#[test]
+fn score_without_frames_and_not_from_stdin() {
+    let root = scratch("score_no_frames");
+    let seq = good_sequence(&root);
+    let pred = root.join("pred.jsonl");
+    let out = track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let with_frames = pipetrack(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]);
+    assert!(with_frames.status.success(), "{}", String::from_utf8_lossy(&with_frames.stderr));
+    std::fs::remove_dir_all(seq.join("frames")).unwrap();
+    let without = pipetrack(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]);
+    assert!(without.status.success(), "{}", String::from_utf8_lossy(&without.stderr));
+    assert_eq!(without.stdout, with_frames.stdout);
+    assert!(String::from_utf8_lossy(&without.stdout).contains("mean corner error"));
+
+    let stdin = pipetrack(&["score", seq.to_str().unwrap(), "-"]);
+    let stderr = String::from_utf8_lossy(&stdin.stderr);
+    assert_eq!(stdin.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.starts_with("pipetrack: -: ") && stderr.contains("not from stdin"), "{stderr}");
+}
