@@ -342,11 +342,11 @@ pub(crate) fn plain_type_names(message: &str) -> String {
     [
         ("expected f32", "expected a number"),
         ("expected f64", "expected a number"),
-        ("expected usize", "expected a whole number"),
-        ("expected u64", "expected a whole number"),
-        ("expected u32", "expected a whole number"),
-        ("expected u16", "expected a whole number"),
-        ("expected u8", "expected a whole number"),
+        ("expected usize", "expected a whole number from 0 to 18446744073709551615"),
+        ("expected u64", "expected a whole number from 0 to 18446744073709551615"),
+        ("expected u32", "expected a whole number from 0 to 4294967295"),
+        ("expected u16", "expected a whole number from 0 to 65535"),
+        ("expected u8", "expected a whole number from 0 to 255"),
         ("expected i64", "expected an integer"),
         ("expected i32", "expected an integer"),
     ]
@@ -516,9 +516,11 @@ mod tests {
             width: u32,
             fx: f64,
         }
-        for (text, expected) in
-            [(r#"{"width": "x", "fx": 1}"#, "a whole number"), (r#"{"width": 1, "fx": "y"}"#, "a number")]
-        {
+        for (text, expected) in [
+            (r#"{"width": "x", "fx": 1}"#, "a whole number from 0 to 4294967295"),
+            (r#"{"width": 1099511627776, "fx": 1}"#, "a whole number from 0 to 4294967295"),
+            (r#"{"width": 1, "fx": "y"}"#, "a number"),
+        ] {
             let e = serde_json::from_str::<Camera>(text).unwrap_err();
             let msg = describe_json_error(text, &e, None);
             assert!(msg.ends_with(&format!("expected {expected}")), "{msg}");
