@@ -596,7 +596,18 @@ fn write_summary(path: &Path, all: &[ManifestEntry], ours: &[SummaryLine]) -> Re
         .write(true)
         .open(&lock_path)
         .map_err(|e| Error::input(&lock_path, format!("cannot create: {e}")))?;
-    lock.lock().map_err(|e| Error::io(&lock_path, e))?;
+    match lock.lock() {
+        Ok(()) => {}
+        // A file system without locks (some parallel and FUSE ones): merged
+        // unlocked, as good as runs that do not end at the same moment.
+        Err(e) if e.kind() == std::io::ErrorKind::Unsupported => {
+            note(format_args!(
+                "pipetrack: {}: cannot lock ({e}); the summary is merged without it",
+                lock_path.display()
+            ));
+        }
+        Err(e) => return Err(Error::io(&lock_path, e)),
+    }
     let earlier = read_summary(path);
     let mut merged: Vec<SummaryLine> = earlier.into_iter().filter(|l| !ours.iter().any(|o| o.name == l.name)).collect();
     merged.extend(ours.iter().cloned());

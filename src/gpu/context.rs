@@ -109,9 +109,9 @@ impl GpuContext {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         desc.backends = wgpu::Backends::VULKAN;
         let instance = wgpu::Instance::new(desc);
-        let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
-            Ok(wanted) => adapter_named(&instance, wgpu::Backends::VULKAN, &wanted).await?,
-            Err(_) => {
+        let adapter = match std::env::var_os("WGPU_ADAPTER_NAME") {
+            Some(wanted) => adapter_named(&instance, wgpu::Backends::VULKAN, &wanted.to_string_lossy()).await?,
+            None => {
                 instance
                     .request_adapter(&wgpu::RequestAdapterOptions {
                         power_preference: wgpu::PowerPreference::from_env()

@@ -54,7 +54,7 @@ fn remove_path(path: &Path) {
     }
 }
 
-/// A file written under `<path>.partial-<pid>` (the process's id, so two
+/// A file written under `<path>.partial-<pid>-<n>` (one per writer, so two
 /// runs writing the same output do not write into one file) and renamed to
 /// `path` by [`AtomicFile::finish`]: of two such runs the one that finishes
 /// last wins, whole. Dropped without `finish` (an error, a panic that
@@ -72,9 +72,12 @@ pub struct AtomicFile {
 }
 
 impl AtomicFile {
-    /// Create `<path>.partial-<pid>` for writing, first removing the
-    /// partial files of the same output left by processes that no longer
-    /// run. A `path` that is an existing folder is an input error.
+    /// Create `<path>.partial-<pid>-<n>` for writing (`n` unique to this
+    /// file, so runs whose process ids are the same, in containers, do not
+    /// share it), locked while it is written; first remove the partial
+    /// files of the same output that no run writes any more
+    /// ([`remove_stale_partial_files`]). A `path` that is an existing folder
+    /// is an input error.
     pub fn create(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
         if path.is_dir() {
@@ -86,16 +89,23 @@ impl AtomicFile {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        remove_stale_partials(&parent, &name.to_string_lossy());
-        name.push(std::process::id().to_string());
+        remove_stale_partial_files(&parent, &name);
+        name.push(format!("{}-{}", std::process::id(), unique_number()));
         let partial = path.with_file_name(name);
         let mut list = unfinished();
-        let file = File::create(&partial).map_err(|e| Error::input(&path, format!("cannot create: {e}")))?;
+        let file = fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&partial)
+            .map_err(|e| Error::input(&path, format!("cannot create: {e}")))?;
+        // Where the file system has no locks, a stale partial file is left
+        // for the user to remove instead.
+        let _ = file.try_lock();
         list.push(partial.clone());
         Ok(Self { path, partial, writer: Some(BufWriter::new(file)) })
     }
 
-    /// Write `bytes` to `path` atomically (through `<path>.partial-<pid>`).
+    /// Write `bytes` to `path` atomically (through `<path>.partial-<pid>-<n>`).
     pub fn write_all_to(path: impl AsRef<Path>, bytes: &[u8]) -> Result<()> {
         let mut f = Self::create(path)?;
         f.write_all(bytes).map_err(|e| Error::io(&f.partial, e))?;
@@ -131,12 +141,13 @@ impl AtomicFile {
         };
         let file = writer.into_inner().map_err(|e| Error::io(&self.path, e.into_error()))?;
         file.sync_all().map_err(|e| Error::io(&self.path, e))?;
-        drop(file);
         // Under the registry's lock: a signal handler either removes the
-        // partial file before this or finds it finished.
+        // partial file before this or finds it finished. Renamed while still
+        // open and locked, so no other run takes it for a stale one.
         let mut list = unfinished();
         fs::rename(&self.partial, &self.path).map_err(|e| Error::io(&self.path, e))?;
         unregister(&mut list, &self.partial);
+        drop(file);
         Ok(())
     }
 
@@ -172,7 +183,7 @@ impl Drop for AtomicFile {
 /// replaced, and is written in place. Writes are buffered; errors name the
 /// path.
 pub enum OutputFile {
-    /// Written under `<path>.partial-<pid>`, renamed by [`OutputFile::finish`].
+    /// Written under `<path>.partial-<pid>-<n>`, renamed by [`OutputFile::finish`].
     Atomic(AtomicFile),
     /// A device or a pipe, written directly.
     InPlace {
@@ -276,7 +287,7 @@ impl StagedDir {
         };
         fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
         let prefix = format!(".{name}.partial-");
-        remove_stale_partials(&parent, &prefix);
+        remove_stale_staging(&parent, &prefix);
         let staging = parent.join(format!("{prefix}{}", std::process::id()));
         if staging.exists() {
             fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
@@ -318,10 +329,44 @@ impl Drop for StagedDir {
     }
 }
 
-/// Remove the files and folders in `parent` named `<prefix><pid>` whose
-/// process no longer runs. Whether a process runs is read from `/proc`;
-/// where there is no `/proc`, nothing is removed.
-fn remove_stale_partials(parent: &Path, prefix: &str) {
+/// A number no other [`AtomicFile`] of this process has, and unlikely in
+/// another process of the same id (the clock's nanoseconds mixed in).
+fn unique_number() -> u64 {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let count = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos());
+    (u64::from(nanos) << 20) ^ count
+}
+
+/// How old a partial file must be, unlocked, to be taken for stale: a new
+/// one is created a moment before it is locked.
+const STALE_AFTER: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// Remove the files in `parent` whose names start with `prefix` (an
+/// output's `<name>.partial-`) that no run writes any more: not locked by
+/// their writer (which holds the lock until the file is renamed) and not
+/// modified for [`STALE_AFTER`]. Where the file system has no locks,
+/// nothing is removed.
+fn remove_stale_partial_files(parent: &Path, prefix: &std::ffi::OsStr) {
+    let Ok(entries) = fs::read_dir(parent) else { return };
+    for entry in entries.flatten() {
+        if !entry.file_name().as_encoded_bytes().starts_with(prefix.as_encoded_bytes()) {
+            continue;
+        }
+        let path = entry.path();
+        let old =
+            entry.metadata().and_then(|m| m.modified()).is_ok_and(|t| t.elapsed().is_ok_and(|a| a >= STALE_AFTER));
+        let Ok(file) = fs::OpenOptions::new().write(true).open(&path) else { continue };
+        if old && path.is_file() && file.try_lock().is_ok() {
+            let _ = fs::remove_file(&path);
+        }
+    }
+}
+
+/// Remove the folders in `parent` named `<prefix><pid>` whose process no
+/// longer runs. Whether a process runs is read from `/proc`; where there is
+/// no `/proc`, nothing is removed.
+fn remove_stale_staging(parent: &Path, prefix: &str) {
     let proc = Path::new("/proc");
     if !proc.join("self").exists() {
         return;
@@ -332,8 +377,8 @@ fn remove_stale_partials(parent: &Path, prefix: &str) {
         let Some(pid) = name.to_str().and_then(|n| n.strip_prefix(prefix)) else { continue };
         let alive =
             pid.parse::<u32>().map_or(true, |pid| pid == std::process::id() || proc.join(pid.to_string()).exists());
-        if !alive {
-            remove_path(&entry.path());
+        if !alive && entry.path().is_dir() {
+            let _ = fs::remove_dir_all(entry.path());
         }
     }
 }
@@ -353,8 +398,10 @@ mod tests {
         let path = temp_path("finish");
         let _ = fs::remove_file(&path);
         let mut f = AtomicFile::create(&path).unwrap();
-        let partial = path.with_file_name(format!("out.jsonl.partial-{}", std::process::id()));
-        assert_eq!(f.partial_path(), partial);
+        let partial = f.partial_path().to_path_buf();
+        let name = partial.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(name.starts_with(&format!("out.jsonl.partial-{}-", std::process::id())), "{name}");
+        assert_eq!(partial.parent(), path.parent());
         writeln!(f, "{{\"frame\":0}}").unwrap();
         f.flush().unwrap();
         assert!(!path.exists(), "nothing under the final name before finish");
@@ -365,22 +412,31 @@ mod tests {
         fs::remove_dir_all(path.parent().unwrap()).unwrap();
     }
 
-    /// A partial file of the same output left by a process that no longer
-    /// runs is removed when the output is created again; one of a process
-    /// that runs (pid 1) is another run's, and stays.
+    /// A partial file of the same output that no run writes (unlocked, not
+    /// modified for a while) is removed when the output is created again;
+    /// one locked by its writer, or just made, is another run's and stays.
     #[test]
-    fn stale_partial_files_of_dead_processes_are_removed() {
-        if !Path::new("/proc/self").exists() {
-            return;
-        }
+    fn stale_partial_files_are_removed_and_live_ones_kept() {
         let path = temp_path("stale");
-        let dead = path.with_file_name("out.jsonl.partial-4294967295");
-        let live = path.with_file_name("out.jsonl.partial-1");
-        fs::write(&dead, "{\"frame\":0").unwrap();
-        fs::write(&live, "{\"frame\":0").unwrap();
+        let partial = |n: &str| path.with_file_name(format!("out.jsonl.partial-{n}"));
+        let (stale, locked, new) = (partial("7-1"), partial("7-2"), partial("7-3"));
+        let long_ago = std::time::SystemTime::now() - 2 * STALE_AFTER;
+        for p in [&stale, &locked, &new] {
+            fs::write(p, "{\"frame\":0").unwrap();
+        }
+        for p in [&stale, &locked] {
+            File::options().write(true).open(p).unwrap().set_modified(long_ago).unwrap();
+        }
+        let writer = File::options().write(true).open(&locked).unwrap();
+        if writer.try_lock().is_err() {
+            fs::remove_dir_all(path.parent().unwrap()).unwrap();
+            return; // no file locks here: nothing is removed (documented)
+        }
         AtomicFile::write_all_to(&path, b"new\n").unwrap();
-        assert!(!dead.exists() && live.exists());
+        assert!(!stale.exists(), "the stale partial file is removed");
+        assert!(locked.exists() && new.exists(), "a locked or new partial file stays");
         assert_eq!(fs::read_to_string(&path).unwrap(), "new\n");
+        drop(writer);
         fs::remove_dir_all(path.parent().unwrap()).unwrap();
     }
 
@@ -392,7 +448,8 @@ mod tests {
             let mut f = AtomicFile::create(&path).unwrap();
             f.write_all(b"half of a new").unwrap();
         }
-        assert!(!path.with_file_name(format!("out.jsonl.partial-{}", std::process::id())).exists());
+        let left = fs::read_dir(path.parent().unwrap()).unwrap().flatten().filter(|e| e.file_name() != "out.jsonl");
+        assert_eq!(left.count(), 0, "no partial file left");
         assert_eq!(fs::read_to_string(&path).unwrap(), "old complete output\n");
         AtomicFile::write_all_to(&path, b"new\n").unwrap();
         assert_eq!(fs::read_to_string(&path).unwrap(), "new\n");

@@ -229,9 +229,8 @@ pub fn pipetrack(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_pipetrack")).args(args).output().expect("binary runs")
 }
 
-/// The partial files of output `name` in `dir` (`<name>.partial-<pid>`,
-/// and the `<name>.partial` of older builds): what a finished or refused
-/// run must not leave.
+/// The partial files of output `name` in `dir` (every name that starts
+/// with `<name>.partial`): what a finished or refused run must not leave.
 pub fn partials(dir: &Path, name: &str) -> Vec<PathBuf> {
     let prefix = format!("{name}.partial");
     let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };

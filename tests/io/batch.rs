@@ -77,7 +77,10 @@ fn complete_outputs_are_skipped_and_a_stopped_run_is_finished() {
     // What a run stopped part-way leaves: a missing output, a partial file,
     // and (from some other run) an output that does not match its sequence.
     std::fs::remove_file(out.join("s1.jsonl")).unwrap();
-    std::fs::write(out.join("s1.jsonl.partial-4294967295"), "{\"frame\":0").unwrap();
+    let stale = out.join("s1.jsonl.partial-4294967295-0");
+    std::fs::write(&stale, "{\"frame\":0").unwrap();
+    let long_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(60);
+    std::fs::File::options().write(true).open(&stale).unwrap().set_modified(long_ago).unwrap();
     let s2 = std::fs::read_to_string(out.join("s2.jsonl")).unwrap();
     std::fs::write(out.join("s2.jsonl"), s2.lines().next().unwrap().to_string() + "\n").unwrap();
 
@@ -95,7 +98,7 @@ fn complete_outputs_are_skipped_and_a_stopped_run_is_finished() {
     for i in 0..4 {
         assert_eq!(line_count(&out.join(format!("s{i}.jsonl"))), 4 + i % 3);
     }
-    assert!(!out.join("s1.jsonl.partial-4294967295").exists(), "the killed run's partial file is removed");
+    assert!(!stale.exists(), "the killed run's partial file is removed");
     assert!(crate::common::partials(&out, "s1.jsonl").is_empty());
     assert!(stdout.contains("| s0 | motion-edge | skipped |"), "{stdout}");
     assert!(stdout.contains("| s1 | motion-edge | tracked |"), "{stdout}");

@@ -611,10 +611,10 @@ fn sigint_during_track_leaves_no_partial_output() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("binary runs");
-    let partial = root.join(format!("pred.jsonl.partial-{}", child.id()));
     let staging = root.join(format!(".overlay.partial-{}", child.id()));
     let started = std::time::Instant::now();
-    while !(partial.exists() && std::fs::read_dir(&staging).is_ok_and(|mut d| d.next().is_some())) {
+    let writing = || !crate::common::partials(&root, "pred.jsonl").is_empty();
+    while !(writing() && std::fs::read_dir(&staging).is_ok_and(|mut d| d.next().is_some())) {
         assert!(started.elapsed().as_secs() < 120, "the run never started writing");
         assert!(child.try_wait().unwrap().is_none(), "the run ended before the signal");
         std::thread::sleep(std::time::Duration::from_millis(20));
@@ -1135,14 +1135,19 @@ fn two_runs_writing_one_output_leave_the_last_ones_whole() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("binary runs");
-    let first_partial = root.join(format!("pred.jsonl.partial-{}", first.id()));
+    let first_prefix = format!("pred.jsonl.partial-{}-", first.id());
     let started = std::time::Instant::now();
-    while !std::fs::metadata(&first_partial).is_ok_and(|m| m.len() > 0) {
+    while !crate::common::partials(&root, "pred.jsonl").iter().any(|p| {
+        p.file_name().unwrap().to_string_lossy().starts_with(&first_prefix)
+            && std::fs::metadata(p).is_ok_and(|m| m.len() > 0)
+    }) {
         assert!(started.elapsed().as_secs() < 120, "the first run never started writing");
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
     let second = track_motion_edge_cpu(&short, &["--out", pred.to_str().unwrap()]);
     assert!(second.status.success(), "{}", String::from_utf8_lossy(&second.stderr));
+    let mut first = first;
+    assert!(first.try_wait().unwrap().is_none(), "the first run ended before the second: no overlap to test");
     let first = first.wait_with_output().unwrap();
     assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
     let text = std::fs::read_to_string(&pred).unwrap();
