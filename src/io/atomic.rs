@@ -75,9 +75,9 @@ impl AtomicFile {
     /// Create `<path>.partial-<pid>-<n>` for writing (`n` unique to this
     /// file, so runs whose process ids are the same, in containers, do not
     /// share it), locked while it is written; first remove the partial
-    /// files of the same output that no run writes any more
-    /// ([`remove_stale_partial_files`]). A `path` that is an existing folder
-    /// is an input error.
+    /// files of the same output that no run writes any more (unlocked and
+    /// not modified for 5 s). A `path` that is an existing folder is an
+    /// input error.
     pub fn create(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
         if path.is_dir() {
