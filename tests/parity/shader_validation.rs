@@ -62,6 +62,12 @@ fn declaration_problems(def: &ShaderDef) -> Vec<String> {
             problems.push(format!("{file}: override `{name}` is declared but not in the shader"));
         }
     }
+    for (_, o) in module.overrides.iter() {
+        let name = o.name.as_deref().unwrap_or("?");
+        if o.init.is_none() && !def.overrides.contains(&name) {
+            problems.push(format!("{file}: override `{name}` has no default and is not declared"));
+        }
+    }
     for ep in &module.entry_points {
         if def.entry_point(&ep.name).is_none() {
             problems.push(format!("{file}: entry point `{}` is in the shader but not declared", ep.name));
@@ -200,10 +206,20 @@ fn a_wrong_declaration_is_caught() {
     let problems = declaration_problems(&ShaderDef { entry_points: &[], ..sobel });
     assert_eq!(problems, ["shaders/sobel.wgsl: entry point `sobel` is in the shader but not declared"]);
 
-    // An overridable constant the shader does not have.
+    // An overridable constant the shader does not have, and one it has
+    // without a default that the host would not set.
     let problems = declaration_problems(&ShaderDef { overrides: &["COMPACTION_RUN"], ..sobel });
     assert_eq!(problems, ["shaders/sobel.wgsl: override `COMPACTION_RUN` is declared but not in the shader"]);
     assert!(declaration_problems(&pipetrack::early::compaction::SHADER).is_empty());
+    const UNSET_ENTRY: &[EntryPoint] = &[EntryPoint::linear("main", 1, &[])];
+    let unset = ShaderDef {
+        name: "unset",
+        source: "override N: u32;\n@compute @workgroup_size(1)\nfn main() {\n  let x = N;\n}\n",
+        includes: &[],
+        entry_points: UNSET_ENTRY,
+        overrides: &[],
+    };
+    assert_eq!(declaration_problems(&unset), ["shaders/unset.wgsl: override `N` has no default and is not declared"]);
 }
 
 #[test]
