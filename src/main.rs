@@ -300,7 +300,7 @@ const EXIT_BAD_INPUT: u8 = 2;
 
 fn main() -> ExitCode {
     quiet_headless_vulkan();
-    let cli = match Cli::try_parse() {
+    let cli = match parse_command_line() {
         Ok(cli) => cli,
         Err(e) => return usage_error(&e),
     };
@@ -328,6 +328,14 @@ fn main() -> ExitCode {
 
 /// Help and version on stdout as clap prints them; a mistake on the command
 /// line as one line on stderr, as every other bad input, with exit status 2.
+/// The command line, a negative number given to an option read as its value
+/// (so `--seed -1` is refused for its value, not taken for an unknown flag).
+fn parse_command_line() -> Result<Cli, clap::Error> {
+    use clap::{CommandFactory, FromArgMatches};
+    let command = Cli::command().allow_negative_numbers(true).mut_subcommands(|s| s.allow_negative_numbers(true));
+    Cli::from_arg_matches(&command.try_get_matches()?)
+}
+
 fn usage_error(e: &clap::Error) -> ExitCode {
     use clap::error::ErrorKind;
     if matches!(

@@ -1183,3 +1183,22 @@ fn score_without_frames_and_not_from_stdin() {
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.starts_with("pipetrack: -: ") && stderr.contains("not from stdin"), "{stderr}");
 }
+
+/// A negative number given to an option is refused for its value, in one
+/// line naming the option, not taken for an unknown flag.
+#[test]
+fn a_negative_number_is_refused_as_the_options_value() {
+    let root = scratch("negative");
+    let seq = root.join("seq");
+    for (args, option) in [
+        (vec!["synth", "box", seq.to_str().unwrap(), "--seed", "-1"], "'-1' for '--seed"),
+        (vec!["synth", "box", seq.to_str().unwrap(), "--frames", "-5"], "'-5' for '--frames"),
+    ] {
+        let out = pipetrack(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(option) && !stderr.contains("'-- "), "{stderr}");
+        assert!(!seq.exists(), "nothing written for {args:?}");
+    }
+}
