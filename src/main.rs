@@ -5,7 +5,7 @@
 //! naming it); 1 for anything else. A reader that closes our standard output
 //! early (`pipetrack score ... | head -1`) ends the command quietly with
 //! status 0, as it means the reader has had enough. SIGINT and SIGTERM remove
-//! every unfinished output (`FILE.partial-PID`, overlay staging folders) and exit
+//! every unfinished output (`FILE.partial-PID-N`, overlay staging folders) and exit
 //! with 128 + the signal's number (130, 143).
 
 use std::io::Write;

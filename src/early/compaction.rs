@@ -320,11 +320,8 @@ pub struct CompactionGpu {
     max_pixels: usize,
     max_cap: Option<u32>,
     layers: usize,
-    /// Window pixels per workgroup of the count and scatter passes (the
-    /// shader's `BLOCK`: `GROUP` invocations of the context's
-    /// [`GpuContext::compaction_run`] pixels each).
-    block: u32,
-    /// The run length the scratch was sized for.
+    /// The run length the scratch was sized for (its context's
+    /// [`GpuContext::compaction_run`]).
     run: u32,
     /// Whether the last [`encode`] gathered into `capped_list`.
     last_capped: AtomicBool,
@@ -367,8 +364,7 @@ impl CompactionGpu {
         let n = layers as u64;
         let list_bytes = max_pixels.max(1) as u64 * FEATURE_BYTES * n;
         let run = ctx.compaction_run();
-        let block = GROUP * run;
-        let max_blocks = max_pixels.div_ceil(block as usize).max(1) as u64;
+        let max_blocks = blocks(max_pixels, run).max(1) as u64;
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
         let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -398,7 +394,6 @@ impl CompactionGpu {
             max_pixels,
             max_cap,
             layers,
-            block,
             run,
             last_capped: AtomicBool::new(false),
             prefetched: Mutex::new(vec![0; layers]),
@@ -547,6 +542,13 @@ impl CompactionGpu {
     }
 }
 
+/// The blocks covering `pixels` window pixels with runs of `run` pixels: a
+/// block (the shader's `BLOCK`) is the `GROUP` runs of one workgroup of the
+/// count and scatter passes.
+fn blocks(pixels: usize, run: u32) -> usize {
+    pixels.div_ceil((GROUP * run) as usize)
+}
+
 /// Workgroups covering `blocks` blocks, wrapping onto a second dimension past
 /// the per-dimension limit; `[0, 1, 1]` (skipped) when there are none.
 fn block_grid(blocks: u32) -> [u32; 3] {
@@ -630,7 +632,7 @@ pub(crate) fn encode_layers(
             y0: win.y0,
             win_width: win.width(),
             area,
-            num_blocks: area.div_ceil(scratch.block),
+            num_blocks: blocks(area as usize, scratch.run) as u32,
             cap: p.cap.unwrap_or(u32::MAX),
             seed: p.seed,
             threshold: p.threshold,
@@ -645,7 +647,7 @@ pub(crate) fn encode_layers(
         image_width: size.0 as u32,
         image_height: size.1 as u32,
         grid_x: gx,
-        max_blocks: s.max_pixels.div_ceil(s.block as usize).max(1) as u32,
+        max_blocks: blocks(s.max_pixels, s.run).max(1) as u32,
         list_stride: s.max_pixels.max(1) as u32,
         capped_stride: s.capped_capacity().max(1) as u32,
         _pad0: 0,

@@ -93,8 +93,8 @@ pub const MAX_START_CORNER_OFFSET: f64 = 1.0;
 /// `width`×`height` image: every corner within [`MAX_START_CORNER_OFFSET`]
 /// image sizes of it, and the polygon the model's `edges` trace over the
 /// corners overlapping it (an edge on or across it, clipped by
-/// [`clip_segment`], or the image inside the polygon). The image spans −½ to W − ½ and −½ to
-/// H − ½, the pixels' extent. `Err` is the message, to be blamed on the
+/// [`clip_segment`], or the image inside the polygon). The image spans −½
+/// to W − ½ and −½ to H − ½, the pixels' extent. `Err` is the message, to be blamed on the
 /// file the corners came from. Edges whose indices are out of range are
 /// left out (the model is to blame for them).
 pub fn check_polygon_in_image(

@@ -66,21 +66,27 @@ pub struct GpuContext {
     modules: Arc<Mutex<HashMap<&'static str, wgpu::ShaderModule>>>,
 }
 
-/// The first adapter of `backends` whose name contains `wanted` (ignoring
-/// case), as wgpu reads `WGPU_ADAPTER_NAME`; an error naming the adapters
-/// there are when none does.
-async fn adapter_named(instance: &wgpu::Instance, backends: wgpu::Backends, wanted: &str) -> Result<wgpu::Adapter> {
-    let adapters = instance.enumerate_adapters(backends).await;
-    let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+/// The backends pipetrack asks wgpu for.
+const BACKENDS: wgpu::Backends = wgpu::Backends::VULKAN;
+
+/// The first adapter whose name contains `wanted` (ignoring case), as wgpu
+/// reads `WGPU_ADAPTER_NAME`; an error naming the adapters there are when
+/// none does.
+async fn adapter_named(instance: &wgpu::Instance, wanted: &str) -> Result<wgpu::Adapter> {
     let wanted_lower = wanted.to_lowercase();
-    match names.iter().position(|n| n.to_lowercase().contains(&wanted_lower)) {
-        Some(i) => Ok(adapters.into_iter().nth(i).expect("position within the list")),
-        None => Err(Error::Gpu(format!(
-            "WGPU_ADAPTER_NAME={wanted:?} names no adapter (there {}: {})",
-            if names.len() == 1 { "is" } else { "are" },
-            if names.is_empty() { "none".to_string() } else { names.join(", ") }
-        ))),
+    let mut names = Vec::new();
+    for adapter in instance.enumerate_adapters(BACKENDS).await {
+        let name = adapter.get_info().name;
+        if name.to_lowercase().contains(&wanted_lower) {
+            return Ok(adapter);
+        }
+        names.push(name);
     }
+    Err(Error::Gpu(format!(
+        "WGPU_ADAPTER_NAME={wanted:?} names no adapter (there {}: {})",
+        if names.len() == 1 { "is" } else { "are" },
+        if names.is_empty() { "none".to_string() } else { names.join(", ") }
+    )))
 }
 
 /// The compaction's run length for a device of type `device_type`: 32 on a
@@ -107,10 +113,10 @@ impl GpuContext {
 
     async fn new_async() -> Result<Self> {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-        desc.backends = wgpu::Backends::VULKAN;
+        desc.backends = BACKENDS;
         let instance = wgpu::Instance::new(desc);
         let adapter = match std::env::var_os("WGPU_ADAPTER_NAME") {
-            Some(wanted) => adapter_named(&instance, wgpu::Backends::VULKAN, &wanted.to_string_lossy()).await?,
+            Some(wanted) => adapter_named(&instance, &wanted.to_string_lossy()).await?,
             None => {
                 instance
                     .request_adapter(&wgpu::RequestAdapterOptions {

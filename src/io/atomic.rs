@@ -60,8 +60,9 @@ fn remove_path(path: &Path) {
 /// last wins, whole. Dropped without `finish` (an error, a panic that
 /// unwinds), it deletes the partial file, so a half-written output never
 /// sits under the final name. A process killed outright leaves at most a
-/// partial file, removed by the next run that writes the same output. Note that `std::process::exit` runs no destructors:
-/// drop or finish the file before exiting.
+/// partial file, removed by the next run that writes the same output. Note
+/// that `std::process::exit` runs no destructors: drop or finish the file
+/// before exiting.
 ///
 /// Writes are buffered. Meant for regular files (`--out FILE.jsonl`,
 /// overlay PNGs), not for devices or pipes.
@@ -85,11 +86,7 @@ impl AtomicFile {
         }
         let mut name = path.file_name().ok_or_else(|| Error::input(&path, "not a file name"))?.to_os_string();
         name.push(".partial-");
-        let parent = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        remove_stale_partial_files(&parent, &name);
+        remove_stale_partial_files(&parent_folder(&path), &name);
         name.push(format!("{}-{}", std::process::id(), unique_number()));
         let partial = path.with_file_name(name);
         let mut list = unfinished();
@@ -281,10 +278,7 @@ impl StagedDir {
             }
         }
         let name = dir.file_name().ok_or_else(|| Error::input(dir, "output folder has no name"))?.to_string_lossy();
-        let parent = match dir.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
+        let parent = parent_folder(dir);
         fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
         let prefix = format!(".{name}.partial-");
         remove_stale_staging(&parent, &prefix);
@@ -329,6 +323,14 @@ impl Drop for StagedDir {
     }
 }
 
+/// The folder holding `path` (`.` for a bare name).
+fn parent_folder(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
 /// A number no other [`AtomicFile`] of this process has, and unlikely in
 /// another process of the same id (the clock's nanoseconds mixed in).
 fn unique_number() -> u64 {
@@ -353,11 +355,14 @@ fn remove_stale_partial_files(parent: &Path, prefix: &std::ffi::OsStr) {
         if !entry.file_name().as_encoded_bytes().starts_with(prefix.as_encoded_bytes()) {
             continue;
         }
+        let old = entry
+            .metadata()
+            .is_ok_and(|m| m.is_file() && m.modified().is_ok_and(|t| t.elapsed().is_ok_and(|age| age >= STALE_AFTER)));
+        if !old {
+            continue;
+        }
         let path = entry.path();
-        let old =
-            entry.metadata().and_then(|m| m.modified()).is_ok_and(|t| t.elapsed().is_ok_and(|a| a >= STALE_AFTER));
-        let Ok(file) = fs::OpenOptions::new().write(true).open(&path) else { continue };
-        if old && path.is_file() && file.try_lock().is_ok() {
+        if fs::OpenOptions::new().write(true).open(&path).is_ok_and(|file| file.try_lock().is_ok()) {
             let _ = fs::remove_file(&path);
         }
     }

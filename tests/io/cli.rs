@@ -26,6 +26,16 @@ fn good_sequence(root: &Path) -> PathBuf {
     seq
 }
 
+/// [`good_sequence`] tracked by motion-edge on the CPU into `root/pred.jsonl`
+/// (the run must succeed): the sequence folder and the output.
+fn tracked_good_sequence(root: &Path) -> (PathBuf, PathBuf) {
+    let seq = good_sequence(root);
+    let pred = root.join("pred.jsonl");
+    let out = track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    (seq, pred)
+}
+
 /// Run `track` on `seq` with `--out`, expect exit 2, a one-line message
 /// containing every `needles`, and no output file left.
 fn expect_bad_input(root: &Path, seq: &Path, needles: &[&str]) {
@@ -46,10 +56,7 @@ fn expect_bad_input(root: &Path, seq: &Path, needles: &[&str]) {
 #[test]
 fn synth_track_score_round_trip() {
     let root = scratch("ok");
-    let seq = good_sequence(&root);
-    let pred = root.join("pred.jsonl");
-    let out = track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (seq, pred) = tracked_good_sequence(&root);
     let text = std::fs::read_to_string(&pred).unwrap();
     assert_eq!(text.lines().count(), 6);
     for (i, line) in text.lines().enumerate() {
@@ -1165,10 +1172,7 @@ fn two_runs_writing_one_output_leave_the_last_ones_whole() {
 #[test]
 fn score_without_frames_and_not_from_stdin() {
     let root = scratch("score_no_frames");
-    let seq = good_sequence(&root);
-    let pred = root.join("pred.jsonl");
-    let out = track_motion_edge_cpu(&seq, &["--out", pred.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (seq, pred) = tracked_good_sequence(&root);
     let with_frames = pipetrack(&["score", seq.to_str().unwrap(), pred.to_str().unwrap()]);
     assert!(with_frames.status.success(), "{}", String::from_utf8_lossy(&with_frames.stderr));
     std::fs::remove_dir_all(seq.join("frames")).unwrap();
